@@ -1,0 +1,40 @@
+# One-command set-up: `make test` and `make demo` build everything they need.
+# The virtual environment is made once and reused; it is rebuilt when
+# requirements.txt or a package's setup.py changes.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+PACKAGES := ft_core ft_msgs_py ft_controller ft_monitor ft_sim
+SETUPS := $(foreach p,$(PACKAGES),ros_ws/src/$(p)/setup.py ros_ws/src/$(p)/setup.cfg)
+STAMP := $(VENV)/.installed
+
+.PHONY: all venv build lint test demo clean
+
+all: test
+
+$(STAMP): requirements.txt $(SETUPS)
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet -r requirements.txt
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation \
+		$(foreach p,$(PACKAGES),-e ros_ws/src/$(p))
+	touch $@
+
+venv: $(STAMP)
+
+# colcon install space with the layout `ros2 run` uses (ros_ws/install).
+build: $(STAMP)
+	cd ros_ws && ../$(BIN)/colcon --log-base log build --base-paths src \
+		--build-base build --install-base install --event-handlers console_cohesion- summary+
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+test: build lint
+	$(BIN)/python -m pytest
+
+demo: $(STAMP)
+	$(BIN)/ft-demo
+
+clean:
+	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log

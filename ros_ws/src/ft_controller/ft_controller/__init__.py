@@ -1,0 +1,1 @@
+"""Fault-tolerant redundancy-resolution controller node (filled by the controller issue)."""

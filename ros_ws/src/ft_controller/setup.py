@@ -1,0 +1,19 @@
+from setuptools import find_packages, setup
+
+package_name = "ft_controller"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="ft-arms maintainers",
+    maintainer_email="maintainers@ft-arms.org",
+    description="Fault-tolerant redundancy-resolution controller node for redundant arms.",
+    license="Apache-2.0",
+)

@@ -1,0 +1,177 @@
+"""Local fault-tolerance measures of a Jacobian for locked-joint failures.
+
+Every function takes a plain m x n matrix J (no robot needed) and the indices of
+joints already locked (`locked`). Locking joint i removes column i of J; here it
+is zeroed, which leaves the nonzero singular values unchanged (seed 002, eq 5).
+All post-failure Jacobians are decomposed in one batched SVD.
+
+For a pose task, pass `Robot.scale_task(J)` so that angular rows are in m/s.
+
+Reading taken where the papers are silent: when a further failure would leave
+fewer healthy joints than task coordinates (n - |locked| - 1 < m), the reduced
+Jacobian cannot span the task and its m-th singular value is 0, so the
+post-failure singular value of that joint is reported as 0 (no tolerance), not
+as undefined. Entries for joints that are already locked are nan.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+
+def as_matrix(J: np.ndarray) -> np.ndarray:
+    """Return J as a finite 2-D float array, or raise ValueError saying what is wrong."""
+    J = np.asarray(J, dtype=float)
+    if J.ndim != 2 or J.shape[0] == 0 or J.shape[1] == 0:
+        raise ValueError(f"J must be a non-empty 2-D matrix, got shape {J.shape}")
+    if not np.all(np.isfinite(J)):
+        raise ValueError("J has non-finite entries")
+    return J
+
+
+def locked_mask(n: int, locked: Iterable[int] = ()) -> np.ndarray:
+    """Boolean mask (n,) of locked joints; raise ValueError for an index outside 0..n-1."""
+    mask = np.zeros(n, dtype=bool)
+    for index in locked:
+        if isinstance(index, bool) or int(index) != index or not 0 <= index < n:
+            raise ValueError(f"locked joint index {index!r} is not in 0..{n - 1}")
+        mask[int(index)] = True
+    return mask
+
+
+def post_failure_jacobians(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
+    """Stack (n, m, n): entry i is J with the columns of `locked` and of joint i zeroed."""
+    J = as_matrix(J)
+    n = J.shape[1]
+    keep = ~locked_mask(n, locked)
+    batch = np.repeat((J * keep)[None], n, axis=0)
+    batch[np.arange(n), :, np.arange(n)] = 0.0
+    return batch
+
+
+def post_failure_singular_values(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
+    """Singular values of every post-failure Jacobian, shape (n, m), descending.
+
+    Row i belongs to a failure of joint i; rows of locked joints are nan. When the
+    matrix has fewer columns than rows the missing values are 0.
+    """
+    J = as_matrix(J)
+    m, n = J.shape
+    mask = locked_mask(n, locked)
+    values = np.linalg.svd(post_failure_jacobians(J, np.flatnonzero(mask)), compute_uv=False)
+    if values.shape[1] < m:
+        values = np.pad(values, ((0, 0), (0, m - values.shape[1])))
+    values[mask] = np.nan
+    return values
+
+
+def post_failure_sigmas(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
+    """s_i = sigma_m(J without columns locked + {i}) for every joint i (seed 002 eq 6).
+
+    Returns an (n,) array; nan for joints in `locked`.
+    """
+    return post_failure_singular_values(J, locked)[:, -1]
+
+
+def kfm(J: np.ndarray, locked: Iterable[int] = ()) -> float:
+    """Worst-case fault tolerance K = min_i s_i over healthy joints (seed 000 eq 5, 002 eq 6).
+
+    0 when no healthy joint is left.
+    """
+    sigmas = post_failure_sigmas(J, locked)
+    healthy = sigmas[~np.isnan(sigmas)]
+    return float(healthy.min()) if healthy.size else 0.0
+
+
+def failure_weights(probabilities: Iterable[float] | None, n: int,
+                    locked: Iterable[int] = ()) -> np.ndarray:
+    """Weights w_i = p_i / sum(p) over healthy joints (seed 001 eq 3.4); 0 for locked joints.
+
+    `probabilities=None` (or empty) means equally likely failures. Raises ValueError
+    for a wrong length, negative or non-finite entries, or no positive weight left.
+    """
+    mask = locked_mask(n, locked)
+    p = np.ones(n) if probabilities is None else np.asarray(list(probabilities), dtype=float)
+    if p.size == 0:
+        p = np.ones(n)
+    if p.shape != (n,):
+        raise ValueError(f"need {n} failure probabilities, got {p.size}")
+    if not np.all(np.isfinite(p)) or np.any(p < 0):
+        raise ValueError(f"failure probabilities must be finite and >= 0, got {p}")
+    p = np.where(mask, 0.0, p)
+    if p.sum() <= 0:
+        raise ValueError("failure probabilities of the healthy joints are all zero")
+    return p / p.sum()
+
+
+def weighted_fault_tolerance(J: np.ndarray, probabilities: Iterable[float] | None,
+                             locked: Iterable[int] = ()) -> float:
+    """F_w = sum_i w_i s_i with w from the failure probabilities (seed 001 eqs 3.3-3.4)."""
+    J = as_matrix(J)
+    w = failure_weights(probabilities, J.shape[1], locked)
+    sigmas = np.nan_to_num(post_failure_sigmas(J, locked))
+    return float(w @ sigmas)
+
+
+def manipulability(A: np.ndarray) -> float:
+    """Manipulability w(A) = max(sqrt(det(A A^T)), sqrt(det(A^T A))).
+
+    The product of the min(rows, cols) singular values (seed 003, after eq 8;
+    seed 001 eq 2.10).
+    """
+    return float(np.prod(np.linalg.svd(as_matrix(A), compute_uv=False)))
+
+
+def null_space_basis(A: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (k, k - m) of the null space of a full-row-rank m x k matrix A.
+
+    The last k - m right singular vectors; continuous in A wherever A has full row
+    rank. Empty (k, 0) when k <= m.
+    """
+    m, k = A.shape
+    if k <= m:
+        return np.zeros((k, 0))
+    return np.linalg.svd(A)[2][m:].T
+
+
+def relative_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
+    """rho_i = w(iJ) / w(J) with w(A) = sqrt(det(A A^T)) (seed 003 eqs 8-10, T = I).
+
+    Computed as the norm of row i of an orthonormal null-space basis of the healthy
+    columns (seed 003 eq 10; seed 001 eq 3.26), which equals the ratio wherever J
+    has full row rank and is its continuous extension elsewhere. nan for locked joints.
+    """
+    J = as_matrix(J)
+    mask = locked_mask(J.shape[1], locked)
+    rho = np.full(J.shape[1], np.nan)
+    rho[~mask] = np.linalg.norm(null_space_basis(J[:, ~mask]), axis=1)
+    return rho
+
+
+def reduced_condition_numbers(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
+    """k_i = sigma_1(iJ) / sigma_m(iJ) for every joint (seed 004 eq 15); inf when singular."""
+    values = post_failure_singular_values(J, locked)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = values[:, 0] / values[:, -1]
+    ratio[(values[:, -1] == 0) & ~np.isnan(values[:, 0])] = np.inf
+    return ratio
+
+
+def worst_case_inverse_condition(J: np.ndarray, locked: Iterable[int] = ()) -> float:
+    """min_f sigma_m(fJ) / sigma_1(fJ): reciprocal of kappa* of seed 001 eq 2.11 (0 to 1)."""
+    values = post_failure_singular_values(J, locked)
+    healthy = values[~np.isnan(values[:, 0])]
+    if not healthy.size:
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inverse = np.where(healthy[:, 0] > 0, healthy[:, -1] / healthy[:, 0], 0.0)
+    return float(inverse.min())
+
+
+def worst_case_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> float:
+    """w* = min_f w(fJ), the product of the m post-failure singular values (seed 001 eq 2.12)."""
+    values = post_failure_singular_values(J, locked)
+    healthy = values[~np.isnan(values[:, 0])]
+    return float(np.prod(healthy, axis=1).min()) if healthy.size else 0.0

@@ -1,0 +1,362 @@
+"""Robot models: a serial chain of a URDF, its forward kinematics and task Jacobians.
+
+`load` accepts a built-in name, a URDF file path or URDF XML and returns a
+`Robot` for the chain from `base_link` to `tip_link`. All kinematics goes through
+Pinocchio; the rest of the URDF (gripper fingers, other branches, joints above
+`base_link`) is locked at its neutral value with `pinocchio.buildReducedModel`.
+
+Conventions (see shared/MATH.md, Notation):
+
+- Joint vectors are in chain order, base to tip. Revolute joints in rad,
+  prismatic in m.
+- Task coordinates are expressed in the `base_link` frame at the tool point
+  (the origin of `tip_link`): `pose` rows are linear velocity (m/s) then angular
+  velocity (rad/s); `position` keeps the three linear rows; `planar` keeps x and y.
+- `jacobian_derivatives(q)[k]` is dJ/dq_k (same rows and columns as `jacobian`).
+- Before singular values of a pose Jacobian are compared, its angular rows are
+  multiplied by a characteristic length L (m): `Robot.scale_task` is the one
+  place that does it (seed 000 eq 5 remark; seed 001 normalises by the reach).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from importlib import resources
+from itertools import pairwise
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+#: Task-space name -> number of task coordinates m.
+TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
+
+#: Built-in models: URDF resource in ft_core/urdf and the default task space.
+BUILTINS = {
+    "planar3r": ("planar3r.urdf", "planar"),
+    "puma560": ("puma560.urdf", "position"),
+    "panda": ("panda.urdf", "pose"),
+    "iiwa14": ("iiwa14.urdf", "pose"),
+}
+
+_MOVABLE = {"revolute", "continuous", "prismatic"}
+_SUPPORTED = _MOVABLE | {"fixed"}
+
+
+class RobotModelError(ValueError):
+    """A robot model could not be built; the message names the problem."""
+
+
+@dataclass(frozen=True)
+class _UrdfJoint:
+    name: str
+    kind: str
+    parent: str
+    child: str
+
+
+def builtin_urdf(name: str) -> str:
+    """Return the URDF XML of a built-in model (`BUILTINS`)."""
+    return resources.files("ft_core").joinpath("urdf").joinpath(BUILTINS[name][0]).read_text()
+
+
+def _resolve(spec: str) -> tuple[str, str | None]:
+    """Turn a model spec into (URDF XML, default task space of a built-in or None)."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise RobotModelError("robot model spec is empty: give a built-in name, a URDF path or XML")
+    if spec in BUILTINS:
+        return builtin_urdf(spec), BUILTINS[spec][1]
+    if spec.lstrip().startswith("<"):
+        return spec, None
+    path = Path(spec).expanduser()
+    if path.is_file():
+        return path.read_text(), None
+    raise RobotModelError(
+        f"unknown robot model {spec!r}: not a built-in ({', '.join(sorted(BUILTINS))}), "
+        "not an existing file and not URDF XML"
+    )
+
+
+def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
+    """Parse URDF XML into (root element, joints by child link, link names)."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError as exc:
+        raise RobotModelError(f"URDF does not parse: {exc}") from exc
+    if root.tag != "robot":
+        raise RobotModelError(f"URDF root element is <{root.tag}>, expected <robot>")
+    links = {link.get("name") for link in root.findall("link")}
+    by_child: dict[str, _UrdfJoint] = {}
+    for element in root.findall("joint"):
+        parent, child = element.find("parent"), element.find("child")
+        if parent is None or child is None:
+            raise RobotModelError(f"URDF joint {element.get('name')!r} lacks <parent> or <child>")
+        joint = _UrdfJoint(element.get("name"), element.get("type"), parent.get("link"),
+                           child.get("link"))
+        if joint.child in by_child:
+            raise RobotModelError(f"URDF link {joint.child!r} has two parent joints")
+        by_child[joint.child] = joint
+    if not links:
+        raise RobotModelError("URDF has no links")
+    return root, by_child, links
+
+
+def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
+    """Walk down from `base` while the chain does not branch; return the last link.
+
+    A gripper makes the tree branch at the hand, so the default tip of a Panda with
+    fingers is `panda_hand`, the link that carries them.
+    """
+    children: dict[str, list[str]] = {}
+    for joint in by_child.values():
+        children.setdefault(joint.parent, []).append(joint.child)
+    tip = base
+    while len(children.get(tip, [])) == 1:
+        tip = children[tip][0]
+    return tip
+
+
+def _chain(base: str, tip: str, by_child: dict[str, _UrdfJoint]) -> list[_UrdfJoint]:
+    """Joints on the path from `base` down to `tip`, base first (fixed ones included)."""
+    path, link = [], tip
+    while link != base:
+        if link not in by_child:
+            raise RobotModelError(f"tip_link {tip!r} is not below base_link {base!r} in the URDF")
+        joint = by_child[link]
+        path.append(joint)
+        link = joint.parent
+    return path[::-1]
+
+
+def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position (lower, upper) and velocity limits of the named joints, from <limit>.
+
+    Continuous joints have infinite position limits; a missing velocity limit is
+    infinite (no limit).
+    """
+    elements = {j.get("name"): j for j in root.findall("joint")}
+    lower, upper, velocity = [], [], []
+    for name in names:
+        joint = elements[name]
+        limit = joint.find("limit")
+        if joint.get("type") == "continuous":
+            lo, hi = -math.inf, math.inf
+        elif limit is None or limit.get("lower") is None or limit.get("upper") is None:
+            raise RobotModelError(f"URDF joint {name!r} has no position <limit>")
+        else:
+            lo, hi = float(limit.get("lower")), float(limit.get("upper"))
+        vel = float(limit.get("velocity")) if limit is not None and limit.get("velocity") else 0.0
+        if not lo <= hi:
+            raise RobotModelError(f"URDF joint {name!r} has lower limit {lo} above upper {hi}")
+        lower.append(lo)
+        upper.append(hi)
+        velocity.append(vel if vel > 0 else math.inf)
+    return np.array(lower), np.array(upper), np.array(velocity)
+
+
+def _as_revolute(root: ET.Element, names: list[str]) -> str:
+    """Rewrite the named continuous joints as revolute ones, so that q has one entry each.
+
+    Pinocchio models a continuous joint by (cos, sin); the suite works with angles.
+    The wide placeholder limits written here are never used: `_limits` reports them
+    as infinite.
+    """
+    for joint in root.findall("joint"):
+        if joint.get("name") in names and joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
+            limit.set("lower", "-1e9")
+            limit.set("upper", "1e9")
+    return ET.tostring(root, encoding="unicode")
+
+
+class Robot:
+    """Kinematics of one serial chain for one task space.
+
+    Attributes:
+        name: the URDF robot name.
+        joint_names: movable joints from base to tip (the order of every joint vector).
+        lower, upper: position limits (rad or m; +-inf for continuous joints).
+        velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
+        base_link, tip_link: the chain's end links; task coordinates are in base_link.
+        task_space: "pose", "position" or "planar"; m is the task dimension, n the joint count.
+        characteristic_length: L (m) scaling angular rows in `scale_task`.
+        reach: sum of the distances between successive joint origins and the tool
+            point (m), an upper bound of the distance from joint 1 to the tool.
+    """
+
+    def __init__(self, xml: str, base_link: str | None = None, tip_link: str | None = None,
+                 task_space: str = "pose", characteristic_length: float | None = None):
+        if task_space not in TASK_DIMENSIONS:
+            raise RobotModelError(
+                f"task_space {task_space!r} is not one of {', '.join(TASK_DIMENSIONS)}"
+            )
+        root, by_child, links = _parse_tree(xml)
+        roots = sorted(links - set(by_child))
+        if len(roots) != 1:
+            raise RobotModelError(f"URDF must have exactly one root link, found {roots}")
+        base = base_link or roots[0]
+        for role, link in (("base_link", base), ("tip_link", tip_link)):
+            if link is not None and link not in links:
+                raise RobotModelError(f"{role} {link!r} is not a link of the URDF")
+        tip = tip_link or _default_tip(base, by_child)
+        chain = _chain(base, tip, by_child)
+        for joint in chain:
+            if joint.kind not in _SUPPORTED:
+                raise RobotModelError(
+                    f"joint {joint.name!r} of type {joint.kind!r} on the chain is not supported"
+                )
+        names = [j.name for j in chain if j.kind in _MOVABLE]
+        if not names:
+            raise RobotModelError(f"the chain from {base!r} to {tip!r} has no movable joint")
+
+        self.name = root.get("name", "robot")
+        self.joint_names = tuple(names)
+        self.lower, self.upper, self.velocity_limits = _limits(root, names)
+        self.base_link, self.tip_link, self.task_space = base, tip, task_space
+        self.n, self.m = len(names), TASK_DIMENSIONS[task_space]
+        self._build_model(_as_revolute(root, names))
+        self.reach = self._reach()
+        length = self.reach if characteristic_length is None else float(characteristic_length)
+        if not (math.isfinite(length) and length > 0):
+            raise RobotModelError(f"characteristic_length must be positive, got {length}")
+        self.characteristic_length = length
+        scale = np.ones(6)
+        scale[3:] = length
+        self.task_scale = scale[self._rows]
+
+    def _build_model(self, xml: str) -> None:
+        try:
+            full = pin.buildModelFromXML(xml)
+        except (RuntimeError, ValueError) as exc:
+            raise RobotModelError(f"Pinocchio cannot build the URDF: {exc}") from exc
+        keep = set(self.joint_names)
+        locked = [full.getJointId(name) for name in full.names[1:] if name not in keep]
+        model = pin.buildReducedModel(full, locked, pin.neutral(full))
+        if tuple(model.names[1:]) != self.joint_names or model.nq != self.n or model.nv != self.n:
+            raise RobotModelError(
+                f"chain joints {self.joint_names} do not form a serial chain in the model"
+            )
+        self._model, self._data = model, model.createData()
+        self._tip = model.getFrameId(self.tip_link)
+        self._last_joint = model.frames[self._tip].parentJoint
+        pin.framesForwardKinematics(model, self._data, pin.neutral(model))
+        base_pose = self._data.oMf[model.getFrameId(self.base_link)]
+        # The base is above every chain joint, so its placement is constant.
+        self._base_inverse = base_pose.inverse()
+        rotation = base_pose.rotation.T
+        self._rotate = np.zeros((6, 6))
+        self._rotate[:3, :3] = self._rotate[3:, 3:] = rotation
+        self._rows = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[
+            self.task_space
+        ]
+
+    def _reach(self) -> float:
+        data = self._data
+        pin.framesForwardKinematics(self._model, data, pin.neutral(self._model))
+        points = [data.oMi[j].translation for j in range(1, self._model.njoints)]
+        points.append(data.oMf[self._tip].translation)
+        return float(sum(np.linalg.norm(b - a) for a, b in pairwise(points)))
+
+    def _check(self, q: np.ndarray) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.n,):
+            raise ValueError(f"q must have shape ({self.n},), got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError(f"q has non-finite entries: {q}")
+        return q
+
+    def transform(self, q: np.ndarray) -> np.ndarray:
+        """Homogeneous transform (4x4) of `tip_link` in `base_link` at q."""
+        pin.framesForwardKinematics(self._model, self._data, self._check(q))
+        return (self._base_inverse * self._data.oMf[self._tip]).homogeneous
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Task coordinates at q: (2,) x-y for planar, (3,) position (m), pose a 4x4 transform."""
+        pose = self.transform(q)
+        if self.task_space == "pose":
+            return pose
+        return pose[self._rows, 3].copy()
+
+    def _joint_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """6 x n Jacobian of the last chain joint's frame, world-aligned, at its origin."""
+        pin.computeJointJacobians(self._model, self._data, q)
+        pin.updateFramePlacements(self._model, self._data)
+        return pin.getJointJacobian(self._model, self._data, self._last_joint,
+                                    pin.LOCAL_WORLD_ALIGNED)
+
+    def _tool_offset(self) -> np.ndarray:
+        """Vector r (m, world axes) from the last joint's origin to the tool point."""
+        data = self._data
+        return data.oMf[self._tip].translation - data.oMi[self._last_joint].translation
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Task Jacobian (m x n) at the tool point, axes of `base_link`."""
+        q = self._check(q)
+        J = pin.computeFrameJacobian(self._model, self._data, q, self._tip,
+                                     pin.LOCAL_WORLD_ALIGNED)
+        return (self._rotate @ J)[self._rows]
+
+    def jacobian_derivatives(self, q: np.ndarray) -> np.ndarray:
+        """dJ/dq_k for every joint k, shape (n, m, n), from Pinocchio's kinematic Hessian.
+
+        Pinocchio gives the Hessian of the last joint's world-aligned Jacobian
+        (v, w). The tool point sits at r from that joint's origin, rigidly attached
+        to the last link, so the tool's linear column is v + w x r and
+        d(v + w x r)/dq_k = dv/dq_k + dw/dq_k x r + w x dr/dq_k, dr/dq_k = w_k x r.
+        """
+        q = self._check(q)
+        Jj = self._joint_jacobian(q).copy()
+        pin.computeJointKinematicHessians(self._model, self._data, q)
+        H = pin.getJointKinematicHessian(self._model, self._data, self._last_joint,
+                                         pin.LOCAL_WORLD_ALIGNED)
+        # Pinocchio 4.1 returns column-major memory flagged C-contiguous.
+        H = H.ravel(order="C").reshape(H.shape, order="F")
+        dJ = np.moveaxis(H, 2, 0).copy()  # dJ[k][:, j] = d Jj[:, j] / dq_k, (n, 6, n)
+        r = self._tool_offset()
+        w = Jj[3:].T  # (n, 3): angular column of each joint
+        dr = np.cross(w, r)  # (n, 3): dr/dq_k
+        dJ[:, :3, :] += np.cross(dJ[:, 3:, :], r, axisa=1, axisc=1)
+        dJ[:, :3, :] += np.cross(w[None, :, :], dr[:, None, :]).transpose(0, 2, 1)
+        return (self._rotate @ dJ)[:, self._rows, :]
+
+    def scale_task(self, A: np.ndarray) -> np.ndarray:
+        """Multiply the angular task rows of A (..., m, k) by the characteristic length.
+
+        Measures that compare singular values across rows must see `scale_task(J)`,
+        so every row is in m/s (seed 000, remark on eq 5).
+        """
+        return np.asarray(A) * self.task_scale[:, None]
+
+    def random_configuration(self, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
+        """Uniform configuration inside the limits shrunk by `margin` (continuous: +-pi)."""
+        lower = np.where(np.isfinite(self.lower), self.lower, -math.pi) + margin
+        upper = np.where(np.isfinite(self.upper), self.upper, math.pi) - margin
+        return rng.uniform(lower, upper)
+
+    def __repr__(self) -> str:
+        return (f"Robot({self.name!r}, {self.base_link!r} -> {self.tip_link!r}, "
+                f"{self.task_space}, n={self.n}, m={self.m})")
+
+
+def load(spec: str, base_link: str | None = None, tip_link: str | None = None,
+         task_space: str | None = None, characteristic_length: float | None = None) -> Robot:
+    """Build a `Robot` from a built-in name, a URDF file path or URDF XML.
+
+    Args:
+        spec: "planar3r", "puma560", "panda", "iiwa14", a path to a .urdf file or the XML.
+        base_link: first link of the chain (default: the URDF's root link).
+        tip_link: tool link (default: walk down from base_link until the tree branches).
+        task_space: "pose", "position" or "planar" (default: the built-in's own, else pose).
+        characteristic_length: L in m for angular rows (default: the robot's reach).
+
+    Raises:
+        RobotModelError: unknown spec, URDF that does not parse, missing link, no joint.
+    """
+    xml, default_space = _resolve(spec)
+    return Robot(xml, base_link, tip_link, task_space or default_space or "pose",
+                 characteristic_length)

@@ -1,0 +1,1 @@
+"""Locked-joint monitor node (filled by the monitor issue)."""

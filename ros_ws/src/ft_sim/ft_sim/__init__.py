@@ -1,0 +1,1 @@
+"""Kinematic plant, failure injection and the end-to-end demo."""

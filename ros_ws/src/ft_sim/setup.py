@@ -1,0 +1,25 @@
+from setuptools import find_packages, setup
+
+package_name = "ft_sim"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="ft-arms maintainers",
+    maintainer_email="maintainers@ft-arms.org",
+    description="Kinematic plant with failure injection, fault injector and end-to-end demo.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "demo = ft_sim.demo:main",
+            "ft-demo = ft_sim.demo:main",
+        ],
+    },
+)

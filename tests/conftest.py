@@ -1,0 +1,13 @@
+"""Test-session set-up: an isolated ROS 2 graph and the paths of the build.
+
+Each session gets its own ROS_DOMAIN_ID (from its process id) and keeps DDS
+discovery on this machine, so parallel sessions and CI runs do not see each other.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_STATIC_PEERS", None)

@@ -1,0 +1,212 @@
+"""ft_core.robots: loading, chain selection, kinematics checked against independent formulas."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from ft_core import robots
+from ft_core.robots import RobotModelError
+from paths import PANDA_URDF
+
+EPS = 1e-6
+RNG_SEED = 7
+
+
+def dh_standard(rows: list[tuple[float, float, float]], q: np.ndarray) -> np.ndarray:
+    """Tool transform from a standard DH table (a, d, alpha): prod Rz(q) Tz(d) Tx(a) Rx(alpha)."""
+    T = np.eye(4)
+    for (a, d, alpha), theta in zip(rows, q, strict=True):
+        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
+        T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                          [0, sa, ca, d], [0, 0, 0, 1]])
+    return T
+
+
+def dh_modified(rows: list[tuple[float, float, float]], q: np.ndarray) -> np.ndarray:
+    """Craig's modified DH (a_{i-1}, d_i, alpha_{i-1}): prod Rx(alpha) Tx(a) Rz(q) Tz(d)."""
+    T = np.eye(4)
+    for (a, d, alpha), theta in zip(rows, q, strict=True):
+        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
+        T = T @ np.array([[ct, -st, 0, a], [st * ca, ct * ca, -sa, -d * sa],
+                          [st * sa, ct * sa, ca, d * ca], [0, 0, 0, 1]])
+    return T
+
+
+def numeric_jacobian(robot: robots.Robot, q: np.ndarray) -> np.ndarray:
+    """Central differences of the tool transform: linear rows, then angular rows (log map)."""
+    columns = []
+    for e in np.eye(robot.n):
+        plus, minus = robot.transform(q + EPS * e), robot.transform(q - EPS * e)
+        linear = (plus[:3, 3] - minus[:3, 3]) / (2 * EPS)
+        angular = pin.log3(plus[:3, :3] @ minus[:3, :3].T) / (2 * EPS)
+        columns.append(np.concatenate([linear, angular]))
+    full = np.array(columns).T
+    return full[: {"pose": 6, "position": 3, "planar": 2}[robot.task_space]]
+
+
+MODELS = [
+    ("planar3r", {}),
+    ("puma560", {}),
+    ("puma560", {"task_space": "pose"}),
+    ("panda", {}),
+    ("panda", {"task_space": "position"}),
+    ("iiwa14", {}),
+    (str(PANDA_URDF), {}),
+    (str(PANDA_URDF), {"base_link": "panda_link2", "tip_link": "panda_hand_tcp"}),
+]
+
+
+@pytest.mark.parametrize(("spec", "kwargs"), MODELS)
+def test_jacobian_matches_finite_differences(spec: str, kwargs: dict) -> None:
+    robot = robots.load(spec, **kwargs)
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(3):
+        q = robot.random_configuration(rng)
+        J = robot.jacobian(q)
+        assert J.shape == (robot.m, robot.n)
+        np.testing.assert_allclose(J, numeric_jacobian(robot, q), atol=1e-7)
+
+
+@pytest.mark.parametrize(("spec", "kwargs"), MODELS)
+def test_jacobian_derivatives_match_finite_differences(spec: str, kwargs: dict) -> None:
+    robot = robots.load(spec, **kwargs)
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(3):
+        q = robot.random_configuration(rng)
+        dJ = robot.jacobian_derivatives(q)
+        numeric = np.stack([(robot.jacobian(q + EPS * e) - robot.jacobian(q - EPS * e)) / (2 * EPS)
+                            for e in np.eye(robot.n)])
+        assert dJ.shape == (robot.n, robot.m, robot.n)
+        np.testing.assert_allclose(dJ, numeric, atol=1e-7)
+
+
+def test_planar3r_is_the_unit_link_arm() -> None:
+    robot = robots.load("planar3r")
+    assert (robot.n, robot.m, robot.task_space) == (3, 2, "planar")
+    q = np.array([0.3, -1.1, 2.0])
+    angles = np.cumsum(q)
+    np.testing.assert_allclose(robot.forward(q), [np.cos(angles).sum(), np.sin(angles).sum()],
+                               atol=1e-12)
+    np.testing.assert_allclose(robot.lower, -np.pi)
+    assert robot.reach == pytest.approx(3.0)
+
+
+def test_puma560_follows_table_i_of_seed_000() -> None:
+    robot = robots.load("puma560")
+    rows = [(0.0, 0.0, -np.pi / 2), (0.432, 0.149, 0.0), (0.0, 0.0, np.pi / 2),
+            (0.0, 0.433, -np.pi / 2), (0.0, 0.0, np.pi / 2), (0.0, 0.392, 0.0)]
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(5):
+        q = robot.random_configuration(rng)
+        np.testing.assert_allclose(robot.transform(q), dh_standard(rows, q), atol=1e-12)
+        # The tool point lies on the sixth joint's axis: joint 6 cannot move it.
+        np.testing.assert_allclose(robot.jacobian(q)[:, 5], 0.0, atol=1e-12)
+    np.testing.assert_allclose(robot.lower, [-2.79, -5 * np.pi / 4, -np.pi / 4, -1.92, -1.745,
+                                             -4.625])
+    np.testing.assert_allclose(robot.upper, [2.79, np.pi / 4, 5 * np.pi / 4, 2.967, 1.745, 4.625])
+
+
+def test_panda_follows_franka_published_kinematics() -> None:
+    robot = robots.load("panda", tip_link="panda_link8")
+    rows = [(0, 0.333, 0), (0, 0, -np.pi / 2), (0, 0.316, np.pi / 2), (0.0825, 0, np.pi / 2),
+            (-0.0825, 0.384, -np.pi / 2), (0, 0, np.pi / 2), (0.088, 0, np.pi / 2)]
+    flange = np.eye(4)
+    flange[2, 3] = 0.107
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(5):
+        q = robot.random_configuration(rng)
+        np.testing.assert_allclose(robot.transform(q), dh_modified(rows, q) @ flange, atol=1e-12)
+    np.testing.assert_allclose(robot.velocity_limits, [2.175] * 4 + [2.61] * 3)
+    np.testing.assert_allclose(robot.upper[3], -0.0698)
+
+
+def test_iiwa14_is_a_second_seven_dof_arm() -> None:
+    robot = robots.load("iiwa14")
+    assert (robot.n, robot.m) == (7, 6)
+    straight_up = robot.forward(np.zeros(7))
+    np.testing.assert_allclose(straight_up[:3, 3], [0, 0, 0.36 + 0.42 + 0.4 + 0.126], atol=1e-12)
+
+
+def test_real_world_panda_urdf_agrees_with_the_builtin() -> None:
+    user = robots.load(str(PANDA_URDF))
+    builtin = robots.load("panda")
+    # Fingers (prismatic) and fixed joints are not part of the arm chain.
+    assert user.joint_names == builtin.joint_names == tuple(f"panda_joint{i}" for i in range(1, 8))
+    assert user.tip_link == "panda_hand"  # the tree branches into the fingers there
+    np.testing.assert_allclose(user.lower, builtin.lower)
+    np.testing.assert_allclose(user.upper, builtin.upper)
+    np.testing.assert_allclose(user.velocity_limits, builtin.velocity_limits)
+    tcp_user = robots.load(PANDA_URDF.read_text(), tip_link="panda_hand_tcp")
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(5):
+        q = builtin.random_configuration(rng)
+        np.testing.assert_allclose(tcp_user.transform(q), builtin.transform(q), atol=1e-12)
+        np.testing.assert_allclose(tcp_user.jacobian(q), builtin.jacobian(q), atol=1e-12)
+
+
+def test_base_link_below_the_root_expresses_the_task_in_that_frame() -> None:
+    full = robots.load("panda", task_space="position")
+    sub = robots.load("panda", base_link="panda_link3", task_space="position")
+    assert sub.joint_names == tuple(f"panda_joint{i}" for i in range(4, 8))
+    # Joints above the base stay at their neutral value 0.
+    q = np.array([0.0, 0.0, 0.0, -1.5, 0.4, 1.2, 0.3])
+    base_pose = robots.load("panda", tip_link="panda_link3").transform(np.zeros(3))
+    expected = np.linalg.solve(base_pose, np.append(full.forward(q), 1.0))[:3]
+    np.testing.assert_allclose(sub.forward(q[3:]), expected, atol=1e-12)
+
+
+def test_characteristic_length_scales_angular_rows_only() -> None:
+    robot = robots.load("panda")
+    assert robot.characteristic_length == pytest.approx(robot.reach)
+    assert 1.0 < robot.reach < 1.2
+    J = robot.jacobian(np.full(7, 0.2) - np.array([0, 0, 0, 2.0, 0, -1.0, 0]))
+    scaled = robot.scale_task(J)
+    np.testing.assert_allclose(scaled[:3], J[:3])
+    np.testing.assert_allclose(scaled[3:], robot.reach * J[3:])
+    custom = robots.load("panda", characteristic_length=0.5)
+    np.testing.assert_allclose(custom.scale_task(J)[3:], 0.5 * J[3:])
+    planar = robots.load("planar3r")
+    np.testing.assert_allclose(planar.scale_task(np.ones((2, 3))), 1.0)
+
+
+def test_continuous_joints_have_infinite_limits() -> None:
+    xml = """<robot name="wheel"><link name="a"/><link name="b"/><link name="c"/>
+      <joint name="spin" type="continuous"><parent link="a"/><child link="b"/>
+        <axis xyz="0 0 1"/><limit effort="1" velocity="3"/></joint>
+      <joint name="arm" type="revolute"><parent link="b"/><child link="c"/>
+        <origin xyz="1 0 0"/><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="1" velocity="2"/>
+      </joint></robot>"""
+    robot = robots.load(xml, task_space="planar")
+    assert robot.joint_names == ("spin", "arm")
+    assert np.isinf(robot.lower[0]) and np.isinf(robot.upper[0])
+    np.testing.assert_allclose(robot.velocity_limits, [3.0, 2.0])
+    np.testing.assert_allclose(robot.forward(np.array([np.pi / 2, 0.0])), [0.0, 1.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(("spec", "kwargs", "message"), [
+    ("no_such_robot", {}, "unknown robot model"),
+    ("<robot name='x'><link name='a'></robot>", {}, "does not parse"),
+    ("<model/>", {}, "expected <robot>"),
+    ("panda", {"tip_link": "panda_link99"}, "panda_link99"),
+    ("panda", {"base_link": "nowhere"}, "nowhere"),
+    ("panda", {"base_link": "panda_link5", "tip_link": "panda_link2"}, "not below"),
+    ("panda", {"base_link": "panda_link8", "tip_link": "panda_hand_tcp"}, "no movable joint"),
+    ("panda", {"task_space": "joint"}, "task_space"),
+    ("panda", {"characteristic_length": -1.0}, "characteristic_length"),
+    ("", {}, "empty"),
+])
+def test_bad_models_raise_a_clear_error(spec: str, kwargs: dict, message: str) -> None:
+    with pytest.raises(RobotModelError, match=message):
+        robots.load(spec, **kwargs)
+
+
+def test_bad_configurations_raise_before_any_arithmetic() -> None:
+    robot = robots.load("planar3r")
+    with pytest.raises(ValueError, match="shape"):
+        robot.jacobian(np.zeros(4))
+    with pytest.raises(ValueError, match="non-finite"):
+        robot.forward(np.array([0.0, np.nan, 0.0]))
