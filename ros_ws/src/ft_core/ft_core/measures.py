@@ -175,3 +175,87 @@ def worst_case_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> floa
     values = post_failure_singular_values(J, locked)
     healthy = values[~np.isnan(values[:, 0])]
     return float(np.prod(healthy, axis=1).min()) if healthy.size else 0.0
+
+
+def post_failure_sigma_gradients(J: np.ndarray, dJ: np.ndarray,
+                                 locked: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Post-failure singular values s_i and their gradients ds_i/dq_k (seed 002 eqs 7-8).
+
+    Args:
+        J: m x n Jacobian (m <= n).
+        dJ: (n, m, n) derivatives, dJ[k] = dJ/dq_k (from `Robot.jacobian_derivatives`,
+            scaled like J).
+        locked: joints already locked.
+
+    Returns:
+        (s, G): s (n,) as `post_failure_sigmas`; G (n, n) with G[i, k] = ds_i/dq_k =
+        u_i^T (d iJ/dq_k) v_i, u_i and v_i the singular vectors of s_i. Rows of
+        locked joints are nan. Where s_i is 0 the value is a subgradient.
+    """
+    J = as_matrix(J)
+    m, n = J.shape
+    dJ = np.asarray(dJ, dtype=float)
+    if dJ.shape != (n, m, n):
+        raise ValueError(f"dJ must have shape ({n}, {m}, {n}), got {dJ.shape}")
+    if m > n:
+        raise ValueError(f"gradients need m <= n, got a {m} x {n} Jacobian")
+    mask = locked_mask(n, locked)
+    batch = post_failure_jacobians(J, np.flatnonzero(mask))
+    U, S, Vt = np.linalg.svd(batch, full_matrices=False)
+    u = U[:, :, m - 1]
+    # Zero the removed columns so d(iJ)/dq_k = dJ[k] restricted to the kept columns.
+    v = Vt[:, m - 1, :] * ~mask
+    v[np.arange(n), np.arange(n)] = 0.0
+    grads = np.einsum("ia,kab,ib->ik", u, dJ, v)
+    sigmas = S[:, m - 1].copy()
+    sigmas[mask] = np.nan
+    grads[mask] = np.nan
+    return sigmas, grads
+
+
+def soft_kfm(J: np.ndarray, locked: Iterable[int] = (), temperature: float = 0.01) -> float:
+    """Smooth lower bound of K: -tau log sum_i exp(-s_i / tau) over healthy joints.
+
+    Equals K when temperature is 0; K - tau log(n) <= soft_kfm <= K otherwise.
+    """
+    sigmas = post_failure_sigmas(J, locked)
+    healthy = sigmas[~np.isnan(sigmas)]
+    if not healthy.size:
+        return 0.0
+    low = healthy.min()
+    if temperature <= 0:
+        return float(low)
+    return float(low - temperature * np.log(np.sum(np.exp(-(healthy - low) / temperature))))
+
+
+def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),
+                 temperature: float = 0.0) -> np.ndarray:
+    """Gradient of K over q (n,), zero entries for locked joints (seed 002 eq 8).
+
+    K = min_i s_i is not differentiable where two joints tie for the minimum
+    (seed 002 footnote 2). Remedy taken here: with `temperature` tau > 0 this is the
+    exact gradient of `soft_kfm`, a soft-min whose weights softmax(-s_i / tau)
+    blend the gradients of the joints within a few tau of the minimum, so the
+    ascent direction changes continuously when the minimising joint changes.
+    With tau = 0 it is eq 8 for the (first) minimising joint.
+    """
+    sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
+    healthy = ~np.isnan(sigmas)
+    if not healthy.any():
+        return np.zeros(J.shape[1] if np.ndim(J) == 2 else 0)
+    s, G = sigmas[healthy], grads[healthy]
+    if temperature <= 0:
+        gradient = G[np.argmin(s)]
+    else:
+        weights = np.exp(-(s - s.min()) / temperature)
+        gradient = (weights / weights.sum()) @ G
+    return np.nan_to_num(gradient) * healthy
+
+
+def weighted_fault_tolerance_gradient(J: np.ndarray, dJ: np.ndarray,
+                                      probabilities: Iterable[float] | None,
+                                      locked: Iterable[int] = ()) -> np.ndarray:
+    """Gradient of F_w = sum_i w_i s_i over q (n,) (seed 001 eq 3.3 with seed 002 eq 8)."""
+    sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
+    weights = failure_weights(probabilities, sigmas.size, locked)
+    return weights @ np.nan_to_num(grads)

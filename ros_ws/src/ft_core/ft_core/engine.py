@@ -1,0 +1,260 @@
+"""One control cycle of fault-tolerant redundancy resolution.
+
+`ResolutionEngine.step(q, xd, locked)` turns joint positions, a desired task
+velocity and the set of locked joints into joint velocities (shared/MATH.md,
+Redundancy resolution):
+
+    qd = J# xd + (I - J# J) z            (seed 000 eq 4, seed 002 eq 3)
+
+on the reduced robot (the Jacobian columns of locked joints removed; their
+velocity is exactly 0). J# is the damped pseudo-inverse of `pseudoinverse`;
+singular values are compared on `Robot.scale_task(J)` (angular rows times the
+characteristic length). The null-space preference z sums, by `resolution`:
+
+- `max_kfm` and `blend`: kfm_gain * grad K (seed 002 eq 8, soft-min remedy for
+  ties, see `measures.kfm_gradient`), or the gradient of the failure-probability
+  weighted measure F_w (seed 001 eq 3.3) when probabilities are given;
+- `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (seed 004 eq 5; gain 1 is
+  the exact minimum-jump solution);
+- always, when a box applies: limit_gain * `limits.avoidance` away from the edges
+  of the effective box (soft limits intersected with the URDF limits).
+
+The kfm and jump terms refer to the next failure and are used only while
+n - |locked| - 1 >= m. Hard limits (URDF positions and velocity_scale times URDF
+velocities) and, while no joint is locked or when configured to keep them, the
+soft limits are enforced on qd itself by saturation in the null space
+(`limits.saturate_in_null_space`), so q integrated over dt never leaves them;
+the task is scaled down, direction kept, only as a last resort. With fewer
+healthy joints than task coordinates the cycle returns the damped least-squares
+velocity scaled into the bounds and reports the task infeasible.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ft_core import limits, measures
+from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.resolution import reduced_velocities
+from ft_core.robots import Robot
+
+RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
+
+#: Cycle status values, from best to worst.
+OK, NEAR_SINGULARITY, LIMITED, INFEASIBLE = "ok", "near_singularity", "limited", "infeasible"
+
+#: Distance (rad or m) within which a joint counts as at a limit.
+AT_LIMIT = 1e-3
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """Parameters of the engine; invalid values raise ValueError with the reason.
+
+    Attributes:
+        resolution: "least_norm", "max_kfm", "min_jump" or "blend".
+        kfm_gain: gain of the kfm gradient ascent, rad/s per (m/rad) of grad K, >= 0.
+        jump_gain: gain of the minimum-jump term (1 = exact minimum), >= 0.
+        limit_gain: gain of the soft/hard-limit avoidance (rad/s at an edge), >= 0.
+        failure_probabilities: one per joint (>= 0); empty = equally likely.
+        soft_lower, soft_upper: soft-limit box (rad); empty = none.
+        release_soft_limits_on_failure: drop the soft box once a joint is locked.
+        dt: control period (s) over which position limits are enforced.
+        velocity_scale: fraction of the URDF velocity limits that may be used, in (0, 1].
+        damping: damped pseudo-inverse rule (singular values in m).
+        kfm_temperature: soft-min temperature (m) of the kfm gradient; 0 = plain eq 8.
+        limit_buffer: width (rad) of the zone near a box edge where avoidance acts.
+    """
+
+    resolution: str = "blend"
+    kfm_gain: float = 50.0
+    jump_gain: float = 1.0
+    limit_gain: float = 1.0
+    failure_probabilities: Sequence[float] = ()
+    soft_lower: Sequence[float] = ()
+    soft_upper: Sequence[float] = ()
+    release_soft_limits_on_failure: bool = True
+    dt: float = 0.004
+    velocity_scale: float = 1.0
+    damping: Damping = field(default_factory=Damping)
+    kfm_temperature: float = 0.005
+    limit_buffer: float = 0.15
+
+    def __post_init__(self) -> None:
+        if self.resolution not in RESOLUTIONS:
+            raise ValueError(f"resolution {self.resolution!r} is not one of {RESOLUTIONS}")
+        for name in ("kfm_gain", "jump_gain", "limit_gain", "kfm_temperature", "limit_buffer"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value}")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be positive, got {self.dt}")
+        if not (math.isfinite(self.velocity_scale) and 0 < self.velocity_scale <= 1):
+            raise ValueError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}")
+        if len(self.soft_lower) != len(self.soft_upper):
+            raise ValueError("soft_lower and soft_upper must have the same length")
+
+
+@dataclass(frozen=True)
+class CycleResult:
+    """What one cycle computed: the command and the numbers the controller publishes.
+
+    Attributes:
+        qd: joint velocities (n,), rad/s; exactly 0 for locked joints.
+        status: "ok", "near_singularity", "limited" (task scaled) or "infeasible".
+        kfm: K of the reduced robot for the next failure (m/s per rad/s, scaled J).
+        sigma_min: smallest singular value of the reduced, scaled Jacobian.
+        post_failure_sigmas: s_i per joint (n,), nan for locked joints.
+        jump_index: weighted jump index of qd (rad^2/s^2), 0 when not defined.
+        task_scale: fraction of xd achieved, 1 = fully.
+        soft_limit_margin: smallest distance (rad) of q to an active soft limit
+            (negative outside; inf with no soft box).
+        saturated: joints whose velocity was held at a bound (n,).
+        at_soft_limit, at_hard_limit: joints within 1e-3 of an active soft or URDF limit.
+    """
+
+    qd: np.ndarray
+    status: str
+    kfm: float
+    sigma_min: float
+    post_failure_sigmas: np.ndarray
+    jump_index: float
+    task_scale: float
+    soft_limit_margin: float
+    saturated: np.ndarray
+    at_soft_limit: np.ndarray
+    at_hard_limit: np.ndarray
+
+
+class ResolutionEngine:
+    """Fault-tolerant redundancy resolution for one robot and one configuration."""
+
+    def __init__(self, robot: Robot, config: EngineConfig | None = None):
+        self.robot = robot
+        self.config = config or EngineConfig()
+        n = robot.n
+        self._probabilities = None
+        if len(self.config.failure_probabilities):
+            self._probabilities = np.asarray(self.config.failure_probabilities, dtype=float)
+            measures.failure_weights(self._probabilities, n)  # validates
+        self._soft = None
+        if len(self.config.soft_lower):
+            lower = np.asarray(self.config.soft_lower, dtype=float)
+            upper = np.asarray(self.config.soft_upper, dtype=float)
+            if lower.shape != (n,) or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+                raise ValueError(f"soft limits need {n} finite values each")
+            if np.any(lower > upper):
+                raise ValueError("a soft lower limit is above its upper limit")
+            self._soft = (lower, upper)
+        self._velocity = robot.velocity_limits * self.config.velocity_scale
+
+    def _check(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int]) -> tuple:
+        n, m = self.robot.n, self.robot.m
+        q, xd = np.asarray(q, dtype=float), np.asarray(xd, dtype=float)
+        if q.shape != (n,):
+            raise ValueError(f"q must have {n} entries, got shape {q.shape}")
+        if xd.shape != (m,):
+            raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(xd))):
+            raise ValueError("q and xd must be finite")
+        return q, xd, measures.locked_mask(n, locked)
+
+    def soft_limits_active(self, any_locked: bool) -> bool:
+        """Whether the soft box applies (configured, and not released by a failure)."""
+        return self._soft is not None and not (
+            any_locked and self.config.release_soft_limits_on_failure)
+
+    def _box(self, soft: bool) -> tuple[np.ndarray, np.ndarray]:
+        lower, upper = self.robot.lower, self.robot.upper
+        if soft:
+            lower, upper = np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
+        return lower, upper
+
+    def _weights(self, healthy: np.ndarray) -> np.ndarray:
+        """Failure weights of the healthy joints; equal if none of them has probability."""
+        p = None if self._probabilities is None else self._probabilities[healthy]
+        if p is not None and p.sum() <= 0:
+            p = None
+        return measures.failure_weights(p, int(healthy.sum()))
+
+    def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
+        """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
+
+        Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
+        xd, or locked indices that are not joints.
+        """
+        q, xd, mask = self._check(q, xd, locked)
+        cfg, robot = self.config, self.robot
+        healthy = ~mask
+        m, nh = robot.m, int(healthy.sum())
+        J = robot.scale_task(robot.jacobian(q))
+        x = robot.task_scale * xd
+        Jh = J[:, healthy]
+        sigma = np.linalg.svd(Jh, compute_uv=False) if nh else np.zeros(0)
+        sigma_min = float(sigma[m - 1]) if sigma.size >= m else 0.0
+        next_failure = nh - 1 >= m
+
+        z = np.zeros(nh)
+        reduced = reduced_velocities(Jh, x, cfg.damping) if next_failure else None
+        weights = self._weights(healthy) if nh else np.zeros(0)
+        if next_failure and cfg.resolution in ("max_kfm", "blend") and cfg.kfm_gain > 0:
+            dJ = robot.scale_task(robot.jacobian_derivatives(q))[np.ix_(healthy,
+                                                                        np.arange(m),
+                                                                        healthy)]
+            if self._probabilities is None:
+                grad = measures.kfm_gradient(Jh, dJ, temperature=cfg.kfm_temperature)
+            else:
+                grad = measures.weighted_fault_tolerance_gradient(Jh, dJ, weights)
+            z += cfg.kfm_gain * grad
+        if next_failure and cfg.resolution in ("min_jump", "blend"):
+            z += cfg.jump_gain * (weights @ reduced)
+        soft = self.soft_limits_active(bool(mask.any()))
+        lower, upper = self._box(soft)
+        qh = q[healthy]
+        z += cfg.limit_gain * limits.avoidance(qh, lower[healthy], upper[healthy],
+                                               cfg.limit_buffer)
+        lo, hi = limits.velocity_bounds(qh, lower[healthy], upper[healthy],
+                                        self._velocity[healthy], cfg.dt)
+
+        if nh >= m and nh > 0:
+            result = limits.saturate_in_null_space(Jh, x, z, lo, hi, cfg.damping)
+            qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
+        else:
+            qd_h = damped_pinv(Jh, cfg.damping) @ x if nh else np.zeros(0)
+            scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
+            qd_h, saturated_h = scale * qd_h, np.zeros(nh, dtype=bool)
+
+        qd = np.zeros(robot.n)
+        qd[healthy] = qd_h
+        saturated = np.zeros(robot.n, dtype=bool)
+        saturated[healthy] = saturated_h
+        jump = 0.0
+        if reduced is not None:
+            jump = float(nh * weights @ np.sum((scale * reduced - qd_h) ** 2, axis=1))
+        sigmas = measures.post_failure_sigmas(J, np.flatnonzero(mask))
+        healthy_sigmas = sigmas[~np.isnan(sigmas)]
+        margin, at_soft = math.inf, np.zeros(robot.n, dtype=bool)
+        if soft:
+            distance = np.minimum(q - self._soft[0], self._soft[1] - q)
+            margin = float(distance.min())
+            at_soft = distance < AT_LIMIT
+        hard_distance = np.minimum(q - robot.lower, robot.upper - q)
+        if nh < m:
+            status = INFEASIBLE
+        elif scale < 1.0:
+            status = LIMITED
+        elif sigma_min < cfg.damping.threshold:
+            status = NEAR_SINGULARITY
+        else:
+            status = OK
+        return CycleResult(
+            qd=qd, status=status,
+            kfm=float(healthy_sigmas.min()) if healthy_sigmas.size else 0.0,
+            sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
+            task_scale=float(scale), soft_limit_margin=margin, saturated=saturated,
+            at_soft_limit=at_soft, at_hard_limit=hard_distance < AT_LIMIT,
+        )

@@ -1,0 +1,128 @@
+"""Joint limits at velocity level: bounds, smooth soft-limit avoidance, saturation in the null space.
+
+- `velocity_bounds`: the joint velocities that, held for one cycle dt, keep q inside
+  [lower, upper] and within the velocity limits. A joint already outside (or on)
+  a limit may stay or move back, never further out, so 0 is always allowed.
+- `avoidance`: a null-space preference pushing joints away from the edges of a box
+  (the bounding-box soft limits of seed 000 sec. III, smooth functions): exactly 0
+  more than `buffer` away from an edge, growing quadratically (C1) inside it.
+- `saturate_in_null_space`: Saturation in the Null Space (Flacco, De Luca and
+  Khatib, ICRA 2012, Algorithm 1): joints that would break their bounds are held
+  at the bound, the task is re-solved with the remaining joints, and only when
+  they cannot achieve it is the task velocity scaled down, keeping its direction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ft_core.pseudoinverse import Damping, damped_pinv
+
+#: Slack (rad/s) in bound checks against round-off.
+TOLERANCE = 1e-10
+
+
+def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                    velocity_limits: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi."""
+    with np.errstate(invalid="ignore"):
+        lo = np.clip((lower - q) / dt, -velocity_limits, 0.0)
+        hi = np.clip((upper - q) / dt, 0.0, velocity_limits)
+    return np.nan_to_num(lo, nan=0.0), np.nan_to_num(hi, nan=0.0)
+
+
+def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float) -> np.ndarray:
+    """Smooth push (dimensionless, <= 1 at an edge) away from the edges of [lower, upper].
+
+    ((lower + b - q) / b)^2 inside the lower zone, -((q - upper + b) / b)^2 inside
+    the upper zone, 0 elsewhere, with b = min(buffer, half the box width). It keeps
+    growing outside the box, so a joint that starts outside is pushed back in.
+    """
+    width = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
+    b = np.minimum(buffer, width / 2)
+    safe = np.where(b > 0, b, 1.0)
+    below = np.where(b > 0, np.clip((lower + b - q) / safe, 0.0, None), 0.0)
+    above = np.where(b > 0, np.clip((q - upper + b) / safe, 0.0, None), 0.0)
+    return np.nan_to_num(below**2 - above**2)
+
+
+def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  free: np.ndarray) -> tuple[float, int, bool]:
+    """Largest s in [0, 1] with lo <= s a + b <= hi on the free joints.
+
+    Returns (s, critical joint: the first to hit a bound as s grows, feasible).
+    When no s works, feasible is False and the critical joint is the worst violator.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        up = np.where(a > 0, (hi - b) / a, np.where(a < 0, (lo - b) / a, np.inf))
+        down = np.where(a > 0, (lo - b) / a, np.where(a < 0, (hi - b) / a, -np.inf))
+    stuck = (a == 0) & ((b > hi + TOLERANCE) | (b < lo - TOLERANCE))
+    up = np.where(stuck, -np.inf, up)
+    up = np.where(free, up, np.inf)
+    down = np.where(free, down, -np.inf)
+    critical = int(np.argmin(up))
+    s_max, s_min = min(1.0, float(up[critical])), max(0.0, float(down.max()))
+    feasible = s_max >= 0 and s_min <= s_max + TOLERANCE
+    return (max(s_max, 0.0) if feasible else 0.0), critical, feasible
+
+
+@dataclass(frozen=True)
+class Saturated:
+    """Result of `saturate_in_null_space`."""
+
+    qd: np.ndarray  #: joint velocities (n,)
+    scale: float  #: task scale in [0, 1]; 1 = task fully achieved
+    saturated: np.ndarray  #: joints held at a bound (n,) bool
+
+
+def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat: np.ndarray,
+           damping: Damping) -> tuple[np.ndarray, np.ndarray]:
+    """Split qd = a + b: a = (J W)# xd (scaled by the task), b = the rest."""
+    Jw = J * free
+    pinv = damped_pinv(Jw, damping)
+    zw = z * free
+    a = pinv @ xd
+    b = q_sat + zw - pinv @ (J @ q_sat + Jw @ zw)
+    return a, b
+
+
+def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
+                           hi: np.ndarray, damping: Damping) -> Saturated:
+    """qd = J# xd + (I - J# J) z within lo <= qd <= hi, by Flacco et al.'s SNS.
+
+    The task has priority over the preference z: z is first shrunk by the largest
+    factor in [0, 1] that keeps J# xd + (I - J# J) z inside the bounds (to 0 when
+    J# xd alone breaks them); then SNS saturates joints and, last, scales the task.
+    `lo <= 0 <= hi` must hold (as `velocity_bounds` guarantees). If the task at
+    scale 0 cannot be met with the remaining preference, the preference is dropped.
+    """
+    m, n = J.shape
+    # The task has priority: shrink the preference until it fits beside the task.
+    a, b = _solve(J, xd, np.zeros(n), np.ones(n, dtype=bool), np.zeros(n), damping)
+    null_motion = _solve(J, np.zeros(m), z, np.ones(n, dtype=bool), np.zeros(n), damping)[1]
+    alpha, _, feasible = largest_scale(null_motion, a, lo, hi, np.ones(n, dtype=bool))
+    z = z * (alpha if feasible else 0.0)
+    for preference in (z, np.zeros(n)):
+        free, q_sat = np.ones(n, dtype=bool), np.zeros(n)
+        best: tuple[float, np.ndarray, np.ndarray] | None = None
+        while True:
+            a, b = _solve(J, xd, preference, free, q_sat, damping)
+            qd = a + b
+            if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE) | ~free):
+                return Saturated(qd, 1.0, ~free)
+            scale, critical, feasible = largest_scale(a, b, lo, hi, free)
+            if feasible and (best is None or scale > best[0]):
+                best = (scale, free.copy(), q_sat.copy())
+            free[critical] = False
+            q_sat[critical] = np.clip(qd[critical], lo[critical], hi[critical])
+            if free.sum() < m:
+                break
+        if best is not None:
+            scale, free, q_sat = best
+            a, b = _solve(J, xd, preference, free, q_sat, damping)
+            qd = np.clip(scale * a + b, lo, hi)
+            at_bound = ((qd >= hi - TOLERANCE) & (hi > 0)) | ((qd <= lo + TOLERANCE) & (lo < 0))
+            return Saturated(qd, scale, ~free | at_bound)
+    raise AssertionError("unreachable: the task at scale 0 with no preference is feasible")

@@ -1,0 +1,63 @@
+"""Damped pseudo-inverse with damping that acts only near singularities.
+
+Damping rule (Maciejewski and Klein's numerical filtering, also Nakamura): with
+sigma_min the smallest of the m singular values of an m x k matrix (m <= k),
+
+    lambda^2 = lambda_max^2 (1 - (sigma_min / epsilon)^2)   if sigma_min < epsilon
+    lambda^2 = 0                                           otherwise
+
+and A# = V diag(sigma / (sigma^2 + lambda^2)) U^T. Far from singularities
+(sigma_min >= epsilon) it is the exact Moore-Penrose inverse, so tracking is
+exact; the damping grows smoothly (continuous in sigma_min) to lambda_max at a
+singularity, where the result stays finite. Works on stacks of matrices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Parameters of the damping rule, in the units of the singular values (m after scaling).
+
+    Attributes:
+        threshold: epsilon, the smallest singular value below which damping starts (> 0).
+        max_damping: lambda_max, the damping at a singularity (> 0).
+    """
+
+    threshold: float = 0.01
+    max_damping: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not (self.threshold > 0 and self.max_damping > 0
+                and np.isfinite(self.threshold) and np.isfinite(self.max_damping)):
+            raise ValueError(f"damping threshold and max_damping must be positive: {self}")
+
+    def squared(self, sigma_min: np.ndarray) -> np.ndarray:
+        """lambda^2 for each matrix of a stack, given its smallest singular value."""
+        ratio = np.minimum(np.asarray(sigma_min) / self.threshold, 1.0)
+        return self.max_damping**2 * (1.0 - ratio**2)
+
+
+def damped_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,
+                            damping: Damping, m: int) -> np.ndarray:
+    """Damped pseudo-inverse (..., k, m) from a thin SVD of (..., m, k) matrices.
+
+    `m` is the task dimension: sigma_min is the m-th singular value, 0 when the
+    matrix has fewer than m singular values.
+    """
+    sigma_min = S[..., m - 1] if S.shape[-1] >= m else np.zeros(S.shape[:-1])
+    lam2 = damping.squared(sigma_min)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factors = np.where(S > 0, S / (S**2 + lam2), 0.0)
+    return np.swapaxes(Vt, -1, -2) @ (factors[..., None] * np.swapaxes(U, -1, -2))
+
+
+def damped_pinv(A: np.ndarray, damping: Damping) -> np.ndarray:
+    """Damped pseudo-inverse of an m x k matrix or a stack of them."""
+    A = np.asarray(A, dtype=float)
+    U, S, Vt = np.linalg.svd(A, full_matrices=False)
+    return damped_inverse_from_svd(U, S, Vt, damping, A.shape[-2])
