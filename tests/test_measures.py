@@ -149,3 +149,47 @@ def test_k_never_exceeds_the_isotropic_bound_of_eq_9(n: int, data: st.DataObject
     # s_i = sigma |n_i| for isotropic J (seed 001 eq 3.27).
     np.testing.assert_allclose(measures.post_failure_sigmas(J),
                                sigma * measures.relative_manipulability(J), atol=1e-9)
+
+
+def numeric_gradient(f, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    return np.array([(f(q + eps * e) - f(q - eps * e)) / (2 * eps) for e in np.eye(q.size)])
+
+
+GRADIENT_CASES = [("panda", [0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2], ()),
+                  ("panda", [0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2], (6,)),
+                  ("puma560", [0.2, -0.8, 1.6, 0.3, 0.6, 0.0], ()),
+                  ("planar3r", [0.3, 1.2, 1.0], ())]
+
+
+@pytest.mark.parametrize(("name", "q", "locked"), GRADIENT_CASES)
+def test_kfm_gradient_matches_finite_differences(name: str, q: list, locked: tuple) -> None:
+    robot = robots.load(name, task_space="position" if name == "panda" and locked else None)
+    q = np.array(q)
+
+    def scaled(q: np.ndarray) -> np.ndarray:
+        return robot.scale_task(robot.jacobian(q))
+
+    dJ = robot.scale_task(robot.jacobian_derivatives(q))
+    sigmas = measures.post_failure_sigmas(scaled(q), locked)
+    healthy = np.sort(sigmas[~np.isnan(sigmas)])
+    assert healthy[1] - healthy[0] > 1e-3  # a unique minimiser: K is differentiable here
+    exact = measures.kfm_gradient(scaled(q), dJ, locked)
+    np.testing.assert_allclose(exact, numeric_gradient(
+        lambda x: measures.kfm(scaled(x), locked), q), atol=1e-7)
+    soft = measures.kfm_gradient(scaled(q), dJ, locked, temperature=0.02)
+    np.testing.assert_allclose(soft, numeric_gradient(
+        lambda x: measures.soft_kfm(scaled(x), locked, temperature=0.02), q), atol=1e-7)
+    p = np.arange(1.0, robot.n + 1)
+    weighted = measures.weighted_fault_tolerance_gradient(scaled(q), dJ, p, locked)
+    np.testing.assert_allclose(weighted, numeric_gradient(
+        lambda x: measures.weighted_fault_tolerance(scaled(x), p, locked), q), atol=1e-7)
+    assert np.all(exact[list(locked)] == 0.0)
+
+
+def test_soft_kfm_is_a_tight_lower_bound_of_k_at_a_tie() -> None:
+    sigmas_tied = EQ10  # all four s_i equal: K is not differentiable
+    k = measures.kfm(sigmas_tied)
+    for tau in (0.001, 0.01, 0.1):
+        soft = measures.soft_kfm(sigmas_tied, temperature=tau)
+        assert k - tau * math.log(4) - 1e-12 <= soft <= k
+    assert measures.soft_kfm(sigmas_tied, temperature=0.0) == k

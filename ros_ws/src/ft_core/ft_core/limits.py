@@ -1,4 +1,4 @@
-"""Joint limits at velocity level: bounds, smooth soft-limit avoidance, saturation in the null space.
+"""Joint limits at velocity level: bounds, soft-limit avoidance, saturation in the null space.
 
 - `velocity_bounds`: the joint velocities that, held for one cycle dt, keep q inside
   [lower, upper] and within the velocity limits. A joint already outside (or on)
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.pseudoinverse import Damping, damped_inverse_from_svd
 
 #: Slack (rad/s) in bound checks against round-off.
 TOLERANCE = 1e-10
@@ -78,19 +78,23 @@ class Saturated:
 
 
 def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat: np.ndarray,
-           damping: Damping) -> tuple[np.ndarray, np.ndarray]:
-    """Split qd = a + b: a = (J W)# xd (scaled by the task), b = the rest."""
+           damping: Damping) -> tuple[np.ndarray, np.ndarray, float]:
+    """Split qd = a + b: a = (J W)# xd (scaled with the task), b = the rest.
+
+    Also returns sigma_min(J W), how well the free joints can still do the task.
+    """
     Jw = J * free
-    pinv = damped_pinv(Jw, damping)
+    U, S, Vt = np.linalg.svd(Jw, full_matrices=False)
+    pinv = damped_inverse_from_svd(U, S, Vt, damping)
     zw = z * free
     a = pinv @ xd
     b = q_sat + zw - pinv @ (J @ q_sat + Jw @ zw)
-    return a, b
+    return a, b, float(S[-1]) if J.shape[0] <= J.shape[1] else 0.0
 
 
 def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
                            hi: np.ndarray, damping: Damping) -> Saturated:
-    """qd = J# xd + (I - J# J) z within lo <= qd <= hi, by Flacco et al.'s SNS.
+    """Joint velocities J# xd + (I - J# J) z within lo <= qd <= hi (Flacco et al.'s SNS).
 
     The task has priority over the preference z: z is first shrunk by the largest
     factor in [0, 1] that keeps J# xd + (I - J# J) z inside the bounds (to 0 when
@@ -99,16 +103,21 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     scale 0 cannot be met with the remaining preference, the preference is dropped.
     """
     m, n = J.shape
+    everything = np.ones(n, dtype=bool)
     # The task has priority: shrink the preference until it fits beside the task.
-    a, b = _solve(J, xd, np.zeros(n), np.ones(n, dtype=bool), np.zeros(n), damping)
-    null_motion = _solve(J, np.zeros(m), z, np.ones(n, dtype=bool), np.zeros(n), damping)[1]
-    alpha, _, feasible = largest_scale(null_motion, a, lo, hi, np.ones(n, dtype=bool))
+    a, b, sigma = _solve(J, xd, np.zeros(n), everything, np.zeros(n), damping)
+    null_motion = _solve(J, np.zeros(m), z, everything, np.zeros(n), damping)[1]
+    alpha, _, feasible = largest_scale(null_motion, a, lo, hi, everything)
     z = z * (alpha if feasible else 0.0)
+    # Flacco's "rank(J W) < m", numerically: the free joints have lost a task direction.
+    rank_lost = min(damping.threshold, sigma / 2)
     for preference in (z, np.zeros(n)):
-        free, q_sat = np.ones(n, dtype=bool), np.zeros(n)
+        free, q_sat = everything.copy(), np.zeros(n)
         best: tuple[float, np.ndarray, np.ndarray] | None = None
         while True:
-            a, b = _solve(J, xd, preference, free, q_sat, damping)
+            a, b, sigma_free = _solve(J, xd, preference, free, q_sat, damping)
+            if not free.all() and (sigma_free < rank_lost or free.sum() < m):
+                break
             qd = a + b
             if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE) | ~free):
                 return Saturated(qd, 1.0, ~free)
@@ -117,11 +126,9 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
                 best = (scale, free.copy(), q_sat.copy())
             free[critical] = False
             q_sat[critical] = np.clip(qd[critical], lo[critical], hi[critical])
-            if free.sum() < m:
-                break
         if best is not None:
             scale, free, q_sat = best
-            a, b = _solve(J, xd, preference, free, q_sat, damping)
+            a, b, _ = _solve(J, xd, preference, free, q_sat, damping)
             qd = np.clip(scale * a + b, lo, hi)
             at_bound = ((qd >= hi - TOLERANCE) & (hi > 0)) | ((qd <= lo + TOLERANCE) & (lo < 0))
             return Saturated(qd, scale, ~free | at_bound)

@@ -1,7 +1,7 @@
 """Damped pseudo-inverse with damping that acts only near singularities.
 
 Damping rule (Maciejewski and Klein's numerical filtering, also Nakamura): with
-sigma_min the smallest of the m singular values of an m x k matrix (m <= k),
+sigma_min the smallest of the min(m, k) singular values of an m x k matrix,
 
     lambda^2 = lambda_max^2 (1 - (sigma_min / epsilon)^2)   if sigma_min < epsilon
     lambda^2 = 0                                           otherwise
@@ -43,14 +43,13 @@ class Damping:
 
 
 def damped_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,
-                            damping: Damping, m: int) -> np.ndarray:
+                            damping: Damping) -> np.ndarray:
     """Damped pseudo-inverse (..., k, m) from a thin SVD of (..., m, k) matrices.
 
-    `m` is the task dimension: sigma_min is the m-th singular value, 0 when the
-    matrix has fewer than m singular values.
+    sigma_min is the last of the min(m, k) singular values: the m-th for a wide
+    matrix (task directions), the k-th for a tall one (least squares).
     """
-    sigma_min = S[..., m - 1] if S.shape[-1] >= m else np.zeros(S.shape[:-1])
-    lam2 = damping.squared(sigma_min)[..., None]
+    lam2 = damping.squared(S[..., -1])[..., None]
     with np.errstate(divide="ignore", invalid="ignore"):
         factors = np.where(S > 0, S / (S**2 + lam2), 0.0)
     return np.swapaxes(Vt, -1, -2) @ (factors[..., None] * np.swapaxes(U, -1, -2))
@@ -60,4 +59,4 @@ def damped_pinv(A: np.ndarray, damping: Damping) -> np.ndarray:
     """Damped pseudo-inverse of an m x k matrix or a stack of them."""
     A = np.asarray(A, dtype=float)
     U, S, Vt = np.linalg.svd(A, full_matrices=False)
-    return damped_inverse_from_svd(U, S, Vt, damping, A.shape[-2])
+    return damped_inverse_from_svd(U, S, Vt, damping)
