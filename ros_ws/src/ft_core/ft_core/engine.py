@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ft_core import limits, measures
-from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.pseudoinverse import Damping, pseudo_inverse_from_svd
 from ft_core.resolution import reduced_velocities
 from ft_core.robots import Robot
 
@@ -151,6 +151,7 @@ class ResolutionEngine:
                 raise ValueError("a soft lower limit is above its upper limit")
             self._soft = (lower, upper)
         self._velocity = robot.velocity_limits * self.config.velocity_scale
+        self._weight_cache: dict[bytes, np.ndarray] = {}
 
     def _check(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int]) -> tuple:
         n, m = self.robot.n, self.robot.m
@@ -176,10 +177,13 @@ class ResolutionEngine:
 
     def _weights(self, healthy: np.ndarray) -> np.ndarray:
         """Failure weights of the healthy joints; equal if none of them has probability."""
-        p = None if self._probabilities is None else self._probabilities[healthy]
-        if p is not None and p.sum() <= 0:
-            p = None
-        return measures.failure_weights(p, int(healthy.sum()))
+        key = healthy.tobytes()
+        if key not in self._weight_cache:
+            p = None if self._probabilities is None else self._probabilities[healthy]
+            if p is not None and p.sum() <= 0:
+                p = None
+            self._weight_cache[key] = measures.failure_weights(p, int(healthy.sum()))
+        return self._weight_cache[key]
 
     def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
@@ -191,27 +195,35 @@ class ResolutionEngine:
         cfg, robot = self.config, self.robot
         healthy = ~mask
         m, nh = robot.m, int(healthy.sum())
-        J = robot.scale_task(robot.jacobian(q))
+        next_failure = nh - 1 >= m
+        use_kfm = next_failure and cfg.resolution in ("max_kfm", "blend") and cfg.kfm_gain > 0
+        if use_kfm:
+            J, dJ = robot.jacobian_and_derivatives(q)
+            dJh = robot.scale_task(dJ)[np.ix_(healthy, np.arange(m), healthy)]
+        else:
+            J = robot.jacobian(q)
+        J = robot.scale_task(J)
         x = robot.task_scale * xd
         Jh = J[:, healthy]
-        sigma = np.linalg.svd(Jh, compute_uv=False) if nh else np.zeros(0)
-        sigma_min = float(sigma[m - 1]) if sigma.size >= m else 0.0
-        next_failure = nh - 1 >= m
+        svd = np.linalg.svd(Jh, full_matrices=False)
+        sigma_min = float(svd[1][m - 1]) if svd[1].size >= m else 0.0
 
+        # Post-failure decomposition: one batched SVD for K, its gradient and the jumps.
         z = np.zeros(nh)
-        reduced = reduced_velocities(Jh, x, cfg.damping) if next_failure else None
-        weights = self._weights(healthy) if nh else np.zeros(0)
-        if next_failure and cfg.resolution in ("max_kfm", "blend") and cfg.kfm_gain > 0:
-            dJ = robot.scale_task(robot.jacobian_derivatives(q))[np.ix_(healthy,
-                                                                        np.arange(m),
-                                                                        healthy)]
-            if self._probabilities is None:
-                grad = measures.kfm_gradient(Jh, dJ, temperature=cfg.kfm_temperature)
-            else:
-                grad = measures.weighted_fault_tolerance_gradient(Jh, dJ, weights)
-            z += cfg.kfm_gain * grad
-        if next_failure and cfg.resolution in ("min_jump", "blend"):
-            z += cfg.jump_gain * (weights @ reduced)
+        sigmas_h, reduced = np.zeros(nh), None
+        if nh >= m:
+            U, S, Vt = measures.post_failure_svd(Jh)
+            sigmas_h = S[:, m - 1]
+        if next_failure:
+            weights = self._weights(healthy)
+            reduced = reduced_velocities(Jh, x, cfg.damping, svd=(U, S, Vt))
+            if use_kfm:
+                grads = measures.sigma_gradients(U, Vt, dJh, np.zeros(nh, dtype=bool))
+                ascent = (weights if self._probabilities is not None
+                          else measures.kfm_weights(sigmas_h, cfg.kfm_temperature))
+                z += cfg.kfm_gain * (ascent @ grads)
+            if cfg.resolution in ("min_jump", "blend"):
+                z += cfg.jump_gain * (weights @ reduced)
         soft = self.soft_limits_active(bool(mask.any()))
         lower, upper = self._box(soft)
         qh = q[healthy]
@@ -221,10 +233,10 @@ class ResolutionEngine:
                                         self._velocity[healthy], cfg.dt)
 
         if nh >= m and nh > 0:
-            result = limits.saturate_in_null_space(Jh, x, z, lo, hi, cfg.damping)
+            result = limits.saturate_in_null_space(Jh, x, z, lo, hi, cfg.damping, svd)
             qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
         else:
-            qd_h = damped_pinv(Jh, cfg.damping) @ x if nh else np.zeros(0)
+            qd_h = pseudo_inverse_from_svd(*svd, cfg.damping) @ x if nh else np.zeros(0)
             scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
             qd_h, saturated_h = scale * qd_h, np.zeros(nh, dtype=bool)
 
@@ -235,8 +247,8 @@ class ResolutionEngine:
         jump = 0.0
         if reduced is not None:
             jump = float(nh * weights @ np.sum((scale * reduced - qd_h) ** 2, axis=1))
-        sigmas = measures.post_failure_sigmas(J, np.flatnonzero(mask))
-        healthy_sigmas = sigmas[~np.isnan(sigmas)]
+        sigmas = np.full(robot.n, np.nan)
+        sigmas[healthy] = sigmas_h
         margin, at_soft = math.inf, np.zeros(robot.n, dtype=bool)
         if soft:
             distance = np.minimum(q - self._soft[0], self._soft[1] - q)
@@ -253,7 +265,7 @@ class ResolutionEngine:
             status = OK
         return CycleResult(
             qd=qd, status=status,
-            kfm=float(healthy_sigmas.min()) if healthy_sigmas.size else 0.0,
+            kfm=float(sigmas_h.min()) if nh else 0.0,
             sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
             task_scale=float(scale), soft_limit_margin=margin, saturated=saturated,
             at_soft_limit=at_soft, at_hard_limit=hard_distance < AT_LIMIT,

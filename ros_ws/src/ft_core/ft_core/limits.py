@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.pseudoinverse import Damping, damped_inverse_from_svd
+from ft_core.pseudoinverse import Damping, pseudo_inverse_from_svd
 
 #: Slack (rad/s) in bound checks against round-off.
 TOLERANCE = 1e-10
@@ -40,6 +40,8 @@ def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float
     the upper zone, 0 elsewhere, with b = min(buffer, half the box width). It keeps
     growing outside the box, so a joint that starts outside is pushed back in.
     """
+    if np.all((q > lower + buffer) & (q < upper - buffer)):
+        return np.zeros(q.shape)
     width = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
     b = np.minimum(buffer, width / 2)
     safe = np.where(b > 0, b, 1.0)
@@ -55,7 +57,7 @@ def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     Returns (s, critical joint: the first to hit a bound as s grows, feasible).
     When no s works, feasible is False and the critical joint is the worst violator.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         up = np.where(a > 0, (hi - b) / a, np.where(a < 0, (lo - b) / a, np.inf))
         down = np.where(a > 0, (lo - b) / a, np.where(a < 0, (hi - b) / a, -np.inf))
     stuck = (a == 0) & ((b > hi + TOLERANCE) | (b < lo - TOLERANCE))
@@ -78,14 +80,15 @@ class Saturated:
 
 
 def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat: np.ndarray,
-           damping: Damping) -> tuple[np.ndarray, np.ndarray, float]:
+           damping: Damping, svd: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, float]:
     """Split qd = a + b: a = (J W)# xd (scaled with the task), b = the rest.
 
     Also returns sigma_min(J W), how well the free joints can still do the task.
+    `svd` is the SVD of J, used while every joint is free.
     """
     Jw = J * free
-    U, S, Vt = np.linalg.svd(Jw, full_matrices=False)
-    pinv = damped_inverse_from_svd(U, S, Vt, damping)
+    U, S, Vt = svd if free.all() else np.linalg.svd(Jw, full_matrices=False)
+    pinv = pseudo_inverse_from_svd(U, S, Vt, damping)
     zw = z * free
     a = pinv @ xd
     b = q_sat + zw - pinv @ (J @ q_sat + Jw @ zw)
@@ -93,7 +96,8 @@ def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat
 
 
 def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
-                           hi: np.ndarray, damping: Damping) -> Saturated:
+                           hi: np.ndarray, damping: Damping,
+                           svd: tuple[np.ndarray, ...] | None = None) -> Saturated:
     """Joint velocities J# xd + (I - J# J) z within lo <= qd <= hi (Flacco et al.'s SNS).
 
     The task has priority over the preference z: z is first shrunk by the largest
@@ -103,19 +107,24 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     scale 0 cannot be met with the remaining preference, the preference is dropped.
     """
     m, n = J.shape
+    svd = svd or np.linalg.svd(J, full_matrices=False)
     everything = np.ones(n, dtype=bool)
+    pinv = pseudo_inverse_from_svd(*svd, damping)
+    a = pinv @ xd
+    null_motion = z - pinv @ (J @ z)
+    qd = a + null_motion
+    if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE)):
+        return Saturated(qd, 1.0, np.zeros(n, dtype=bool))
     # The task has priority: shrink the preference until it fits beside the task.
-    a, b, sigma = _solve(J, xd, np.zeros(n), everything, np.zeros(n), damping)
-    null_motion = _solve(J, np.zeros(m), z, everything, np.zeros(n), damping)[1]
     alpha, _, feasible = largest_scale(null_motion, a, lo, hi, everything)
     z = z * (alpha if feasible else 0.0)
     # Flacco's "rank(J W) < m", numerically: the free joints have lost a task direction.
-    rank_lost = min(damping.threshold, sigma / 2)
+    rank_lost = min(damping.threshold, svd[1][-1] / 2 if m <= n else 0.0)
     for preference in (z, np.zeros(n)):
         free, q_sat = everything.copy(), np.zeros(n)
         best: tuple[float, np.ndarray, np.ndarray] | None = None
         while True:
-            a, b, sigma_free = _solve(J, xd, preference, free, q_sat, damping)
+            a, b, sigma_free = _solve(J, xd, preference, free, q_sat, damping, svd)
             if not free.all() and (sigma_free < rank_lost or free.sum() < m):
                 break
             qd = a + b
@@ -128,7 +137,7 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
             q_sat[critical] = np.clip(qd[critical], lo[critical], hi[critical])
         if best is not None:
             scale, free, q_sat = best
-            a, b, _ = _solve(J, xd, preference, free, q_sat, damping)
+            a, b, _ = _solve(J, xd, preference, free, q_sat, damping, svd)
             qd = np.clip(scale * a + b, lo, hi)
             at_bound = ((qd >= hi - TOLERANCE) & (hi > 0)) | ((qd <= lo + TOLERANCE) & (lo < 0))
             return Saturated(qd, scale, ~free | at_bound)

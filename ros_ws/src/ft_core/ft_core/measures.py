@@ -51,6 +51,16 @@ def post_failure_jacobians(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndar
     return batch
 
 
+def post_failure_svd(J: np.ndarray, locked: Iterable[int] = ()) -> tuple[np.ndarray, ...]:
+    """Thin SVD (U, S, Vt) of all post-failure Jacobians in one batched call.
+
+    Shapes (n, m, k), (n, k), (n, k, n) with k = min(m, n); entry i belongs to a
+    failure of joint i (with `locked` also removed).
+    """
+    J = as_matrix(J)
+    return np.linalg.svd(post_failure_jacobians(J, locked), full_matrices=False)
+
+
 def post_failure_singular_values(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
     """Singular values of every post-failure Jacobian, shape (n, m), descending.
 
@@ -177,6 +187,20 @@ def worst_case_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> floa
     return float(np.prod(healthy, axis=1).min()) if healthy.size else 0.0
 
 
+def sigma_gradients(U: np.ndarray, Vt: np.ndarray, dJ: np.ndarray,
+                    locked: np.ndarray) -> np.ndarray:
+    """G[i, k] = ds_i/dq_k = u_i^T (d iJ/dq_k) v_i from a `post_failure_svd` (seed 002 eq 8).
+
+    `locked` is the boolean mask of joints already removed; dJ is (n, m, n).
+    """
+    n, m = U.shape[0], U.shape[1]
+    u = U[:, :, m - 1]
+    # Zero the removed columns so d(iJ)/dq_k = dJ[k] restricted to the kept columns.
+    v = Vt[:, m - 1, :] * ~locked
+    v[np.arange(n), np.arange(n)] = 0.0
+    return np.einsum("ia,kab,ib->ik", u, dJ, v)
+
+
 def post_failure_sigma_gradients(J: np.ndarray, dJ: np.ndarray,
                                  locked: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Post-failure singular values s_i and their gradients ds_i/dq_k (seed 002 eqs 7-8).
@@ -200,13 +224,8 @@ def post_failure_sigma_gradients(J: np.ndarray, dJ: np.ndarray,
     if m > n:
         raise ValueError(f"gradients need m <= n, got a {m} x {n} Jacobian")
     mask = locked_mask(n, locked)
-    batch = post_failure_jacobians(J, np.flatnonzero(mask))
-    U, S, Vt = np.linalg.svd(batch, full_matrices=False)
-    u = U[:, :, m - 1]
-    # Zero the removed columns so d(iJ)/dq_k = dJ[k] restricted to the kept columns.
-    v = Vt[:, m - 1, :] * ~mask
-    v[np.arange(n), np.arange(n)] = 0.0
-    grads = np.einsum("ia,kab,ib->ik", u, dJ, v)
+    U, S, Vt = post_failure_svd(J, np.flatnonzero(mask))
+    grads = sigma_gradients(U, Vt, dJ, mask)
     sigmas = S[:, m - 1].copy()
     sigmas[mask] = np.nan
     grads[mask] = np.nan
@@ -228,34 +247,40 @@ def soft_kfm(J: np.ndarray, locked: Iterable[int] = (), temperature: float = 0.0
     return float(low - temperature * np.log(np.sum(np.exp(-(healthy - low) / temperature))))
 
 
-def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),
-                 temperature: float = 0.0) -> np.ndarray:
-    """Gradient of K over q (n,), zero entries for locked joints (seed 002 eq 8).
+def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
+    """Weights (n,) such that grad K = weights @ G; 0 for nan (locked) entries.
 
     K = min_i s_i is not differentiable where two joints tie for the minimum
-    (seed 002 footnote 2). Remedy taken here: with `temperature` tau > 0 this is the
-    exact gradient of `soft_kfm`, a soft-min whose weights softmax(-s_i / tau)
-    blend the gradients of the joints within a few tau of the minimum, so the
-    ascent direction changes continuously when the minimising joint changes.
-    With tau = 0 it is eq 8 for the (first) minimising joint.
+    (seed 002 footnote 2). Remedy taken here: with `temperature` tau > 0 the
+    weights are softmax(-s_i / tau), the exact gradient of `soft_kfm`, which blends
+    the joints within a few tau of the minimum so the ascent direction changes
+    continuously when the minimising joint changes. With tau = 0 all weight goes to
+    the (first) minimising joint: seed 002 eq 8.
     """
-    sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
     healthy = ~np.isnan(sigmas)
+    weights = np.zeros(sigmas.shape)
     if not healthy.any():
-        return np.zeros(J.shape[1] if np.ndim(J) == 2 else 0)
-    s, G = sigmas[healthy], grads[healthy]
+        return weights
+    s = np.where(healthy, sigmas, np.inf)
     if temperature <= 0:
-        gradient = G[np.argmin(s)]
+        weights[np.argmin(s)] = 1.0
     else:
         weights = np.exp(-(s - s.min()) / temperature)
-        gradient = (weights / weights.sum()) @ G
-    return np.nan_to_num(gradient) * healthy
+        weights /= weights.sum()
+    return weights
+
+
+def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),
+                 temperature: float = 0.0) -> np.ndarray:
+    """Gradient of K over q (n,), zero for locked joints (seed 002 eq 8; `kfm_weights`)."""
+    sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
+    return (kfm_weights(sigmas, temperature) @ np.nan_to_num(grads)) * ~np.isnan(sigmas)
 
 
 def weighted_fault_tolerance_gradient(J: np.ndarray, dJ: np.ndarray,
                                       probabilities: Iterable[float] | None,
                                       locked: Iterable[int] = ()) -> np.ndarray:
-    """Gradient of F_w = sum_i w_i s_i over q (n,) (seed 001 eq 3.3 with seed 002 eq 8)."""
+    """Gradient of F_w = sum_i w_i s_i over q (n,), 0 for locked joints (001 eq 3.3, 002 eq 8)."""
     sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
     weights = failure_weights(probabilities, sigmas.size, locked)
-    return weights @ np.nan_to_num(grads)
+    return (weights @ np.nan_to_num(grads)) * ~np.isnan(sigmas)

@@ -42,21 +42,25 @@ class Damping:
         return self.max_damping**2 * (1.0 - ratio**2)
 
 
-def damped_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,
-                            damping: Damping) -> np.ndarray:
-    """Damped pseudo-inverse (..., k, m) from a thin SVD of (..., m, k) matrices.
+def pseudo_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,
+                            damping: Damping | None) -> np.ndarray:
+    """Pseudo-inverse (..., k, m) from a thin SVD of (..., m, k) matrices.
 
-    sigma_min is the last of the min(m, k) singular values: the m-th for a wide
-    matrix (task directions), the k-th for a tall one (least squares).
+    With `damping` the damped inverse: sigma_min is the last of the min(m, k)
+    singular values, the m-th for a wide matrix (task directions), the k-th for a
+    tall one (least squares). Without, the Moore-Penrose inverse (singular values
+    below 1e-15 times the largest count as 0, as in numpy.linalg.pinv).
     """
-    lam2 = damping.squared(S[..., -1])[..., None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factors = np.where(S > 0, S / (S**2 + lam2), 0.0)
+    if damping is None:
+        cutoff = 1e-15 * S[..., :1]
+        factors = np.divide(1.0, S, out=np.zeros_like(S), where=S > cutoff)
+    else:
+        lam2 = damping.squared(S[..., -1])[..., None]
+        factors = np.divide(S, S**2 + lam2, out=np.zeros_like(S), where=S > 0)
     return np.swapaxes(Vt, -1, -2) @ (factors[..., None] * np.swapaxes(U, -1, -2))
 
 
 def damped_pinv(A: np.ndarray, damping: Damping) -> np.ndarray:
     """Damped pseudo-inverse of an m x k matrix or a stack of them."""
-    A = np.asarray(A, dtype=float)
-    U, S, Vt = np.linalg.svd(A, full_matrices=False)
-    return damped_inverse_from_svd(U, S, Vt, damping)
+    U, S, Vt = np.linalg.svd(np.asarray(A, dtype=float), full_matrices=False)
+    return pseudo_inverse_from_svd(U, S, Vt, damping)

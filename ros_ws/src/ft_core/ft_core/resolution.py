@@ -23,12 +23,12 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ft_core.measures import as_matrix, failure_weights, post_failure_jacobians
-from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.measures import as_matrix, failure_weights, post_failure_svd
+from ft_core.pseudoinverse import Damping, pseudo_inverse_from_svd
 
 
 def _pinv(A: np.ndarray, damping: Damping | None) -> np.ndarray:
-    return np.linalg.pinv(A) if damping is None else damped_pinv(A, damping)
+    return pseudo_inverse_from_svd(*np.linalg.svd(A, full_matrices=False), damping)
 
 
 def _task_velocity(xd: np.ndarray, m: int) -> np.ndarray:
@@ -40,15 +40,16 @@ def _task_velocity(xd: np.ndarray, m: int) -> np.ndarray:
     return xd
 
 
-def reduced_velocities(J: np.ndarray, xd: np.ndarray,
-                       damping: Damping | None = None) -> np.ndarray:
+def reduced_velocities(J: np.ndarray, xd: np.ndarray, damping: Damping | None = None,
+                       svd: tuple[np.ndarray, ...] | None = None) -> np.ndarray:
     """Row i: the velocity iqd' = (iJ)+ xd the robot would have if joint i locked (n, n).
 
-    Entry (i, i) is 0 (seed 004 eqs 2 and 6).
+    Entry (i, i) is 0 (seed 004 eqs 2 and 6). `svd` may pass the
+    `measures.post_failure_svd(J)` the caller already has.
     """
     J = as_matrix(J)
     xd = _task_velocity(xd, J.shape[0])
-    return _pinv(post_failure_jacobians(J), damping) @ xd
+    return pseudo_inverse_from_svd(*(svd or post_failure_svd(J)), damping) @ xd
 
 
 def min_jump_velocity(J: np.ndarray, xd: np.ndarray,

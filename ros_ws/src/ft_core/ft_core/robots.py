@@ -282,18 +282,6 @@ class Robot:
             return pose
         return pose[self._rows, 3].copy()
 
-    def _joint_jacobian(self, q: np.ndarray) -> np.ndarray:
-        """6 x n Jacobian of the last chain joint's frame, world-aligned, at its origin."""
-        pin.computeJointJacobians(self._model, self._data, q)
-        pin.updateFramePlacements(self._model, self._data)
-        return pin.getJointJacobian(self._model, self._data, self._last_joint,
-                                    pin.LOCAL_WORLD_ALIGNED)
-
-    def _tool_offset(self) -> np.ndarray:
-        """Vector r (m, world axes) from the last joint's origin to the tool point."""
-        data = self._data
-        return data.oMf[self._tip].translation - data.oMi[self._last_joint].translation
-
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Task Jacobian (m x n) at the tool point, axes of `base_link`."""
         q = self._check(q)
@@ -302,7 +290,11 @@ class Robot:
         return (self._rotate @ J)[self._rows]
 
     def jacobian_derivatives(self, q: np.ndarray) -> np.ndarray:
-        """dJ/dq_k for every joint k, shape (n, m, n), from Pinocchio's kinematic Hessian.
+        """dJ/dq_k for every joint k, shape (n, m, n) (see `jacobian_and_derivatives`)."""
+        return self.jacobian_and_derivatives(q)[1]
+
+    def jacobian_and_derivatives(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Task Jacobian (m, n) and dJ/dq_k (n, m, n) in one kinematics pass.
 
         Pinocchio gives the Hessian of the last joint's world-aligned Jacobian
         (v, w). The tool point sits at r from that joint's origin, rigidly attached
@@ -310,19 +302,26 @@ class Robot:
         d(v + w x r)/dq_k = dv/dq_k + dw/dq_k x r + w x dr/dq_k, dr/dq_k = w_k x r.
         """
         q = self._check(q)
-        Jj = self._joint_jacobian(q).copy()
-        pin.computeJointKinematicHessians(self._model, self._data, q)
-        H = pin.getJointKinematicHessian(self._model, self._data, self._last_joint,
-                                         pin.LOCAL_WORLD_ALIGNED)
+        model, data = self._model, self._data
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        J = pin.getFrameJacobian(model, data, self._tip, pin.LOCAL_WORLD_ALIGNED)
+        w = pin.getJointJacobian(model, data, self._last_joint, pin.LOCAL_WORLD_ALIGNED)[3:]
+        pin.computeJointKinematicHessians(model, data)
+        H = pin.getJointKinematicHessian(model, data, self._last_joint, pin.LOCAL_WORLD_ALIGNED)
         # Pinocchio 4.1 returns column-major memory flagged C-contiguous.
         H = H.ravel(order="C").reshape(H.shape, order="F")
-        dJ = np.moveaxis(H, 2, 0).copy()  # dJ[k][:, j] = d Jj[:, j] / dq_k, (n, 6, n)
-        r = self._tool_offset()
-        w = Jj[3:].T  # (n, 3): angular column of each joint
-        dr = np.cross(w, r)  # (n, 3): dr/dq_k
-        dJ[:, :3, :] += np.cross(dJ[:, 3:, :], r, axisa=1, axisc=1)
-        dJ[:, :3, :] += np.cross(w[None, :, :], dr[:, None, :]).transpose(0, 2, 1)
-        return (self._rotate @ dJ)[:, self._rows, :]
+        dJ = H.transpose(2, 0, 1).copy()  # dJ[k][:, j] = d Jj[:, j] / dq_k, (n, 6, n)
+        r = data.oMf[self._tip].translation - data.oMi[self._last_joint].translation
+        skew_r = pin.skew(r)
+        dJ[:, :3, :] -= skew_r @ dJ[:, 3:, :]  # dw x r = -[r]x dw
+        dr = w.T @ skew_r  # row k: w_k x r
+        skew_dr = np.zeros((self.n, 3, 3))
+        skew_dr[:, 0, 1], skew_dr[:, 0, 2], skew_dr[:, 1, 2] = -dr[:, 2], dr[:, 1], -dr[:, 0]
+        skew_dr -= skew_dr.transpose(0, 2, 1)
+        dJ[:, :3, :] -= skew_dr @ w  # w_j x dr_k = -[dr_k]x w_j
+        rows = self._rows
+        return (self._rotate @ J)[rows], (self._rotate @ dJ)[:, rows, :]
 
     def scale_task(self, A: np.ndarray) -> np.ndarray:
         """Multiply the angular task rows of A (..., m, k) by the characteristic length.
