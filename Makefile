@@ -9,7 +9,7 @@ PACKAGES := ft_core ft_msgs_py ft_controller ft_monitor ft_sim
 SETUPS := $(foreach p,$(PACKAGES),ros_ws/src/$(p)/setup.py ros_ws/src/$(p)/setup.cfg)
 STAMP := $(VENV)/.installed
 
-.PHONY: all venv build lint test demo clean
+.PHONY: all venv build lint test demo bench clean
 
 all: test
 
@@ -35,6 +35,10 @@ test: build lint
 
 demo: $(STAMP)
 	$(BIN)/ft-demo
+
+# Speed figures (not asserted in tests): writes bench_out/*.md and *.json.
+bench: $(STAMP)
+	$(BIN)/python bench/engine_cycle.py --out bench_out
 
 clean:
 	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log

@@ -37,9 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ft_core import limits, measures
-from ft_core.pseudoinverse import Damping, pseudo_inverse_from_svd
-from ft_core.resolution import reduced_velocities
+from ft_core import limits, measures, postfailure
+from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
 
 RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
@@ -99,7 +98,7 @@ class EngineConfig:
             raise ValueError("soft_lower and soft_upper must have the same length")
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class CycleResult:
     """What one cycle computed: the command and the numbers the controller publishes.
 
@@ -130,6 +129,19 @@ class CycleResult:
     at_hard_limit: np.ndarray
 
 
+@dataclass(frozen=True)
+class _LockedSet:
+    """What depends only on which joints are locked, computed once per locked set."""
+
+    mask: np.ndarray  #: locked joints (n,)
+    healthy: np.ndarray | None  #: indices of healthy joints, None when none is locked
+    weights: np.ndarray  #: failure weights of the healthy joints
+    soft: bool  #: whether the soft box applies
+    lower: np.ndarray  #: effective lower limits of the healthy joints (rad)
+    upper: np.ndarray  #: effective upper limits of the healthy joints (rad)
+    velocity: np.ndarray  #: velocity limits of the healthy joints (rad/s)
+
+
 class ResolutionEngine:
     """Fault-tolerant redundancy resolution for one robot and one configuration."""
 
@@ -150,40 +162,34 @@ class ResolutionEngine:
             if np.any(lower > upper):
                 raise ValueError("a soft lower limit is above its upper limit")
             self._soft = (lower, upper)
-        self._velocity = robot.velocity_limits * self.config.velocity_scale
-        self._weight_cache: dict[bytes, np.ndarray] = {}
-
-    def _check(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int]) -> tuple:
-        n, m = self.robot.n, self.robot.m
-        q, xd = np.asarray(q, dtype=float), np.asarray(xd, dtype=float)
-        if q.shape != (n,):
-            raise ValueError(f"q must have {n} entries, got shape {q.shape}")
-        if xd.shape != (m,):
-            raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(xd))):
-            raise ValueError("q and xd must be finite")
-        return q, xd, measures.locked_mask(n, locked)
+        self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
 
     def soft_limits_active(self, any_locked: bool) -> bool:
         """Whether the soft box applies (configured, and not released by a failure)."""
         return self._soft is not None and not (
             any_locked and self.config.release_soft_limits_on_failure)
 
-    def _box(self, soft: bool) -> tuple[np.ndarray, np.ndarray]:
-        lower, upper = self.robot.lower, self.robot.upper
-        if soft:
-            lower, upper = np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
-        return lower, upper
-
-    def _weights(self, healthy: np.ndarray) -> np.ndarray:
-        """Failure weights of the healthy joints; equal if none of them has probability."""
-        key = healthy.tobytes()
-        if key not in self._weight_cache:
+    def _locked_set(self, locked: Iterable[int]) -> _LockedSet:
+        """The cached view of the robot with `locked` joints (validated on first use)."""
+        key = tuple(sorted(set(locked)))
+        if key not in self._locked_sets:
+            robot = self.robot
+            mask = measures.locked_mask(robot.n, key)
+            healthy = ~mask
+            soft = self.soft_limits_active(bool(key))
+            lower, upper = robot.lower, robot.upper
+            if soft:
+                lower, upper = np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
             p = None if self._probabilities is None else self._probabilities[healthy]
             if p is not None and p.sum() <= 0:
-                p = None
-            self._weight_cache[key] = measures.failure_weights(p, int(healthy.sum()))
-        return self._weight_cache[key]
+                p = None  # none of the healthy joints is expected to fail: equal weights
+            nh = int(healthy.sum())
+            self._locked_sets[key] = _LockedSet(
+                mask=mask, healthy=np.flatnonzero(healthy) if key else None,
+                weights=measures.failure_weights(p, nh) if nh else np.zeros(0), soft=soft,
+                lower=lower[healthy], upper=upper[healthy],
+                velocity=robot.velocity_limits[healthy] * self.config.velocity_scale)
+        return self._locked_sets[key]
 
     def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
@@ -191,70 +197,74 @@ class ResolutionEngine:
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, or locked indices that are not joints.
         """
-        q, xd, mask = self._check(q, xd, locked)
         cfg, robot = self.config, self.robot
-        healthy = ~mask
-        m, nh = robot.m, int(healthy.sum())
+        n, m = robot.n, robot.m
+        q, xd = np.asarray(q, dtype=float), np.asarray(xd, dtype=float)
+        if q.shape != (n,):
+            raise ValueError(f"q must have {n} entries, got shape {q.shape}")
+        if xd.shape != (m,):
+            raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
+        if not (np.isfinite(q).all() and np.isfinite(xd).all()):
+            raise ValueError("q and xd must be finite")
+        view = self._locked_set(locked)
+        index = view.healthy
+        nh = n if index is None else index.size
         next_failure = nh - 1 >= m
         use_kfm = next_failure and cfg.resolution in ("max_kfm", "blend") and cfg.kfm_gain > 0
         if use_kfm:
             J, dJ = robot.jacobian_and_derivatives(q)
-            dJh = robot.scale_task(dJ)[np.ix_(healthy, np.arange(m), healthy)]
+            dJ = robot.scale_task(dJ)
+            if index is not None:
+                dJ = dJ[np.ix_(index, np.arange(m), index)]
         else:
             J = robot.jacobian(q)
         J = robot.scale_task(J)
         x = robot.task_scale * xd
-        Jh = J[:, healthy]
-        svd = np.linalg.svd(Jh, full_matrices=False)
-        sigma_min = float(svd[1][m - 1]) if svd[1].size >= m else 0.0
+        qh = q
+        if index is not None:
+            J, qh = J[:, index], q[index]
 
-        # Post-failure decomposition: one batched SVD for K, its gradient and the jumps.
+        # One eigen-decomposition of J J^T and of its n downdates (module postfailure).
         z = np.zeros(nh)
-        sigmas_h, reduced = np.zeros(nh), None
+        sigmas_h, reduced, sigma_min = np.zeros(nh), None, 0.0
         if nh >= m:
-            U, S, Vt = measures.post_failure_svd(Jh)
-            sigmas_h = S[:, m - 1]
+            post = postfailure.analyse(J, with_vectors=use_kfm)
+            sigmas_h, sigma_min = post.sigmas, post.sigma_min
         if next_failure:
-            weights = self._weights(healthy)
-            reduced = reduced_velocities(Jh, x, cfg.damping, svd=(U, S, Vt))
+            reduced = postfailure.reduced_velocities(post, J, x, cfg.damping)
             if use_kfm:
-                grads = measures.sigma_gradients(U, Vt, dJh, np.zeros(nh, dtype=bool))
-                ascent = (weights if self._probabilities is not None
+                grads = postfailure.sigma_gradients(post, J, dJ)
+                ascent = (view.weights if self._probabilities is not None
                           else measures.kfm_weights(sigmas_h, cfg.kfm_temperature))
                 z += cfg.kfm_gain * (ascent @ grads)
             if cfg.resolution in ("min_jump", "blend"):
-                z += cfg.jump_gain * (weights @ reduced)
-        soft = self.soft_limits_active(bool(mask.any()))
-        lower, upper = self._box(soft)
-        qh = q[healthy]
-        z += cfg.limit_gain * limits.avoidance(qh, lower[healthy], upper[healthy],
-                                               cfg.limit_buffer)
-        lo, hi = limits.velocity_bounds(qh, lower[healthy], upper[healthy],
-                                        self._velocity[healthy], cfg.dt)
+                z += cfg.jump_gain * (view.weights @ reduced)
+        z += cfg.limit_gain * limits.avoidance(qh, view.lower, view.upper, cfg.limit_buffer)
+        lo, hi = limits.velocity_bounds(qh, view.lower, view.upper, view.velocity, cfg.dt)
 
-        if nh >= m and nh > 0:
-            result = limits.saturate_in_null_space(Jh, x, z, lo, hi, cfg.damping, svd)
+        if nh >= m:
+            pinv = postfailure.damped_inverse(post, J, cfg.damping)
+            result = limits.saturate_in_null_space(J, x, z, lo, hi, cfg.damping, pinv)
             qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
         else:
-            qd_h = pseudo_inverse_from_svd(*svd, cfg.damping) @ x if nh else np.zeros(0)
+            qd_h = damped_pinv(J, cfg.damping) @ x if nh else np.zeros(0)
             scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
             qd_h, saturated_h = scale * qd_h, np.zeros(nh, dtype=bool)
 
-        qd = np.zeros(robot.n)
-        qd[healthy] = qd_h
-        saturated = np.zeros(robot.n, dtype=bool)
-        saturated[healthy] = saturated_h
         jump = 0.0
         if reduced is not None:
-            jump = float(nh * weights @ np.sum((scale * reduced - qd_h) ** 2, axis=1))
-        sigmas = np.full(robot.n, np.nan)
-        sigmas[healthy] = sigmas_h
-        margin, at_soft = math.inf, np.zeros(robot.n, dtype=bool)
-        if soft:
+            jumps = scale * reduced - qd_h
+            jump = float(nh * view.weights @ np.einsum("ij,ij->i", jumps, jumps))
+        if index is None:
+            qd, saturated, sigmas = qd_h, saturated_h, sigmas_h
+        else:
+            qd, saturated, sigmas = np.zeros(n), np.zeros(n, dtype=bool), np.full(n, np.nan)
+            qd[index], saturated[index], sigmas[index] = qd_h, saturated_h, sigmas_h
+        margin, at_soft = math.inf, np.zeros(n, dtype=bool)
+        if view.soft:
             distance = np.minimum(q - self._soft[0], self._soft[1] - q)
             margin = float(distance.min())
             at_soft = distance < AT_LIMIT
-        hard_distance = np.minimum(q - robot.lower, robot.upper - q)
         if nh < m:
             status = INFEASIBLE
         elif scale < 1.0:
@@ -264,9 +274,9 @@ class ResolutionEngine:
         else:
             status = OK
         return CycleResult(
-            qd=qd, status=status,
-            kfm=float(sigmas_h.min()) if nh else 0.0,
+            qd=qd, status=status, kfm=float(sigmas_h.min()) if nh else 0.0,
             sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
             task_scale=float(scale), soft_limit_margin=margin, saturated=saturated,
-            at_soft_limit=at_soft, at_hard_limit=hard_distance < AT_LIMIT,
+            at_soft_limit=at_soft,
+            at_hard_limit=np.minimum(q - robot.lower, robot.upper - q) < AT_LIMIT,
         )

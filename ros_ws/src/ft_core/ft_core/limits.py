@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.pseudoinverse import Damping, pseudo_inverse_from_svd
+from ft_core.pseudoinverse import Damping, damped_pinv, pseudo_inverse_from_svd
 
 #: Slack (rad/s) in bound checks against round-off.
 TOLERANCE = 1e-10
@@ -26,11 +26,13 @@ TOLERANCE = 1e-10
 
 def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                     velocity_limits: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi."""
-    with np.errstate(invalid="ignore"):
-        lo = np.clip((lower - q) / dt, -velocity_limits, 0.0)
-        hi = np.clip((upper - q) / dt, 0.0, velocity_limits)
-    return np.nan_to_num(lo, nan=0.0), np.nan_to_num(hi, nan=0.0)
+    """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi.
+
+    q must be finite (infinite position limits give the velocity limit).
+    """
+    lo = np.minimum(np.maximum((lower - q) / dt, -velocity_limits), 0.0)
+    hi = np.maximum(np.minimum((upper - q) / dt, velocity_limits), 0.0)
+    return lo, hi
 
 
 def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float) -> np.ndarray:
@@ -97,7 +99,7 @@ def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat
 
 def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
                            hi: np.ndarray, damping: Damping,
-                           svd: tuple[np.ndarray, ...] | None = None) -> Saturated:
+                           pinv: np.ndarray | None = None) -> Saturated:
     """Joint velocities J# xd + (I - J# J) z within lo <= qd <= hi (Flacco et al.'s SNS).
 
     The task has priority over the preference z: z is first shrunk by the largest
@@ -107,14 +109,15 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     scale 0 cannot be met with the remaining preference, the preference is dropped.
     """
     m, n = J.shape
-    svd = svd or np.linalg.svd(J, full_matrices=False)
+    if pinv is None:
+        pinv = damped_pinv(J, damping)
     everything = np.ones(n, dtype=bool)
-    pinv = pseudo_inverse_from_svd(*svd, damping)
     a = pinv @ xd
-    null_motion = z - pinv @ (J @ z)
+    null_motion = z - pinv @ (J @ z) if z.any() else z
     qd = a + null_motion
     if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE)):
         return Saturated(qd, 1.0, np.zeros(n, dtype=bool))
+    svd = np.linalg.svd(J, full_matrices=False)
     # The task has priority: shrink the preference until it fits beside the task.
     alpha, _, feasible = largest_scale(null_motion, a, lo, hi, everything)
     z = z * (alpha if feasible else 0.0)

@@ -1,0 +1,24 @@
+"""`make bench` runs and writes its table and JSON (numbers are not asserted: noisy machines)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from paths import REPO
+
+
+def test_engine_benchmark_writes_its_outputs(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "engine_cycle.py"), "--out", str(tmp_path),
+         "--configurations", "5", "--repeats", "1"],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    table = (tmp_path / "engine_cycle.md").read_text()
+    assert "pink" in table and "ft engine blend" in table
+    figures = json.loads((tmp_path / "engine_cycle.json").read_text())
+    assert set(figures["results"]) >= {"ft engine least_norm", "ft engine blend"}
+    assert all(r["median_us"] > 0 for r in figures["results"].values())
+    assert figures["machine"]["cores"]
