@@ -1,4 +1,4 @@
-"""Test-session set-up: an isolated ROS 2 graph and the paths of the build.
+"""Test-session set-up: an isolated ROS 2 graph and deterministic property tests.
 
 Each session gets its own ROS_DOMAIN_ID (from its process id) and keeps DDS
 discovery on this machine, so parallel sessions and CI runs do not see each other.
@@ -8,6 +8,12 @@ from __future__ import annotations
 
 import os
 
+from hypothesis import settings
+
 os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_STATIC_PEERS", None)
+
+# Property-based tests draw the same examples on every run: failures reproduce.
+settings.register_profile("deterministic", derandomize=True, print_blob=True)
+settings.load_profile("deterministic")
