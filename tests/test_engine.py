@@ -213,7 +213,7 @@ def test_invariants_hold_everywhere(name: str, mode: str, seed: int, speed: floa
     locked = [i for i in locked if i < robot.n]
     rng = np.random.default_rng(seed)
     q = robot.random_configuration(rng)
-    if on_limit:
+    if on_limit and np.isfinite(robot.upper[0]):
         q[0] = robot.upper[0]
     xd = rng.normal(size=robot.m) * speed
     engine = ResolutionEngine(robot, EngineConfig(resolution=mode))

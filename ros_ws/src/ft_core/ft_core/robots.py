@@ -255,6 +255,20 @@ class Robot:
             self.task_space
         ]
 
+    def task_error(self, target: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Task error e (m,) from q to `target`, in the rows of `jacobian`.
+
+        `target` is what `forward` returns: x-y or a position (m), or a 4x4 transform
+        for pose, where the angular rows are log3(R_target R(q)^T) (rad, base axes),
+        so that J+ e is a Newton step towards the target.
+        """
+        pose = self.transform(q)
+        target = np.asarray(target, dtype=float)
+        if self.task_space != "pose":
+            return target - pose[self._rows, 3]
+        rotation = target[:3, :3] @ pose[:3, :3].T
+        return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(rotation)])
+
     def _reach(self) -> float:
         data = self._data
         pin.framesForwardKinematics(self._model, data, pin.neutral(self._model))

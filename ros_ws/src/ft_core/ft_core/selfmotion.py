@@ -1,0 +1,413 @@
+"""Self-motion manifolds of critical task points and their bounding boxes (seed 000, II-IV).
+
+The configurations that put the tool at a task point x* form the self-motion
+manifold of x*, of dimension r = n - m; the null space of J is its tangent space.
+If a joint locks anywhere inside the manifold's bounding box (per joint, min and
+max over the manifold), some configuration of the manifold still has that joint
+at that value, so the reduced robot can still reach x* (seed 000 sec. II-III).
+
+Tracing starts at a seed configuration and never leaves its connected component:
+every path starts at the seed and moves by small null-space steps, each followed
+by Newton drift correction J+ (x* - x) (`project`). Components found from other
+starting points are never merged (seed 000, end of sec. IV).
+
+- r = 1: the curve is followed both ways until it closes or meets a physical limit.
+- r = 2: the spiral of seed 000 eqs 6-7, phi' = v / r, r = gamma phi, with
+  theta' = sin(phi) v1 + cos(phi) v2 + J+ (x* - x). Reading taken for eqs 8-9
+  (the extraction garbles eq 9): the new null-space basis is the rotation of the
+  current one nearest the previous basis, computed exactly by the orthogonal
+  Procrustes solution. The spiral stops after a full turn that widens no bound;
+  the extremal walks below then polish each bound from the spiral's extreme sample.
+- r > 2: the extremal iteration of eq 10, theta' = +-(I - J+ J) e_i + J+ (x* - x),
+  per joint and direction, until the tangent space turns orthogonal to e_i. As the
+  paper says, a local method: it may stop at a local extremum and underestimate.
+
+A physical limit met on the way is landed on exactly and then held (the joint
+is pinned while the walk continues on the rest), so boxes are clipped to the
+physical limits. Every path keeps its samples in order: consecutive samples are
+neighbours on the manifold, which `recovery_configuration` interpolates.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.robots import Robot
+
+#: Task error (m or rad) under which a configuration is on the manifold.
+TOLERANCE = 1e-9
+#: Default arc length (rad, in joint space) of one tracing step.
+STEP = 0.02
+#: Rounds of extremal walks (r >= 2).
+EXTREMAL_ROUNDS = 2
+#: Damping of the Newton steps (only near singular configurations).
+NEWTON_DAMPING = Damping(threshold=1e-3, max_damping=1e-2)
+
+
+class UnreachableError(ValueError):
+    """The task point cannot be reached (within the given joint bounds)."""
+
+
+@dataclass(frozen=True)
+class Manifold:
+    """The traced connected component of a self-motion manifold.
+
+    Attributes:
+        robot: the robot it belongs to.
+        target: the task point x* (as `Robot.forward` returns it).
+        seed: the configuration the tracing started from (rad).
+        paths: ordered samples (k, n) of each traced path; all start at the seed.
+        method: "point", "curve", "spiral" or "extremal".
+        closed: a 1-D curve that came back to the seed.
+    """
+
+    robot: Robot
+    target: np.ndarray
+    seed: np.ndarray
+    paths: tuple[np.ndarray, ...]
+    method: str
+    closed: bool = False
+    samples: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", np.vstack(self.paths))
+
+    @property
+    def box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-joint (lower, upper) over the traced component, inside the physical limits."""
+        lower = np.maximum(self.samples.min(axis=0), self.robot.lower)
+        upper = np.minimum(self.samples.max(axis=0), self.robot.upper)
+        return lower, upper
+
+
+def check_target(robot: Robot, target: np.ndarray) -> np.ndarray:
+    """Return the target as an array of the task's shape, or raise ValueError."""
+    target = np.asarray(target, dtype=float)
+    shape = (4, 4) if robot.task_space == "pose" else (robot.m,)
+    if target.shape != shape:
+        raise ValueError(f"a {robot.task_space} target must have shape {shape}, got "
+                         f"{target.shape}")
+    if not np.all(np.isfinite(target)):
+        raise ValueError("the target has non-finite entries")
+    return target
+
+
+def project(robot: Robot, target: np.ndarray, q: np.ndarray, fixed: Iterable[int] = (),
+            lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+            iterations: int = 60) -> np.ndarray | None:
+    """Newton iteration onto the manifold of `target` from q, or None if it fails.
+
+    Joints in `fixed` do not move. The others stay inside [lower, upper] (default:
+    the physical limits): a joint that a step would push out is put on the bound
+    and held there for the following steps (a simple active set).
+    """
+    lower = robot.lower if lower is None else lower
+    upper = robot.upper if upper is None else upper
+    free = np.ones(robot.n, dtype=bool)
+    free[list(fixed)] = False
+    q = np.array(q, dtype=float)
+    for _ in range(iterations):
+        error = robot.task_error(target, q)
+        if np.linalg.norm(error) < TOLERANCE:
+            return q
+        J = robot.scale_task(robot.jacobian(q)) * free
+        step = damped_pinv(J, NEWTON_DAMPING) @ (robot.task_scale * error)
+        moved = q + step
+        out = free & ((moved < lower) | (moved > upper))
+        if out.any():
+            free &= ~out
+            moved = np.clip(moved, lower, upper)
+        q = moved
+    return q if np.linalg.norm(robot.task_error(target, q)) < TOLERANCE else None
+
+
+def null_basis(robot: Robot, q: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+    """Orthonormal basis (n, k) of the joint motions in the free joints that keep the task.
+
+    With every joint free, k = n - m (the tangent space of the manifold).
+    """
+    J = robot.scale_task(robot.jacobian(q))
+    if free is None or free.all():
+        return np.linalg.svd(J)[2][robot.m:].T
+    columns = np.flatnonzero(free)
+    basis = np.zeros((robot.n, max(columns.size - robot.m, 0)))
+    if basis.shape[1]:
+        basis[columns] = np.linalg.svd(J[:, columns])[2][robot.m:].T
+    return basis
+
+
+class _Walker:
+    """Null-space steps from a configuration, landing exactly on physical limits."""
+
+    def __init__(self, robot: Robot, target: np.ndarray):
+        self.robot, self.target = robot, target
+
+    def advance(self, q: np.ndarray, step: np.ndarray,
+                pinned: np.ndarray) -> tuple[np.ndarray | None, int | None]:
+        """Take `step` and correct drift; return (new q or None, joint whose limit was met)."""
+        robot = self.robot
+        moved = q + step
+        hit = None
+        crossing = (moved < robot.lower) | (moved > robot.upper)
+        if crossing.any():
+            bound = np.where(step < 0, robot.lower, robot.upper)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                fraction = np.where(crossing, (bound - q) / step, np.inf)
+            hit = int(np.argmin(fraction))
+            moved = q + max(float(fraction[hit]), 0.0) * step
+            moved[hit] = bound[hit]
+        fixed = np.flatnonzero(pinned).tolist() + ([hit] if hit is not None else [])
+        return project(robot, self.target, moved, fixed=fixed), hit
+
+
+def _wrapped_distance(robot: Robot, a: np.ndarray, b: np.ndarray) -> float:
+    """Joint-space distance, modulo 2 pi for joints without position limits."""
+    difference = a - b
+    continuous = ~np.isfinite(robot.lower) | ~np.isfinite(robot.upper)
+    difference[continuous] = (difference[continuous] + np.pi) % (2 * np.pi) - np.pi
+    return float(np.linalg.norm(difference))
+
+
+def _curve(walker: _Walker, seed: np.ndarray, step: float,
+           max_steps: int) -> tuple[list[np.ndarray], bool]:
+    """Follow a 1-D manifold both ways from the seed (until it closes or meets a limit)."""
+    robot = walker.robot
+    paths = []
+    pinned = np.zeros(robot.n, dtype=bool)
+    initial = null_basis(robot, seed)[:, 0]
+    for sign in (1.0, -1.0):
+        q, previous, path = seed, sign * initial, [seed]
+        for count in range(max_steps):
+            tangent = null_basis(robot, q)[:, 0]
+            tangent = tangent if tangent @ previous >= 0 else -tangent
+            moved, hit = walker.advance(q, step * tangent, pinned)
+            if moved is None:
+                break
+            path.append(moved)
+            if hit is not None:
+                break
+            if count > 3 and _wrapped_distance(robot, moved, seed) < 0.75 * step:
+                return [np.array(path)], True
+            q, previous = moved, tangent
+        paths.append(np.array(path))
+    return paths, False
+
+
+def _extremal(walker: _Walker, start: np.ndarray, joint: int, sign: float, step: float,
+              max_steps: int) -> np.ndarray:
+    """Seed 000 eq 10: move along the null-space projection of +-e_joint to its extremum."""
+    robot = walker.robot
+    q, path = start, [start]
+    pinned = np.zeros(robot.n, dtype=bool)
+    for _ in range(max_steps):
+        basis = null_basis(robot, q, ~pinned)
+        if not basis.shape[1]:
+            break
+        direction = sign * basis @ basis[joint]  # projection of sign * e_joint
+        size = np.linalg.norm(direction)
+        if size < 1e-6 or abs(direction[joint]) < 1e-6 * size:
+            break  # the tangent space is orthogonal to e_joint: an extremum
+        moved, hit = walker.advance(q, step * direction / size, pinned)
+        if moved is None or sign * (moved[joint] - q[joint]) <= 1e-12:
+            break
+        path.append(moved)
+        q = moved
+        if hit is not None:
+            if hit == joint:
+                break  # the extremum is the physical limit
+            pinned[hit] = True
+    return np.array(path)
+
+
+def _nearest_rotation(basis: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The basis of span(basis) nearest `previous` (orthogonal Procrustes): eqs 8-9."""
+    U, _, Vt = np.linalg.svd(basis.T @ previous)
+    return basis @ (U @ Vt)
+
+
+def _spiral(walker: _Walker, seed: np.ndarray, step: float, spacing: float,
+            max_steps: int) -> np.ndarray:
+    """Seed 000 eqs 6-7 on a 2-D manifold: a spiral of growing radius from the seed."""
+    robot = walker.robot
+    gamma = spacing / (2 * math.pi)
+    phi = 2 * math.pi  # start one turn out: radius `spacing`
+    basis = null_basis(robot, seed)
+    q, path = seed, [seed]
+    lower, upper = seed.copy(), seed.copy()
+    last_growth = phi
+    pinned = np.zeros(robot.n, dtype=bool)
+    for _ in range(max_steps):
+        direction = math.sin(phi) * basis[:, 0] + math.cos(phi) * basis[:, 1]
+        moved, _ = walker.advance(q, step * direction, pinned)
+        if moved is not None:
+            q = moved
+            path.append(q)
+            basis = _nearest_rotation(null_basis(robot, q), basis)
+            if np.any(q < lower - 1e-6) or np.any(q > upper + 1e-6):
+                last_growth = phi
+            lower, upper = np.minimum(lower, q), np.maximum(upper, q)
+        phi += step / (gamma * phi)
+        if phi - last_growth > 2 * math.pi:
+            break  # a whole turn without widening any bound
+    return np.array(path)
+
+
+def find_seed(robot: Robot, target: np.ndarray, q_start: np.ndarray | None = None,
+              lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+              attempts: int = 30, seed: int = 0) -> np.ndarray:
+    """A configuration reaching `target` inside [lower, upper] (default: the physical limits).
+
+    Newton from `q_start` (default: the middle of the limits), then from seeded random
+    configurations inside the bounds. Raises UnreachableError when none converges.
+    """
+    target = check_target(robot, target)
+    lower = robot.lower if lower is None else np.asarray(lower, dtype=float)
+    upper = robot.upper if upper is None else np.asarray(upper, dtype=float)
+    if np.any(lower > upper):
+        raise UnreachableError(f"the joint bounds are empty for joints "
+                               f"{np.flatnonzero(lower > upper).tolist()}")
+    finite_lower = np.where(np.isfinite(lower), lower, -math.pi)
+    finite_upper = np.where(np.isfinite(upper), upper, math.pi)
+    rng = np.random.default_rng(seed)
+    starts = [] if q_start is None else [np.clip(np.asarray(q_start, float), lower, upper)]
+    starts.append((finite_lower + finite_upper) / 2)
+    starts += [rng.uniform(finite_lower, finite_upper) for _ in range(attempts)]
+    for start in starts:
+        q = project(robot, target, start, lower=lower, upper=upper)
+        if q is not None:
+            return q
+    raise UnreachableError(
+        f"task point {np.round(target, 4).tolist()} is out of reach within the joint bounds "
+        f"({len(starts)} attempts)")
+
+
+def trace(robot: Robot, target: np.ndarray, q_seed: np.ndarray | None = None,
+          step: float = STEP, max_steps: int = 20000,
+          progress: Callable[[str], None] | None = None) -> Manifold:
+    """Trace the connected component of the self-motion manifold of `target` through q_seed.
+
+    Without q_seed, `find_seed` looks for one (raising UnreachableError if none).
+    A given seed is first corrected onto the manifold; it must already be close.
+    """
+    target = check_target(robot, target)
+    if q_seed is None:
+        seed = find_seed(robot, target)
+    else:
+        seed = project(robot, target, np.asarray(q_seed, dtype=float))
+        if seed is None:
+            raise UnreachableError("the seed configuration does not reach the target")
+    walker = _Walker(robot, target)
+    r = robot.n - robot.m
+    if r <= 0:
+        return Manifold(robot, target, seed, (seed[None],), "point")
+    if r == 1:
+        paths, closed = _curve(walker, seed, step, max_steps)
+        return Manifold(robot, target, seed, tuple(paths), "curve", closed)
+    paths: list[np.ndarray] = []
+    method = "extremal"
+    if r == 2:
+        method = "spiral"
+        paths.append(_spiral(walker, seed, step, spacing=5 * step, max_steps=max_steps))
+    # Each walk starts from the most extreme sample found so far (on an earlier path,
+    # so the traced set stays connected); a second round lets walks that stopped at a
+    # local extremum continue from better places found by the others.
+    for _ in range(EXTREMAL_ROUNDS):
+        for joint in range(robot.n):
+            for sign in (1.0, -1.0):
+                if progress:
+                    progress(f"joint {joint + 1} {'max' if sign > 0 else 'min'}")
+                samples = np.vstack(paths) if paths else seed[None]
+                start = samples[np.argmax(sign * samples[:, joint])]
+                paths.append(_extremal(walker, start, joint, sign, step, max_steps // 10))
+    return Manifold(robot, target, seed, tuple(paths), method)
+
+
+def bounding_box(robot: Robot, x_target: np.ndarray,
+                 q_seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-joint (lower, upper) of the manifold component of x_target through q_seed."""
+    return trace(robot, x_target, q_seed).box
+
+
+def box_volume(robot: Robot, lower: np.ndarray, upper: np.ndarray,
+               joints: Sequence[int] | None = None, normalized: bool = True) -> float:
+    """Volume of a box over `joints` (default all).
+
+    Normalized (seed 000, end of sec. V): each side divided by its joint's range,
+    so 1 is the whole joint space (a joint without limits has range 2 pi).
+    Otherwise in rad^k (as seed 000 Table II).
+    """
+    joints = list(range(robot.n)) if joints is None else list(joints)
+    sides = np.maximum(np.asarray(upper) - np.asarray(lower), 0.0)[joints]
+    if not normalized:
+        return float(np.prod(sides))
+    ranges = (robot.upper - robot.lower)[joints]
+    ranges = np.where(np.isfinite(ranges), ranges, 2 * math.pi)
+    return float(np.prod(np.minimum(sides / ranges, 1.0)))
+
+
+def intersect(boxes: Iterable[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Intersection of boxes; joints where lower > upper make it empty (`empty_joints`)."""
+    boxes = list(boxes)
+    if not boxes:
+        raise ValueError("intersect needs at least one box")
+    lower = np.max([np.asarray(b[0], dtype=float) for b in boxes], axis=0)
+    upper = np.min([np.asarray(b[1], dtype=float) for b in boxes], axis=0)
+    return lower, upper
+
+
+def empty_joints(box: tuple[np.ndarray, np.ndarray]) -> list[int]:
+    """Indices of joints whose range in the box is empty."""
+    return np.flatnonzero(box[0] > box[1]).tolist()
+
+
+def reachability(robot: Robot, targets: Sequence[np.ndarray], lower: np.ndarray,
+                 upper: np.ndarray, q_start: np.ndarray | None = None,
+                 ) -> list[np.ndarray | None]:
+    """For each target a configuration inside [lower, upper] reaching it, or None.
+
+    Seed 000 sec. III, step five: check that every critical point is still
+    reachable under the intersected soft limits.
+    """
+    found: list[np.ndarray | None] = []
+    for target in targets:
+        try:
+            found.append(find_seed(robot, target, q_start, lower, upper))
+        except UnreachableError:
+            found.append(None)
+    return found
+
+
+def recovery_configuration(manifold: Manifold, joint: int, value: float) -> np.ndarray:
+    """A configuration on the manifold with q[joint] = value (joint locked at `value`).
+
+    Interpolates between the consecutive traced samples that straddle `value` and
+    corrects onto the manifold with the joint held at `value`: from it the reduced
+    robot reaches the target exactly. Raises ValueError when `value` is outside
+    the manifold's range for that joint.
+    """
+    robot = manifold.robot
+    candidates = []
+    for path in manifold.paths:
+        values = path[:, joint] - value
+        for k in np.flatnonzero(values[:-1] * values[1:] <= 0):
+            a, b = path[k], path[k + 1]
+            span = b[joint] - a[joint]
+            t = 0.0 if span == 0 else (value - a[joint]) / span
+            candidates.append(a + t * (b - a))
+    exact = np.flatnonzero(np.abs(manifold.samples[:, joint] - value) < 1e-12)
+    candidates += [manifold.samples[k] for k in exact]
+    for candidate in candidates:
+        candidate = candidate.copy()
+        candidate[joint] = value
+        q = project(robot, manifold.target, candidate, fixed=[joint])
+        if q is not None:
+            return q
+    lower, upper = manifold.box
+    raise ValueError(f"joint {joint} at {value:.4f} is outside the manifold's range "
+                     f"[{lower[joint]:.4f}, {upper[joint]:.4f}] or no sample pair "
+                     "straddling it could be corrected")
