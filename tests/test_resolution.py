@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import measures, resolution, robots
+from ft_core import measures, resolution
 from ft_core.engine import EngineConfig, ResolutionEngine
+from models import planar_arm
 
 RNG = np.random.default_rng(11)
 
@@ -77,23 +78,9 @@ def test_bad_task_velocities_are_rejected() -> None:
         resolution.jump_index(J, np.zeros(5), np.array([0.0, np.nan, 0.0]))
 
 
-def planar_arm(link: float) -> robots.Robot:
-    """Planar 3R arm with equal links and no practical limits (seed 004, Fig. 1)."""
-    parts = ['<robot name="planar3r_004">'] + [f'<link name="l{i}"/>' for i in range(5)]
-    for i in range(3):
-        parts.append(
-            f'<joint name="j{i + 1}" type="revolute"><parent link="l{i}"/>'
-            f'<child link="l{i + 1}"/><origin xyz="{0 if i == 0 else link} 0 0"/>'
-            '<axis xyz="0 0 1"/><limit lower="-6.3" upper="6.3" velocity="50" effort="1"/>'
-            "</joint>")
-    parts.append(f'<joint name="tool" type="fixed"><parent link="l3"/><child link="l4"/>'
-                 f'<origin xyz="{link} 0 0"/></joint></robot>')
-    return robots.load("".join(parts), task_space="planar")
-
-
 def simulate_004(resolution_mode: str, probabilities: tuple = ()) -> dict[str, float]:
     """Seed 004 sec. IV-A: 1 s circle at 1 ms from X = [0.35, 0]; mean indexes over the run."""
-    arm = planar_arm(0.5)
+    arm = planar_arm([0.5, 0.5, 0.5], velocity=50.0)
     q = START_004.copy()
     config = EngineConfig(resolution=resolution_mode, dt=0.001, kfm_gain=5.0, limit_gain=0.0,
                           failure_probabilities=probabilities)
@@ -119,7 +106,8 @@ START_004 = np.array([1.5639385294, -1.6118093141, -1.8336118477])
 
 
 def test_start_configuration_reaches_the_papers_start_point() -> None:
-    np.testing.assert_allclose(planar_arm(0.5).forward(START_004), [0.35, 0.0], atol=1e-6)
+    arm = planar_arm([0.5, 0.5, 0.5])
+    np.testing.assert_allclose(arm.forward(START_004), [0.35, 0.0], atol=1e-6)
 
 
 def test_seed_004_planar_3r_all_joints_may_fail() -> None:

@@ -43,6 +43,11 @@ from ft_core.robots import Robot
 TOLERANCE = 1e-9
 #: Default arc length (rad, in joint space) of one tracing step.
 STEP = 0.02
+#: Distance (rad) between successive turns of the spiral (r = 2); the extremal walks
+#: that follow polish every bound, so the spiral only has to come near each extreme.
+SPIRAL_SPACING = 0.3
+#: The spiral explores with steps this many times `step` (Newton corrects the drift).
+SPIRAL_STEP_FACTOR = 3
 #: Rounds of extremal walks (r >= 2).
 EXTREMAL_ROUNDS = 2
 #: Damping of the Newton steps (only near singular configurations).
@@ -63,6 +68,7 @@ class Manifold:
         seed: the configuration the tracing started from (rad).
         paths: ordered samples (k, n) of each traced path; all start at the seed.
         method: "point", "curve", "spiral" or "extremal".
+        step: the tracing step (rad).
         closed: a 1-D curve that came back to the seed.
     """
 
@@ -71,6 +77,7 @@ class Manifold:
     seed: np.ndarray
     paths: tuple[np.ndarray, ...]
     method: str
+    step: float = STEP
     closed: bool = False
     samples: np.ndarray = field(init=False, repr=False)
 
@@ -79,10 +86,15 @@ class Manifold:
 
     @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per-joint (lower, upper) over the traced component, inside the physical limits."""
+        """Per-joint (lower, upper) over the traced component, inside the physical limits.
+
+        Angles are unwrapped along the paths; a joint without position limits whose
+        span reaches a full turn (within two steps) is unbounded: (-inf, inf).
+        """
         lower = np.maximum(self.samples.min(axis=0), self.robot.lower)
         upper = np.minimum(self.samples.max(axis=0), self.robot.upper)
-        return lower, upper
+        full = _full_turn(self.robot, lower, upper, 2 * self.step)
+        return np.where(full, -np.inf, lower), np.where(full, np.inf, upper)
 
 
 def check_target(robot: Robot, target: np.ndarray) -> np.ndarray:
@@ -165,10 +177,21 @@ class _Walker:
         return project(robot, self.target, moved, fixed=fixed), hit
 
 
+def _continuous(robot: Robot) -> np.ndarray:
+    """Joints without position limits (angles taken modulo 2 pi)."""
+    return ~np.isfinite(robot.lower) | ~np.isfinite(robot.upper)
+
+
+def _full_turn(robot: Robot, lower: np.ndarray, upper: np.ndarray,
+               slack: float = 0.0) -> np.ndarray:
+    """Joints without limits whose unwrapped span covers a full turn (less `slack`)."""
+    return _continuous(robot) & (upper - lower >= 2 * math.pi - slack)
+
+
 def _wrapped_distance(robot: Robot, a: np.ndarray, b: np.ndarray) -> float:
     """Joint-space distance, modulo 2 pi for joints without position limits."""
     difference = a - b
-    continuous = ~np.isfinite(robot.lower) | ~np.isfinite(robot.upper)
+    continuous = _continuous(robot)
     difference[continuous] = (difference[continuous] + np.pi) % (2 * np.pi) - np.pi
     return float(np.linalg.norm(difference))
 
@@ -204,7 +227,10 @@ def _extremal(walker: _Walker, start: np.ndarray, joint: int, sign: float, step:
     robot = walker.robot
     q, path = start, [start]
     pinned = np.zeros(robot.n, dtype=bool)
+    turn = 2 * math.pi if _continuous(robot)[joint] else math.inf
     for _ in range(max_steps):
+        if abs(q[joint] - start[joint]) >= turn:
+            break  # a joint without limits has gone all the way round
         basis = null_basis(robot, q, ~pinned)
         if not basis.shape[1]:
             break
@@ -248,7 +274,8 @@ def _spiral(walker: _Walker, seed: np.ndarray, step: float, spacing: float,
             q = moved
             path.append(q)
             basis = _nearest_rotation(null_basis(robot, q), basis)
-            if np.any(q < lower - 1e-6) or np.any(q > upper + 1e-6):
+            widened = (q < lower - 0.1 * step) | (q > upper + 0.1 * step)
+            if np.any(widened & ~_full_turn(robot, lower, upper)):
                 last_growth = phi
             lower, upper = np.minimum(lower, q), np.maximum(upper, q)
         phi += step / (gamma * phi)
@@ -304,15 +331,16 @@ def trace(robot: Robot, target: np.ndarray, q_seed: np.ndarray | None = None,
     walker = _Walker(robot, target)
     r = robot.n - robot.m
     if r <= 0:
-        return Manifold(robot, target, seed, (seed[None],), "point")
+        return Manifold(robot, target, seed, (seed[None],), "point", step)
     if r == 1:
         paths, closed = _curve(walker, seed, step, max_steps)
-        return Manifold(robot, target, seed, tuple(paths), "curve", closed)
+        return Manifold(robot, target, seed, tuple(paths), "curve", step, closed)
     paths: list[np.ndarray] = []
     method = "extremal"
     if r == 2:
         method = "spiral"
-        paths.append(_spiral(walker, seed, step, spacing=5 * step, max_steps=max_steps))
+        paths.append(_spiral(walker, seed, SPIRAL_STEP_FACTOR * step, SPIRAL_SPACING,
+                             max_steps))
     # Each walk starts from the most extreme sample found so far (on an earlier path,
     # so the traced set stays connected); a second round lets walks that stopped at a
     # local extremum continue from better places found by the others.
@@ -324,7 +352,7 @@ def trace(robot: Robot, target: np.ndarray, q_seed: np.ndarray | None = None,
                 samples = np.vstack(paths) if paths else seed[None]
                 start = samples[np.argmax(sign * samples[:, joint])]
                 paths.append(_extremal(walker, start, joint, sign, step, max_steps // 10))
-    return Manifold(robot, target, seed, tuple(paths), method)
+    return Manifold(robot, target, seed, tuple(paths), method, step)
 
 
 def bounding_box(robot: Robot, x_target: np.ndarray,

@@ -1,0 +1,163 @@
+"""ft_core.selfmotion: traced manifolds against analytic and brute-force references."""
+
+from __future__ import annotations
+
+import math
+from itertools import pairwise
+
+import numpy as np
+import pytest
+from ft_core import robots, selfmotion
+from ft_core.selfmotion import UnreachableError
+from models import planar_arm
+
+PLANAR = robots.load("planar3r")
+
+
+def brute_force_box(links: int, radius: float, grid: int = 1601) -> tuple[np.ndarray, ...]:
+    """Box of the manifold of (radius, 0) for a unit-link planar arm with 3 or 4 joints.
+
+    Dense grid over the first joints, the last two solved in closed form (both
+    elbows). Valid where the manifold is one closed curve or surface that does not
+    cross +-pi, as for the radii used here.
+    """
+    g = np.linspace(-np.pi, np.pi, grid)
+    heads = np.stack(np.meshgrid(*[g] * (links - 2), indexing="ij"), -1).reshape(-1, links - 2)
+    angles = np.cumsum(heads, axis=1)
+    wrist = np.stack([np.cos(angles).sum(1), np.sin(angles).sum(1)], -1)
+    gap = np.array([radius, 0.0]) - wrist
+    distance = np.linalg.norm(gap, axis=1)
+    ok = distance <= 2.0
+    cosine = np.clip((distance[ok] ** 2 - 2.0) / 2.0, -1.0, 1.0)
+    points = []
+    for sign in (1.0, -1.0):
+        last = sign * np.arccos(cosine)
+        middle = (np.arctan2(gap[ok, 1], gap[ok, 0]) - np.arctan2(np.sin(last), 1 + np.cos(last))
+                  - angles[ok, -1])
+        middle = (middle + np.pi) % (2 * np.pi) - np.pi
+        points.append(np.column_stack([heads[ok], middle, last]))
+    points = np.vstack(points)
+    return points.min(axis=0), points.max(axis=0)
+
+
+def test_point_one_link_from_the_base_spans_every_joints_full_range() -> None:
+    target = np.array([0.6, 0.8])  # distance 1 (seed 000 sec. II)
+    manifold = selfmotion.trace(PLANAR, target, np.array([0.5, 1.5, 1.5]))
+    assert manifold.method == "curve" and manifold.closed
+    lower, upper = manifold.box
+    assert np.all(np.isinf(lower)) and np.all(np.isinf(upper))
+    assert selfmotion.box_volume(PLANAR, lower, upper) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("radius", [1.5, 2.0, 2.5])
+def test_intermediate_radii_match_the_brute_force_box(radius: float) -> None:
+    manifold = selfmotion.trace(PLANAR, np.array([radius, 0.0]), np.array([0.3, -0.8, 0.5]))
+    assert manifold.closed
+    lower, upper = manifold.box
+    expected_lower, expected_upper = brute_force_box(3, radius)
+    np.testing.assert_allclose(lower, expected_lower, atol=0.01)
+    np.testing.assert_allclose(upper, expected_upper, atol=0.01)
+
+
+def test_boxes_shrink_to_a_configuration_at_the_workspace_boundary() -> None:
+    """Near the reach boundary the manifold's width goes like sqrt(3 - radius) (unit links)."""
+    volumes, widths = [], []
+    for radius in (2.9, 2.99, 2.999, 2.9999):
+        lower, upper = selfmotion.bounding_box(PLANAR, np.array([radius, 0.0]))
+        volumes.append(selfmotion.box_volume(PLANAR, lower, upper))
+        widths.append(float(np.max(upper - lower)))
+    assert all(a > b for a, b in pairwise(volumes))
+    for wider, narrower in pairwise(widths):
+        assert narrower == pytest.approx(wider / math.sqrt(10), rel=0.1)
+    assert widths[-1] < 0.05  # a single stretched-out configuration in the limit
+
+
+def test_spiral_on_a_two_dimensional_manifold_matches_brute_force() -> None:
+    arm = planar_arm([1.0, 1.0, 1.0, 1.0])
+    manifold = selfmotion.trace(arm, np.array([3.0, 0.0]), np.array([0.3, 0.5, 0.5, 0.5]))
+    assert manifold.method == "spiral"
+    lower, upper = manifold.box
+    expected_lower, expected_upper = brute_force_box(4, 3.0, grid=801)
+    np.testing.assert_allclose(lower, expected_lower, atol=0.01)
+    np.testing.assert_allclose(upper, expected_upper, atol=0.01)
+
+
+def test_only_the_seeds_component_is_traced() -> None:
+    arm = planar_arm([1.0, 1.0, 1.0], limit=2.0)  # the limits cut the closed curve in two
+    target = np.array([1.5, 0.0])
+    up = selfmotion.trace(arm, target, np.array([-0.9, 1.2, 1.2]))
+    down = selfmotion.trace(arm, target, np.array([0.9, -1.2, -1.2]))
+    assert up.box[0][1] > 0.4 and down.box[1][1] < -0.4  # elbow up and elbow down apart
+    assert np.all(up.samples[:, 1] > 0) and np.all(down.samples[:, 1] < 0)
+    assert np.isclose(up.box[1][1], 2.0) and np.isclose(down.box[0][1], -2.0)  # limit met
+
+
+@pytest.mark.parametrize(("name", "task", "target", "seed"), [
+    ("panda", "position", [0.5, 0.1, 0.4], None),
+    ("puma560", "position", [0.9, 0.0, 0.5], None),
+    ("panda", "pose", None, [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]),
+])
+def test_every_sample_reaches_the_target_inside_the_limits(name: str, task: str, target: list,
+                                                           seed: list | None) -> None:
+    robot = robots.load(name, task_space=task)
+    if target is None:
+        target = robot.forward(np.array(seed))
+    manifold = selfmotion.trace(robot, np.asarray(target), None if seed is None else seed)
+    for q in manifold.samples[:: max(1, len(manifold.samples) // 200)]:
+        assert np.linalg.norm(robot.task_error(target, q)) < 1e-8
+    assert np.all(manifold.samples >= robot.lower - 1e-12)
+    assert np.all(manifold.samples <= robot.upper + 1e-12)
+    lower, upper = manifold.box
+    assert np.all(lower <= manifold.seed) and np.all(manifold.seed <= upper)
+
+
+def test_recovery_configuration_puts_the_locked_joint_where_it_locked() -> None:
+    robot = robots.load("panda", task_space="position")
+    target = np.array([0.5, 0.1, 0.4])
+    manifold = selfmotion.trace(robot, target)
+    lower, upper = manifold.box
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        joint = int(rng.integers(robot.n))
+        value = float(rng.uniform(lower[joint], upper[joint]))
+        q = selfmotion.recovery_configuration(manifold, joint, value)
+        assert q[joint] == value
+        assert np.linalg.norm(robot.task_error(target, q)) < 1e-9
+        assert robot.lower[joint] <= value <= robot.upper[joint]
+    with pytest.raises(ValueError, match="outside"):
+        selfmotion.recovery_configuration(manifold, 3, upper[3] + 0.2)
+
+
+def test_unreachable_points_and_bad_targets_are_reported() -> None:
+    with pytest.raises(UnreachableError, match="out of reach"):
+        selfmotion.trace(PLANAR, np.array([3.5, 0.0]))
+    with pytest.raises(UnreachableError, match="out of reach"):
+        selfmotion.bounding_box(robots.load("panda", task_space="position"),
+                                np.array([1.5, 0.0, 0.3]))
+    with pytest.raises(ValueError, match="shape"):
+        selfmotion.trace(PLANAR, np.array([1.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="non-finite"):
+        selfmotion.trace(PLANAR, np.array([np.nan, 0.0]))
+    with pytest.raises(UnreachableError, match="seed"):
+        selfmotion.trace(PLANAR, np.array([1.0, 0.0]), np.array([0.0, 0.0, 0.0]))
+
+
+def test_intersection_volume_and_reachability() -> None:
+    robot = robots.load("panda", task_space="position")
+    points = [np.array([0.5, 0.1, 0.4]), np.array([0.45, -0.15, 0.35])]
+    boxes = [selfmotion.bounding_box(robot, p) for p in points]
+    lower, upper = selfmotion.intersect(boxes)
+    assert selfmotion.empty_joints((lower, upper)) == []
+    assert 0 < selfmotion.box_volume(robot, lower, upper) <= min(
+        selfmotion.box_volume(robot, *b) for b in boxes)
+    found = selfmotion.reachability(robot, points, lower, upper)
+    for q, p in zip(found, points, strict=True):
+        assert q is not None
+        assert np.all(q >= lower - 1e-12) and np.all(q <= upper + 1e-12)
+        np.testing.assert_allclose(robot.forward(q), p, atol=1e-8)
+    far = selfmotion.reachability(robot, [np.array([0.0, 0.0, 1.3])], lower, upper)
+    assert far == [None]
+    disjoint = selfmotion.intersect([(np.zeros(2), np.ones(2)), (np.full(2, 2.0), np.full(2, 3.0))])
+    assert selfmotion.empty_joints(disjoint) == [0, 1]
+    assert selfmotion.box_volume(robots.load("planar3r"), np.zeros(3), np.full(3, math.pi)) == (
+        pytest.approx(1 / 8))
