@@ -111,29 +111,33 @@ def check_target(robot: Robot, target: np.ndarray) -> np.ndarray:
 
 def project(robot: Robot, target: np.ndarray, q: np.ndarray, fixed: Iterable[int] = (),
             lower: np.ndarray | None = None, upper: np.ndarray | None = None,
-            iterations: int = 60) -> np.ndarray | None:
+            iterations: int = 100) -> np.ndarray | None:
     """Newton iteration onto the manifold of `target` from q, or None if it fails.
 
     Joints in `fixed` do not move. The others stay inside [lower, upper] (default:
-    the physical limits): a joint that a step would push out is put on the bound
-    and held there for the following steps (a simple active set).
+    the physical limits): in each iteration, a joint that the step would push out
+    is put on its bound and the step is solved again without it (an active set
+    rebuilt every iteration, so a joint can leave its bound again).
     """
     lower = robot.lower if lower is None else lower
     upper = robot.upper if upper is None else upper
-    free = np.ones(robot.n, dtype=bool)
-    free[list(fixed)] = False
+    movable = np.ones(robot.n, dtype=bool)
+    movable[list(fixed)] = False
     q = np.array(q, dtype=float)
     for _ in range(iterations):
         error = robot.task_error(target, q)
         if np.linalg.norm(error) < TOLERANCE:
             return q
-        J = robot.scale_task(robot.jacobian(q)) * free
-        step = damped_pinv(J, NEWTON_DAMPING) @ (robot.task_scale * error)
-        moved = q + step
-        out = free & ((moved < lower) | (moved > upper))
-        if out.any():
+        J = robot.scale_task(robot.jacobian(q))
+        e = robot.task_scale * error
+        free = movable.copy()
+        while True:
+            moved = q + damped_pinv(J * free, NEWTON_DAMPING) @ e
+            out = free & ((moved < lower) | (moved > upper))
+            if not out.any():
+                break
             free &= ~out
-            moved = np.clip(moved, lower, upper)
+            q = np.where(out, np.clip(moved, lower, upper), q)
         q = moved
     return q if np.linalg.norm(robot.task_error(target, q)) < TOLERANCE else None
 
@@ -439,3 +443,20 @@ def recovery_configuration(manifold: Manifold, joint: int, value: float) -> np.n
     raise ValueError(f"joint {joint} at {value:.4f} is outside the manifold's range "
                      f"[{lower[joint]:.4f}, {upper[joint]:.4f}] or no sample pair "
                      "straddling it could be corrected")
+
+
+def recover(manifold: Manifold, q: np.ndarray, joint: int) -> np.ndarray | None:
+    """Drive the robot with `joint` locked at q[joint] back to the manifold's target.
+
+    Inside the manifold's range for that joint, the other joints move in a straight
+    line (inside the limits, which are a box) to `recovery_configuration`, where
+    the target is reached exactly: the guarantee of seed 000 sec. III. Otherwise
+    nothing guarantees success: the reduced Jacobian's closed loop (Newton on the
+    healthy joints, inside the limits) runs from q and may stop short. Returns the
+    final configuration, or None when the target was not reached.
+    """
+    q = np.asarray(q, dtype=float)
+    try:
+        return recovery_configuration(manifold, joint, float(q[joint]))
+    except ValueError:
+        return project(manifold.robot, manifold.target, q, fixed=[joint], iterations=300)
