@@ -13,11 +13,12 @@ STAMP := $(VENV)/.installed
 
 all: test
 
-$(STAMP): requirements.txt $(SETUPS)
+$(STAMP): requirements.txt pyproject.toml $(SETUPS)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet -r requirements.txt
 	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation \
 		$(foreach p,$(PACKAGES),-e ros_ws/src/$(p))
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation .
 	touch $@
 
 venv: $(STAMP)

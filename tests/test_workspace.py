@@ -5,12 +5,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tomllib
 from importlib.metadata import PathDistribution
 from pathlib import Path
 
 import pytest
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
-from paths import INSTALL, PACKAGES
+from paths import INSTALL, PACKAGES, REPO
 
 
 @pytest.fixture
@@ -59,3 +60,20 @@ def test_demo_runs_from_the_install_space(install_space: Path) -> None:
                             capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr
     assert "planar3r" in result.stdout and "K = 0.5000" in result.stdout
+
+
+def test_every_executable_is_also_an_ft_console_script_in_the_venv(install_space: Path) -> None:
+    """`controller_node` -> `ft-controller`, `demo` -> `ft-demo` (INTERFACE.md), on PATH."""
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
+    bin_dir = Path(sys.executable).parent
+    for pkg in PACKAGES:
+        (info,) = site_packages(INSTALL / pkg).glob(f"{pkg}-*.egg-info")
+        for ep in PathDistribution(info).entry_points:
+            if ep.group != "console_scripts":
+                continue
+            name = "ft-" + ep.name.removesuffix("_node").replace("_", "-")
+            assert declared.get(name) == ep.value, f"{name} should run {ep.value}"
+            assert (bin_dir / name).is_file(), f"{name} is not installed in {bin_dir}"
+    result = subprocess.run([str(bin_dir / "ft-demo"), "--robot", "planar3r"],
+                            capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr

@@ -17,4 +17,9 @@ setup(
     maintainer_email="maintainers@ft-arms.org",
     description="ROS-free mathematics of the fault-tolerance suite.",
     license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "bounds = ft_core.bounds:main",
+        ],
+    },
 )

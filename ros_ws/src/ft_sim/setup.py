@@ -19,7 +19,6 @@ setup(
     entry_points={
         "console_scripts": [
             "demo = ft_sim.demo:main",
-            "ft-demo = ft_sim.demo:main",
         ],
     },
 )

@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
@@ -294,7 +295,8 @@ def find_seed(robot: Robot, target: np.ndarray, q_start: np.ndarray | None = Non
     """A configuration reaching `target` inside [lower, upper] (default: the physical limits).
 
     Newton from `q_start` (default: the middle of the limits), then from seeded random
-    configurations inside the bounds. Raises UnreachableError when none converges.
+    configurations inside the bounds. Joints without limits come back in [-pi, pi).
+    Raises UnreachableError when none converges.
     """
     target = check_target(robot, target)
     lower = robot.lower if lower is None else np.asarray(lower, dtype=float)
@@ -308,9 +310,11 @@ def find_seed(robot: Robot, target: np.ndarray, q_start: np.ndarray | None = Non
     starts = [] if q_start is None else [np.clip(np.asarray(q_start, float), lower, upper)]
     starts.append((finite_lower + finite_upper) / 2)
     starts += [rng.uniform(finite_lower, finite_upper) for _ in range(attempts)]
+    continuous = _continuous(robot)
     for start in starts:
         q = project(robot, target, start, lower=lower, upper=upper)
         if q is not None:
+            q[continuous] = (q[continuous] + math.pi) % (2 * math.pi) - math.pi
             return q
     raise UnreachableError(
         f"task point {np.round(target, 4).tolist()} is out of reach within the joint bounds "
@@ -460,3 +464,33 @@ def recover(manifold: Manifold, q: np.ndarray, joint: int) -> np.ndarray | None:
         return recovery_configuration(manifold, joint, float(q[joint]))
     except ValueError:
         return project(manifold.robot, manifold.target, q, fixed=[joint], iterations=300)
+
+
+def point_size(robot: Robot) -> int:
+    """Numbers per critical point in a flat list: m, or 7 (x, y, z, qx, qy, qz, qw) for pose."""
+    return 7 if robot.task_space == "pose" else robot.m
+
+
+def targets_from_flat(robot: Robot, values: Sequence[float]) -> list[np.ndarray]:
+    """Critical points from a flat list (the controller's `critical_points` parameter)."""
+    values = np.asarray(values, dtype=float)
+    size = point_size(robot)
+    if values.ndim != 1 or values.size % size:
+        raise ValueError(f"critical points for a {robot.task_space} task need a multiple of "
+                         f"{size} numbers, got {values.size}")
+    if not np.all(np.isfinite(values)):
+        raise ValueError("critical points must be finite")
+    targets = []
+    for chunk in values.reshape(-1, size):
+        if robot.task_space != "pose":
+            targets.append(chunk.copy())
+            continue
+        quaternion = chunk[3:]
+        norm = np.linalg.norm(quaternion)
+        if not norm > 0:
+            raise ValueError("a pose critical point has a zero quaternion")
+        pose = np.eye(4)
+        pose[:3, :3] = pin.Quaternion(*(quaternion[[3, 0, 1, 2]] / norm)).toRotationMatrix()
+        pose[:3, 3] = chunk[:3]
+        targets.append(pose)
+    return targets

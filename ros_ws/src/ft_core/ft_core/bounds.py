@@ -1,0 +1,161 @@
+"""`ft-bounds`: bounding-box soft limits for critical task points, as a parameters file.
+
+    ft-bounds --robot panda --task position --points "0.5,0.1,0.4;0.45,-0.15,0.35"
+
+For each critical point it traces the self-motion manifold (from `--seed`, or from a
+configuration it finds), prints the point's bounding box and normalised volume, then
+the intersection of the boxes and whether every point is still reachable inside it
+(seed 000 sec. III, steps 3-5). On success it writes a ROS 2 parameters file that the
+controller accepts (`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with
+the model selection), for every node (`/**`).
+
+Exit status: 0 success; 1 bad input (robot model, points, seed); 2 usage; 3 a point
+is out of reach; 4 the boxes do not intersect or a point cannot be reached inside
+the intersection. Nothing is written unless the status is 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ft_core import robots, selfmotion
+
+#: Stand-in for "no soft limit" on a joint without position limits (YAML has no inf
+#: that every ROS 2 parameter parser accepts).
+UNBOUNDED = 1.0e9
+
+
+class _Progress:
+    """A one-line progress bar on a terminal, plain lines otherwise."""
+
+    def __init__(self, total: int, stream=sys.stderr):
+        self.total, self.stream = total, stream
+        self.tty = stream.isatty()
+
+    def point(self, index: int, text: str) -> None:
+        self.index = index
+        self.stream.write(f"[{index + 1}/{self.total}] {text}\n")
+        self.stream.flush()
+
+    def step(self, text: str) -> None:
+        if self.tty:
+            self.stream.write(f"\r    tracing: {text:<24}")
+            self.stream.flush()
+
+    def done(self) -> None:
+        if self.tty:
+            self.stream.write("\r" + " " * 40 + "\r")
+
+
+def _numbers(text: str) -> list[float]:
+    return [float(v) for v in text.replace(",", " ").split()]
+
+
+def parse_points(text: str) -> list[float]:
+    """'x1,y1,z1;x2,y2,z2' -> the flat list [x1, y1, z1, x2, y2, z2]."""
+    flat: list[float] = []
+    for chunk in text.split(";"):
+        if chunk.strip():
+            flat += _numbers(chunk)
+    return flat
+
+
+def _fmt(values: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:7.3f}" for v in values) + "]"
+
+
+def _finite(values: np.ndarray) -> list[float]:
+    return [float(np.clip(v, -UNBOUNDED, UNBOUNDED)) for v in values]
+
+
+def parameters(args: argparse.Namespace, lower: np.ndarray, upper: np.ndarray,
+               flat_points: Sequence[float]) -> dict:
+    """The ROS 2 parameters-file content for the controller."""
+    params = {"robot_model": args.robot, "task_space": args.task,
+              "soft_limits": {"lower": _finite(lower), "upper": _finite(upper)},
+              "critical_points": [float(v) for v in flat_points]}
+    if args.base_link:
+        params["base_link"] = args.base_link
+    if args.tip_link:
+        params["tip_link"] = args.tip_link
+    return {"/**": {"ros__parameters": params}}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    parser = argparse.ArgumentParser(prog="ft-bounds", description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", required=True, help="built-in name or URDF file")
+    parser.add_argument("--task", default="position", choices=sorted(robots.TASK_DIMENSIONS))
+    parser.add_argument("--points", required=True,
+                        help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: x,y,z,qx,qy,qz,qw)")
+    parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing")
+    parser.add_argument("--base-link")
+    parser.add_argument("--tip-link")
+    parser.add_argument("--step", type=float, default=selfmotion.STEP,
+                        help="tracing step (rad), default %(default)s")
+    parser.add_argument("--output", "-o", type=Path, default=Path("ft_bounds.yaml"),
+                        help="parameters file to write, default %(default)s")
+    args = parser.parse_args(argv)
+    try:
+        robot = robots.load(args.robot, args.base_link, args.tip_link, args.task)
+        flat = parse_points(args.points)
+        targets = selfmotion.targets_from_flat(robot, flat)
+        seed = None if args.seed is None else np.array(_numbers(args.seed))
+        if seed is not None and seed.shape != (robot.n,):
+            raise ValueError(f"--seed needs {robot.n} joint values, got {seed.size}")
+        if not (args.step > 0):
+            raise ValueError("--step must be positive")
+    except ValueError as error:
+        print(f"ft-bounds: {error}", file=sys.stderr)
+        return 1
+    print(f"{robot.name}: {robot.n} joints {list(robot.joint_names)}, {robot.task_space} task")
+    progress = _Progress(len(targets))
+    boxes = []
+    for index, target in enumerate(targets):
+        label = np.round(target[:3, 3] if target.ndim == 2 else target, 4).tolist()
+        progress.point(index, f"point {label}")
+        try:
+            start = seed if seed is None else selfmotion.find_seed(robot, target, seed)
+            manifold = selfmotion.trace(robot, target, start, step=args.step,
+                                        progress=progress.step)
+        except selfmotion.UnreachableError as error:
+            progress.done()
+            print(f"ft-bounds: point {index + 1} {label}: {error}", file=sys.stderr)
+            return 3
+        progress.done()
+        lower, upper = manifold.box
+        boxes.append((lower, upper))
+        print(f"  point {index + 1}: lower {_fmt(lower)}\n"
+              f"           upper {_fmt(upper)}\n"
+              f"           volume {selfmotion.box_volume(robot, lower, upper):.4g} "
+              f"({manifold.method}, {len(manifold.samples)} samples)")
+    lower, upper = selfmotion.intersect(boxes)
+    print(f"intersection: lower {_fmt(lower)}\n              upper {_fmt(upper)}")
+    empty = selfmotion.empty_joints((lower, upper))
+    if empty:
+        names = [robot.joint_names[j] for j in empty]
+        print(f"ft-bounds: the boxes do not intersect on {names}: no soft limits keep every "
+              "point reachable after a failure", file=sys.stderr)
+        return 4
+    print(f"  volume {selfmotion.box_volume(robot, lower, upper):.4g}")
+    unreachable = [i + 1 for i, q in enumerate(
+        selfmotion.reachability(robot, targets, lower, upper, seed)) if q is None]
+    if unreachable:
+        print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection",
+              file=sys.stderr)
+        return 4
+    print("every point is reachable inside the intersection")
+    args.output.write_text("# Soft limits from ft-bounds (seed 000 sec. III).\n" + yaml.safe_dump(
+        parameters(args, lower, upper, flat), sort_keys=False))
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

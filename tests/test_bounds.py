@@ -1,0 +1,75 @@
+"""`ft-bounds`: boxes, intersection, verdicts, exit codes and the parameters file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from ft_core import bounds, robots, selfmotion
+
+
+def run(tmp_path: Path, *args: str) -> tuple[int, Path]:
+    output = tmp_path / "bounds.yaml"
+    return bounds.main([*args, "--output", str(output)]), output
+
+
+def test_writes_soft_limits_the_controller_accepts(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    status, output = run(tmp_path, "--robot", "panda", "--task", "position",
+                         "--points", "0.5,0.1,0.4; 0.45,-0.15,0.35")
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "intersection" in printed and "every point is reachable" in printed
+    params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+    assert params["robot_model"] == "panda" and params["task_space"] == "position"
+    assert params["critical_points"] == [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]
+    lower = np.array(params["soft_limits"]["lower"])
+    upper = np.array(params["soft_limits"]["upper"])
+    robot = robots.load("panda", task_space="position")
+    assert np.all(lower <= upper)
+    assert np.all(lower >= robot.lower) and np.all(upper <= robot.upper)
+    expected = selfmotion.intersect([selfmotion.bounding_box(robot, np.array(p))
+                                     for p in ([0.5, 0.1, 0.4], [0.45, -0.15, 0.35])])
+    np.testing.assert_allclose(lower, expected[0], atol=1e-9)
+    np.testing.assert_allclose(upper, expected[1], atol=1e-9)
+
+
+def test_unbounded_joints_are_written_as_large_finite_limits(tmp_path: Path) -> None:
+    status, output = run(tmp_path, "--robot", "planar3r", "--task", "planar",
+                         "--points", "0.6,0.8")  # one link from the base: full circles
+    assert status == 0
+    params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+    assert params["soft_limits"]["lower"] == [-bounds.UNBOUNDED] * 3
+    assert params["soft_limits"]["upper"] == [bounds.UNBOUNDED] * 3
+
+
+@pytest.mark.parametrize(("args", "status", "message"), [
+    (["--robot", "panda", "--points", "1.5,0,0.3"], 3, "out of reach"),
+    (["--robot", "planar3r", "--task", "planar", "--points", "2.9,0;-2.9,0.2"], 4,
+     "do not intersect"),
+    (["--robot", "no_such_robot", "--points", "1,2,3"], 1, "unknown robot model"),
+    (["--robot", "panda", "--points", "0.5,0.1"], 1, "multiple of 3"),
+    (["--robot", "panda", "--points", "0.5,0.1,0.4", "--seed", "0,0"], 1, "7 joint values"),
+])
+def test_failures_exit_non_zero_with_a_clear_message_and_write_nothing(
+        tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], status: int,
+        message: str) -> None:
+    code, output = run(tmp_path, *args)
+    assert code == status
+    assert message in capsys.readouterr().err
+    assert not output.exists()
+
+
+def test_pose_points_use_position_and_quaternion() -> None:
+    robot = robots.load("panda")
+    q = np.array([0.1, -0.3, 0.2, -2.0, 0.3, 1.5, 0.4])
+    pose = robot.forward(q)
+    w = np.sqrt(1 + np.trace(pose[:3, :3])) / 2
+    quaternion = [(pose[2, 1] - pose[1, 2]) / (4 * w), (pose[0, 2] - pose[2, 0]) / (4 * w),
+                  (pose[1, 0] - pose[0, 1]) / (4 * w), w]
+    (target,) = selfmotion.targets_from_flat(robot, [*pose[:3, 3], *quaternion])
+    np.testing.assert_allclose(target, pose, atol=1e-12)
+    with pytest.raises(ValueError, match="multiple of 7"):
+        selfmotion.targets_from_flat(robot, [0.0] * 6)
