@@ -40,6 +40,7 @@ demo: $(STAMP)
 # Speed figures (not asserted in tests): writes bench_out/*.md and *.json.
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
+	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 
 clean:
 	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log

@@ -22,3 +22,13 @@ def test_engine_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     assert set(figures["results"]) >= {"ft engine least_norm", "ft engine blend"}
     assert all(r["median_us"] > 0 for r in figures["results"].values())
     assert figures["machine"]["cores"]
+
+
+def test_selfmotion_benchmark_writes_its_outputs(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "selfmotion_trace.py"), "--out", str(tmp_path),
+         "--repeats", "1"], capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads((tmp_path / "selfmotion_trace.json").read_text())["results"]
+    assert {f["method"] for f in figures.values()} == {"curve", "extremal", "spiral"}
+    assert all(f["median_s"] > 0 for f in figures.values())
