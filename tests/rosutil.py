@@ -6,9 +6,15 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
+import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from ft_msgs_py import convert, qos
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
 
 
 @contextmanager
@@ -33,3 +39,79 @@ def spin_until(executor: SingleThreadedExecutor, condition: Callable[[], bool],
             return True
         executor.spin_once(timeout_sec=0.05)
     return condition()
+
+
+class FakePlant:
+    """A kinematic plant for node tests, in simulated time.
+
+    Each `step()` advances the clock by dt, integrates the last velocity command
+    (unless `frozen`), publishes `/clock` and a stamped `joint_states`, then spins
+    until a command stamped with the new time arrives (or `timeout`). It also
+    records the commands, metrics and diagnostics it sees.
+    """
+
+    def __init__(self, context: Context, executor: SingleThreadedExecutor,
+                 joints: list[str], q0, dt: float = 0.01, command_topic: str = "ft/command_raw"):
+        self.node = rclpy.create_node("fake_plant", context=context)
+        self.executor = executor
+        executor.add_node(self.node)
+        self.joints, self.q, self.dt = list(joints), np.array(q0, dtype=float), dt
+        self.t_ns = 1_000_000_000
+        self.frozen = False
+        self.publish_states = True
+        self.commands: list[JointState] = []
+        self.metrics: list[Float64MultiArray] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        self._clock = self.node.create_publisher(Clock, "/clock", 10)
+        self.state_pub = self.node.create_publisher(JointState, "joint_states", qos.RELIABLE)
+        self.node.create_subscription(JointState, command_topic, self.commands.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(Float64MultiArray, "ft/metrics", self.metrics.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append,
+                                      qos.SENSOR_INPUT)
+
+    @property
+    def t(self) -> float:
+        return self.t_ns * 1e-9
+
+    def stamp(self):
+        return convert.stamp_from_nanoseconds(self.t_ns)
+
+    def velocity(self):
+        """The last command as a vector in `joints` order (zeros before any)."""
+        if not self.commands:
+            return np.zeros(len(self.joints))
+        last = self.commands[-1]
+        by_name = dict(zip(last.name, last.velocity, strict=True))
+        return np.array([by_name[j] for j in self.joints])
+
+    def publish_state(self, **overrides) -> None:
+        msg = convert.joint_state(self.joints, self.stamp(), position=self.q)
+        for field, value in overrides.items():
+            setattr(msg, field, value)
+        self.state_pub.publish(msg)
+
+    def step(self, timeout: float = 2.0) -> bool:
+        if not self.frozen:
+            self.q = self.q + self.dt * self.velocity()
+        self.t_ns += round(self.dt * 1e9)
+        if self.publish_states:
+            self.publish_state()
+        self._clock.publish(Clock(clock=self.stamp()))
+        target = self.t_ns
+
+        def fresh() -> bool:
+            if not self.commands:
+                return False
+            stamp = self.commands[-1].header.stamp
+            return stamp.sec * 1_000_000_000 + stamp.nanosec >= target
+
+        return spin_until(self.executor, fresh, timeout)
+
+    def run(self, steps: int, each=None) -> None:
+        """`steps` steps, calling `each(plant)` before every one."""
+        for _ in range(steps):
+            if each is not None:
+                each(self)
+            self.step()

@@ -16,4 +16,9 @@ setup(
     maintainer_email="maintainers@ft-arms.org",
     description="Fault-tolerant redundancy-resolution controller node for redundant arms.",
     license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "controller_node = ft_controller.controller_node:main",
+        ],
+    },
 )

@@ -1,1 +1,9 @@
-"""The suite's ROS 2 interface contract in code (filled by the controller issue)."""
+"""The suite's ROS 2 interface contract in code (shared/INTERFACE.md).
+
+Modules:
+    names: topic and service names.
+    qos: quality-of-service profiles.
+    convert: messages <-> the suite's arrays (joint vectors by name, twists, poses, stamps).
+    metrics: the labelled `ft/metrics` array.
+    diagnostics: `diagnostic_msgs` statuses.
+"""

@@ -1,0 +1,530 @@
+"""controller_node: fault-tolerant redundancy resolution as a ROS 2 node.
+
+Joint states plus an end-effector target (twist or pose) in, joint velocities out:
+one `ft_core.engine` cycle per timer tick at `control_rate`. Topics, parameters and
+reactions are listed in the README; the contract is shared/INTERFACE.md.
+
+Safety: with no model, no joint state yet, a stale state (older than
+`state_timeout`), missing joints, non-finite values or stamps in the future or going
+backwards, the node publishes explicit zero commands (a velocity controller holds
+its last command) and an ERROR diagnostic, and resumes by itself when good data
+returns. Each kind of problem is logged once per episode. On shutdown it publishes
+zeros before leaving.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from ft_core import robots, selfmotion
+from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
+from ft_core.robots import Robot, RobotModelError
+from ft_core.targets import (
+    PoseTracking,
+    goal_from_transform,
+    pose_velocity,
+    staleness_scale,
+    twist_velocity,
+)
+from ft_msgs_py import convert, diagnostics, metrics, names, qos
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+
+#: Stamps up to this far (s) ahead of the node's clock are accepted (clock skew).
+FUTURE_TOLERANCE = 0.05
+#: Diagnostics period (s).
+DIAGNOSTICS_PERIOD = 0.5
+
+_MODEL_PARAMETERS = ("robot_description", "robot_model", "base_link", "tip_link", "joints",
+                     "task_space", "characteristic_length")
+
+
+def _floats(low: float, high: float) -> list[FloatingPointRange]:
+    return [FloatingPointRange(from_value=low, to_value=high)]
+
+
+#: name -> (default, description, extra descriptor fields)
+PARAMETERS: dict[str, tuple[object, str, dict]] = {
+    "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
+    "robot_model": ("", "built-in name (planar3r, puma560, panda, iiwa14) or URDF path; "
+                    "empty too: wait for the robot_description topic", {"read_only": True}),
+    "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
+    "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
+    "joints": ([], "command order of the chain's joints (empty: base to tip)",
+               {"read_only": True, "dynamic_typing": True}),
+    "task_space": ("", "pose, position or planar (empty: the model's default)",
+                   {"read_only": True}),
+    "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
+                              {"read_only": True, "floating_point_range": _floats(0.0, 100.0)}),
+    "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
+    "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
+                 {"floating_point_range": _floats(0.0, 1e4)}),
+    "jump_gain": (1.0, "minimum-jump term (1 = exact)",
+                  {"floating_point_range": _floats(0.0, 100.0)}),
+    "limit_gain": (1.0, "soft/hard limit avoidance, rad/s at a box edge",
+                   {"floating_point_range": _floats(0.0, 100.0)}),
+    "failure_probabilities": ([], "one per joint in `joints` order (empty: equal)",
+                              {"dynamic_typing": True}),
+    "soft_limits.lower": ([], "rad, `joints` order (empty: none)", {"dynamic_typing": True}),
+    "soft_limits.upper": ([], "rad, `joints` order (empty: none)", {"dynamic_typing": True}),
+    "critical_points": ([], "task points concatenated (pose: x y z qx qy qz qw); their "
+                        "intersected self-motion boxes become soft limits",
+                        {"dynamic_typing": True}),
+    "release_soft_limits_on_failure": (True, "drop the soft limits once a joint is locked", {}),
+    "control_rate": (250.0, "Hz", {"floating_point_range": _floats(1.0, 2000.0)}),
+    "target_timeout": (0.5, "s; an older twist decays to 0 over one more timeout",
+                       {"floating_point_range": _floats(0.001, 60.0)}),
+    "state_timeout": (0.1, "s; older joint states stop the arm",
+                      {"floating_point_range": _floats(0.001, 60.0)}),
+    "position_gain": (2.0, "1/s, pose-goal tracking",
+                      {"floating_point_range": _floats(0.01, 100.0)}),
+    "max_linear_speed": (0.25, "m/s, pose-goal tracking",
+                         {"floating_point_range": _floats(0.001, 10.0)}),
+    "max_angular_speed": (0.5, "rad/s, pose-goal tracking",
+                          {"floating_point_range": _floats(0.001, 10.0)}),
+    "velocity_scale": (0.5, "fraction of the URDF velocity limits",
+                       {"floating_point_range": _floats(0.01, 1.0)}),
+    "idle_null_space_motion": (False, "with no target, allow null-space motion (kfm ascent, "
+                               "limit avoidance); otherwise hold still", {}),
+}
+
+
+@dataclass
+class _Target:
+    """The latest target: a twist (task velocity) or a pose goal."""
+
+    kind: str  # "twist" or "pose"
+    value: np.ndarray  # task velocity, or goal
+    stamp: float  # s
+
+
+class ControllerNode(Node):
+    """The controller; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        super().__init__("controller", **kwargs)
+        for name, (default, description, extra) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=description, **extra)
+            try:
+                self.declare_parameter(name, default, descriptor)
+            except InvalidParameterValueException as error:
+                self.get_logger().error(f"{error}; using the default {default!r}")
+                self.declare_parameter(name, default, descriptor, ignore_override=True)
+        self.robot: Robot | None = None
+        self.engine: ResolutionEngine | None = None
+        self.tracking = PoseTracking()
+        self._order: np.ndarray | None = None  # command index -> chain index
+        self._labels: list[str] = []
+        self._problems: dict[str, str] = {}
+        self._q: np.ndarray | None = None
+        self._state_stamp = -math.inf
+        self._target: _Target | None = None
+        self._locked: dict[str, float] = {}
+        self._soft_note = "none"
+        self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
+        self._boxes_dirty = False
+        self._last = None
+        self._cycles = 0
+        self._rate_window = (0, self._now())
+        self._rate = 0.0
+
+        self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
+        self._metrics_pub = self.create_publisher(Float64MultiArray, names.METRICS, qos.RELIABLE)
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
+                                                      qos.RELIABLE)
+        self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
+                                 qos.SENSOR_INPUT)
+        self.create_subscription(TwistStamped, names.TARGET_TWIST, self._on_twist, qos.RELIABLE)
+        self.create_subscription(PoseStamped, names.TARGET_POSE, self._on_pose, qos.RELIABLE)
+        self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked, qos.LATCHED)
+        self.add_on_set_parameters_callback(self._validate)
+        self.add_post_set_parameters_callback(self._apply)
+        self._load_model()
+        self._timer = self.create_timer(1.0 / self._param("control_rate"), self._cycle)
+        self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
+
+    # ----------------------------------------------------------------- helpers
+    def _param(self, name: str):
+        return self.get_parameter(name).value
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _problem(self, kind: str, text: str | None) -> None:
+        """Log a problem once when it starts (text) and once when it ends (None)."""
+        if text is None:
+            if self._problems.pop(kind, None) is not None:
+                self.get_logger().info(f"{kind}: recovered")
+            return
+        if kind not in self._problems:
+            self.get_logger().error(f"{kind}: {text}")
+        self._problems[kind] = text
+
+    # ------------------------------------------------------------------- model
+    def _load_model(self) -> None:
+        description, model = self._param("robot_description"), self._param("robot_model")
+        if description:
+            self._set_model(description, "the robot_description parameter")
+        elif model:
+            self._set_model(model, f"robot_model '{model}'")
+        else:
+            self.get_logger().info("no robot_description or robot_model parameter: waiting "
+                                   f"for the '{names.ROBOT_DESCRIPTION}' topic")
+            self._problem("model", "waiting for the robot_description topic")
+            self.create_subscription(String, names.ROBOT_DESCRIPTION,
+                                     lambda msg: self._set_model(msg.data, "the topic"),
+                                     qos.LATCHED)
+
+    def _set_model(self, spec: str, source: str) -> None:
+        try:
+            robot = robots.load(spec, self._param("base_link") or None,
+                                self._param("tip_link") or None,
+                                self._param("task_space") or None,
+                                self._param("characteristic_length") or None)
+            order = self._command_order(robot, list(self._param("joints") or []))
+            engine = ResolutionEngine(robot, self._engine_config(robot, order, {}))
+        except (RobotModelError, ValueError) as error:
+            self._problem("model", f"cannot use the model from {source}: {error}")
+            return
+        self.robot, self._order, self.engine = robot, order, engine
+        self._labels = metrics.labels(self.command_joints)
+        self._boxes_dirty = len(self._param("critical_points")) > 0
+        self._problem("model", None)
+        self.get_logger().info(
+            f"model from {source}: {robot.name}, {robot.base_link} -> {robot.tip_link}, "
+            f"{robot.task_space} task, joints {self.command_joints}")
+
+    @property
+    def command_joints(self) -> list[str]:
+        """Joint names in command order."""
+        return [self.robot.joint_names[i] for i in self._order]
+
+    @staticmethod
+    def _command_order(robot: Robot, joints: list[str]) -> np.ndarray:
+        if not joints:
+            return np.arange(robot.n)
+        if sorted(joints) != sorted(robot.joint_names) or len(set(joints)) != len(joints):
+            raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)} once")
+        return np.array([robot.joint_names.index(j) for j in joints])
+
+    def _chain(self, values: list[float], order: np.ndarray, what: str) -> np.ndarray:
+        """Per-joint values given in command order, put in chain order."""
+        values = np.asarray(values, dtype=float)
+        if values.shape != (order.size,) or not np.all(np.isfinite(values)):
+            raise ValueError(f"{what} needs {order.size} finite values, got {list(values)}")
+        chain = np.empty(order.size)
+        chain[order] = values
+        return chain
+
+    def _engine_config(self, robot: Robot, order: np.ndarray, changes: dict,
+                       soft: tuple | None = None) -> EngineConfig:
+        """The engine configuration from the parameters (with pending `changes`)."""
+        value = {name: changes.get(name, self._param(name)) for name in PARAMETERS}
+        probabilities = list(value["failure_probabilities"] or [])
+        if probabilities:
+            probabilities = list(self._chain(probabilities, order, "failure_probabilities"))
+        lower = list(value["soft_limits.lower"] or [])
+        upper = list(value["soft_limits.upper"] or [])
+        if bool(lower) != bool(upper):
+            raise ValueError("soft_limits.lower and soft_limits.upper must both be set or empty")
+        box = None
+        if lower:
+            box = (self._chain(lower, order, "soft_limits.lower"),
+                   self._chain(upper, order, "soft_limits.upper"))
+        if soft is not None:
+            box = soft if box is None else (np.maximum(box[0], soft[0]),
+                                            np.minimum(box[1], soft[1]))
+        return EngineConfig(
+            resolution=value["resolution"], kfm_gain=value["kfm_gain"],
+            jump_gain=value["jump_gain"], limit_gain=value["limit_gain"],
+            failure_probabilities=probabilities,
+            soft_lower=() if box is None else box[0], soft_upper=() if box is None else box[1],
+            release_soft_limits_on_failure=value["release_soft_limits_on_failure"],
+            dt=1.0 / value["control_rate"], velocity_scale=value["velocity_scale"])
+
+    # -------------------------------------------------------------- parameters
+    def _validate(self, parameters: list[Parameter]) -> SetParametersResult:
+        changes = {p.name: p.value for p in parameters}
+        try:
+            if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
+                raise ValueError(f"resolution must be one of {RESOLUTIONS}")
+            PoseTracking(changes.get("position_gain", self._param("position_gain")),
+                         changes.get("max_linear_speed", self._param("max_linear_speed")),
+                         changes.get("max_angular_speed", self._param("max_angular_speed")))
+            if self.robot is not None:
+                robot = self.robot
+                config = self._engine_config(robot, self._order, changes)
+                ResolutionEngine(robot, config)  # validates lengths against the robot
+                if "critical_points" in changes:
+                    selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
+        except (ValueError, TypeError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _apply(self, parameters: list[Parameter]) -> None:
+        changed = {p.name for p in parameters}
+        self.tracking = PoseTracking(self._param("position_gain"), self._param("max_linear_speed"),
+                                     self._param("max_angular_speed"))
+        if "control_rate" in changed:
+            self._timer.cancel()
+            self.destroy_timer(self._timer)
+            self._timer = self.create_timer(1.0 / self._param("control_rate"), self._cycle)
+        if self.robot is None:
+            return
+        if "critical_points" in changed:
+            self._boxes_dirty = True
+        self._rebuild_engine(self._critical_box)
+
+    def _rebuild_engine(self, critical_box: tuple | None) -> None:
+        """New engine from the parameters; `critical_box` from the critical points, if any."""
+        self._critical_box = critical_box
+        self.engine = ResolutionEngine(self.robot, self._engine_config(
+            self.robot, self._order, {}, critical_box))
+
+    def _compute_boxes(self, q: np.ndarray) -> None:
+        """Critical points -> intersected self-motion boxes -> soft limits (seed 000 sec. III)."""
+        self._boxes_dirty = False
+        flat = list(self._param("critical_points") or [])
+        if not flat:
+            self._soft_note = "none"
+            self._problem("critical points", None)
+            self._rebuild_engine(None)
+            return
+        robot = self.robot
+        try:
+            targets = selfmotion.targets_from_flat(robot, flat)
+            boxes = [selfmotion.trace(robot, t, selfmotion.find_seed(robot, t, q)).box
+                     for t in targets]
+            box = selfmotion.intersect(boxes)
+            empty = selfmotion.empty_joints(box)
+            if empty:
+                raise selfmotion.UnreachableError(
+                    f"the boxes do not intersect on {[robot.joint_names[j] for j in empty]}")
+            unreachable = [i + 1 for i, found in enumerate(
+                selfmotion.reachability(robot, targets, *box, q)) if found is None]
+            if unreachable:
+                raise selfmotion.UnreachableError(
+                    f"critical points {unreachable} cannot be reached inside the intersection")
+        except (selfmotion.UnreachableError, ValueError) as error:
+            self._soft_note = "none (critical points failed)"
+            self._problem("critical points", f"{error}; running without their soft limits")
+            self._rebuild_engine(None)
+            return
+        self._soft_note = f"{len(targets)} critical points"
+        self._problem("critical points", None)
+        self.get_logger().info(f"soft limits from {len(targets)} critical points: "
+                               f"lower {np.round(box[0], 3).tolist()}, "
+                               f"upper {np.round(box[1], 3).tolist()}")
+        self._rebuild_engine(box)
+
+    # ------------------------------------------------------------------ inputs
+    def _stamp(self, header_stamp, kind: str) -> float | None:
+        """Seconds of a message stamp (0: the time of receipt); None if in the future."""
+        now = self._now()
+        stamp = convert.stamp_seconds(header_stamp)
+        if stamp == 0.0:
+            return now
+        if stamp > now + FUTURE_TOLERANCE:
+            self._problem(kind, f"stamp {stamp:.3f} s is ahead of the clock ({now:.3f} s)")
+            return None
+        return stamp
+
+    def _on_state(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        stamp = self._stamp(msg.header.stamp, "joint_states")
+        if stamp is None:
+            self._q = None
+            return
+        if stamp < self._state_stamp:
+            self._problem("joint_states", f"stamp {stamp:.3f} s goes backwards "
+                                          f"(last {self._state_stamp:.3f} s)")
+            self._q = None
+            return
+        try:
+            q = convert.joint_vector(msg, self.robot.joint_names)
+        except convert.MessageError as error:
+            self._problem("joint_states", str(error))
+            self._q = None
+            return
+        self._problem("joint_states", None)
+        self._q, self._state_stamp = q, stamp
+
+    def _frame_ok(self, frame: str, kind: str) -> bool:
+        if frame in ("", self.robot.base_link):
+            self._problem(kind, None)
+            return True
+        if kind not in self._problems:
+            self.get_logger().warning(f"{kind}: frame '{frame}' is not the base frame "
+                                      f"'{self.robot.base_link}': ignored")
+        self._problems[kind] = f"frame '{frame}' rejected"
+        return False
+
+    def _on_twist(self, msg: TwistStamped) -> None:
+        if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_twist"):
+            return
+        stamp = self._stamp(msg.header.stamp, "ft/target_twist")
+        try:
+            twist = convert.twist_vector(msg.twist)
+        except convert.MessageError as error:
+            self._problem("ft/target_twist", str(error))
+            return
+        if stamp is not None:
+            self._target = _Target("twist", twist_velocity(self.robot, twist), stamp)
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_pose"):
+            return
+        try:
+            goal = goal_from_transform(self.robot, convert.pose_matrix(msg.pose))
+        except convert.MessageError as error:
+            self._problem("ft/target_pose", str(error))
+            return
+        self._target = _Target("pose", goal, self._now())
+
+    def _on_locked(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        try:
+            locked, unknown = convert.locked_joints(msg, self.robot.joint_names)
+        except convert.MessageError as error:
+            self.get_logger().error(f"ft/locked_joints: {error}: ignored")
+            return
+        if unknown:
+            self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored")
+        if set(locked) != set(self._locked):
+            self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
+        self._locked = locked
+
+    # ------------------------------------------------------------------- cycle
+    def _cycle(self) -> None:
+        self._cycles += 1
+        robot = self.robot
+        if robot is None:
+            return
+        now = self._now()
+        q = self._q
+        if q is not None and now - self._state_stamp > self._param("state_timeout"):
+            self._problem("joint_states", f"no joint state for {now - self._state_stamp:.3f} s")
+            q = None
+        if q is None:
+            self._last = None
+            self._publish(np.zeros(robot.n))
+            return
+        if self._boxes_dirty:
+            self._compute_boxes(q)
+        xd, idle = self._task_velocity(q, now)
+        locked = [robot.joint_names.index(name) for name in self._locked]
+        result = self.engine.step(q, xd, locked)
+        qd = result.qd
+        if idle and not self._param("idle_null_space_motion"):
+            qd = np.zeros(robot.n)
+            result.jump_index = 0.0
+        if not np.all(np.isfinite(qd)):
+            qd = np.zeros(robot.n)
+        self._last = result
+        self._publish(qd, result)
+
+    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
+        """(task velocity, idle) from the latest target."""
+        target, robot = self._target, self.robot
+        if target is None:
+            return np.zeros(robot.m), True
+        if target.kind == "pose":
+            xd, reached = pose_velocity(robot, target.value, q, self.tracking)
+            return xd, reached
+        scale = staleness_scale(now - target.stamp, self._param("target_timeout"))
+        return scale * target.value, scale == 0.0
+
+    def _publish(self, qd_chain: np.ndarray, result=None) -> None:
+        stamp = self.get_clock().now().to_msg()
+        self._command_pub.publish(convert.joint_state(
+            self.command_joints, stamp, velocity=qd_chain[self._order]))
+        if result is None:
+            return
+        values = {"kfm": result.kfm, "sigma_min": result.sigma_min,
+                  "jump_index": result.jump_index, "task_scale": result.task_scale,
+                  "soft_limit_margin": (result.soft_limit_margin
+                                        if math.isfinite(result.soft_limit_margin)
+                                        else metrics.NO_SOFT_BOX)}
+        for joint, i in zip(self.command_joints, self._order, strict=True):
+            s = result.post_failure_sigmas[i]
+            values[f"s_{joint}"] = s if math.isfinite(s) else metrics.LOCKED
+        self._metrics_pub.publish(metrics.message(self._labels, values))
+
+    # ------------------------------------------------------------- diagnostics
+    def _publish_diagnostics(self) -> None:
+        now = self._now()
+        cycles, since = self._rate_window
+        if now > since:
+            self._rate = (self._cycles - cycles) / (now - since)
+        self._rate_window = (self._cycles, now)
+        statuses = [self._controller_status(now)]
+        if self.robot is not None and self._last is not None:
+            for joint, i in zip(self.command_joints, self._order, strict=True):
+                locked = joint in self._locked
+                level = (diagnostics.ERROR if locked else
+                         diagnostics.WARN if self._last.at_hard_limit[i] else diagnostics.OK)
+                statuses.append(diagnostics.status(
+                    f"{self.get_name()}: joint {joint}", level,
+                    "locked" if locked else "ok", {
+                        "locked": locked, "at_soft_limit": bool(self._last.at_soft_limit[i]),
+                        "at_hard_limit": bool(self._last.at_hard_limit[i]),
+                        "post_failure_sigma": float(self._last.post_failure_sigmas[i])
+                        if not locked else "n/a"}))
+        self._diagnostics_pub.publish(diagnostics.array(statuses,
+                                                        self.get_clock().now().to_msg()))
+
+    def _controller_status(self, now: float):
+        values = {"mode": self._param("resolution"), "loop_rate_hz": self._rate,
+                  "control_rate_hz": self._param("control_rate"),
+                  "state_age_s": now - self._state_stamp if self._q is not None else "none",
+                  "target": self._target.kind if self._target else "none",
+                  "target_age_s": now - self._target.stamp if self._target else "none",
+                  "locked_joints": sorted(self._locked), "soft_limits": self._soft_note}
+        if self._last is not None:
+            values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
+                          status=self._last.status)
+        if self._problems:
+            level, message = diagnostics.ERROR, "; ".join(
+                f"{k}: {v}" for k, v in sorted(self._problems.items()))
+        elif self._last is None:
+            level, message = diagnostics.WARN, "waiting for joint states"
+        elif self._last.status == "infeasible":
+            level, message = diagnostics.WARN, "task infeasible with the remaining joints"
+        else:
+            level, message = diagnostics.OK, self._last.status
+        return diagnostics.status(self.get_name(), level, message, values)
+
+    def stop(self) -> None:
+        """Publish explicit zero velocities (used on shutdown)."""
+        if self.robot is not None:
+            self._publish(np.zeros(self.robot.n))
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the controller until SIGINT, then command zero velocity and exit."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = ControllerNode()
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

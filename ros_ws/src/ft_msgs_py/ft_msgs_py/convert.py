@@ -1,0 +1,128 @@
+"""Conversions between standard messages and the suite's arrays.
+
+Joint vectors are matched by name: any order, extra joints ignored; a missing,
+unknown-only or duplicate name, a length mismatch or a non-finite value raises
+`MessageError` naming the problem, so the caller can log it and stop the arm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Pose, Twist
+from sensor_msgs.msg import JointState
+
+
+class MessageError(ValueError):
+    """A message that cannot be used; the text says why."""
+
+
+def stamp_seconds(stamp: Time) -> float:
+    """A message stamp in seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def stamp_from_nanoseconds(nanoseconds: int) -> Time:
+    """A message stamp from integer nanoseconds (e.g. `Clock.now().nanoseconds`)."""
+    return Time(sec=int(nanoseconds // 1_000_000_000), nanosec=int(nanoseconds % 1_000_000_000))
+
+
+def names_to_indices(names: Sequence[str], joints: Sequence[str]) -> dict[str, int]:
+    """Index in `joints` of every name; raises MessageError for duplicates."""
+    if len(set(names)) != len(names):
+        duplicates = sorted({n for n in names if list(names).count(n) > 1})
+        raise MessageError(f"duplicate joint names {duplicates}")
+    index = {name: i for i, name in enumerate(joints)}
+    return {name: index[name] for name in names if name in index}
+
+
+def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position") -> np.ndarray:
+    """The `field` values of `joints`, in that order, from a JointState.
+
+    Raises MessageError for duplicate names, a field whose length differs from
+    the names, missing joints or non-finite values of the wanted joints.
+    """
+    names = list(msg.name)
+    values = np.asarray(getattr(msg, field), dtype=float)
+    if values.size != len(names):
+        raise MessageError(f"joint state has {len(names)} names but {values.size} {field} values")
+    found = names_to_indices(names, joints)
+    missing = [j for j in joints if j not in found]
+    if missing:
+        unknown = [n for n in names if n not in found]
+        raise MessageError(f"joint state lacks {missing}" + (f" (it has {unknown})" if unknown
+                                                            else ""))
+    position = {name: i for i, name in enumerate(names)}
+    vector = values[[position[j] for j in joints]]
+    if not np.all(np.isfinite(vector)):
+        bad = [j for j, v in zip(joints, vector, strict=True) if not np.isfinite(v)]
+        raise MessageError(f"non-finite {field} for {bad}")
+    return vector
+
+
+def joint_state(joints: Sequence[str], stamp: Time, position: Sequence[float] | None = None,
+                velocity: Sequence[float] | None = None) -> JointState:
+    """A JointState with the given names, stamp and (optional) positions and velocities."""
+    msg = JointState()
+    msg.header.stamp = stamp
+    msg.name = list(joints)
+    if position is not None:
+        msg.position = [float(v) for v in position]
+    if velocity is not None:
+        msg.velocity = [float(v) for v in velocity]
+    return msg
+
+
+def locked_joints(msg: JointState, joints: Sequence[str]) -> tuple[dict[str, float], list[str]]:
+    """({locked joint: position at lock}, [unknown names]) from an `ft/locked_joints` message.
+
+    Positions are optional (nan when absent). Raises MessageError for duplicates.
+    """
+    names = list(msg.name)
+    known = names_to_indices(names, joints)
+    positions = list(msg.position) if len(msg.position) == len(names) else [np.nan] * len(names)
+    locked = {n: float(p) for n, p in zip(names, positions, strict=True) if n in known}
+    return locked, [n for n in names if n not in known]
+
+
+def locked_message(locked: Mapping[str, float], stamp: Time) -> JointState:
+    """The `ft/locked_joints` message: names, positions at lock, stamp of detection."""
+    return joint_state(list(locked), stamp, position=list(locked.values()))
+
+
+def twist_vector(msg: Twist) -> np.ndarray:
+    """[vx, vy, vz, wx, wy, wz] (m/s, rad/s); raises MessageError if non-finite."""
+    v = np.array([msg.linear.x, msg.linear.y, msg.linear.z,
+                  msg.angular.x, msg.angular.y, msg.angular.z])
+    if not np.all(np.isfinite(v)):
+        raise MessageError("twist has non-finite values")
+    return v
+
+
+def pose_matrix(msg: Pose) -> np.ndarray:
+    """4x4 transform of a Pose; raises MessageError if non-finite or a zero quaternion."""
+    p, o = msg.position, msg.orientation
+    values = np.array([p.x, p.y, p.z, o.x, o.y, o.z, o.w])
+    if not np.all(np.isfinite(values)):
+        raise MessageError("pose has non-finite values")
+    norm = np.linalg.norm(values[3:])
+    if norm < 1e-9:
+        raise MessageError("pose has a zero quaternion")
+    matrix = np.eye(4)
+    matrix[:3, :3] = pin.Quaternion(o.w / norm, o.x / norm, o.y / norm, o.z / norm
+                                    ).toRotationMatrix()
+    matrix[:3, 3] = values[:3]
+    return matrix
+
+
+def pose_message(matrix: np.ndarray) -> Pose:
+    """Pose of a 4x4 transform."""
+    msg = Pose()
+    msg.position.x, msg.position.y, msg.position.z = (float(v) for v in matrix[:3, 3])
+    quaternion = pin.Quaternion(np.asarray(matrix[:3, :3]))
+    msg.orientation.x, msg.orientation.y = float(quaternion.x), float(quaternion.y)
+    msg.orientation.z, msg.orientation.w = float(quaternion.z), float(quaternion.w)
+    return msg

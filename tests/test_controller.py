@@ -1,0 +1,347 @@
+"""controller_node in-process: tracking, limits, safety reactions, parameters, the executable."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+import rclpy
+from ft_controller.controller_node import ControllerNode
+from ft_core import robots
+from ft_msgs_py import convert, diagnostics, metrics, qos
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from paths import INSTALL, PACKAGES
+from rclpy.parameter import Parameter
+from rosutil import FakePlant, ros_context, spin_until
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header, String
+
+PANDA = robots.load("panda")
+Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
+TWIST = np.array([0.05, 0.0, -0.02, 0.0, 0.0, 0.1])
+
+
+@contextmanager
+def controller(**parameters) -> Iterator[tuple[ControllerNode, FakePlant]]:
+    """A controller (sim time, 100 Hz) and a fake Panda plant at Q0, in one executor."""
+    values = {"robot_model": "panda", "use_sim_time": True, "control_rate": 100.0,
+              "resolution": "least_norm", **parameters}
+    with ros_context() as (context, executor):
+        node = ControllerNode(context=context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in values.items()])
+        executor.add_node(node)
+        joints = node.command_joints if node.robot else list(PANDA.joint_names)
+        plant = FakePlant(context, executor, joints, Q0)
+        yield node, plant
+
+
+def twist_sender(plant: FakePlant, twist: np.ndarray = TWIST, frame: str = ""):
+    publisher = plant.node.create_publisher(TwistStamped, "ft/target_twist", qos.RELIABLE)
+
+    def send(p: FakePlant) -> None:
+        msg = TwistStamped()
+        msg.header.stamp, msg.header.frame_id = p.stamp(), frame
+        msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = twist[:3]
+        msg.twist.angular.x, msg.twist.angular.y, msg.twist.angular.z = twist[3:]
+        publisher.publish(msg)
+
+    return send
+
+
+def controller_status(plant: FakePlant):
+    for array in reversed(plant.diagnostics):
+        for status in array.status:
+            if status.name == "controller":
+                return status
+    return None
+
+
+def all_finite(plant: FakePlant) -> bool:
+    return (all(np.all(np.isfinite(c.velocity)) for c in plant.commands)
+            and all(np.all(np.isfinite(m.data)) for m in plant.metrics))
+
+
+def test_twist_is_tracked_exactly_and_within_limits() -> None:
+    with controller(velocity_scale=0.5) as (node, plant):
+        plant.frozen = True
+        plant.run(30, twist_sender(plant))
+        qd = plant.velocity()
+        np.testing.assert_allclose(PANDA.jacobian(Q0) @ qd, TWIST, atol=1e-9)
+        assert list(plant.commands[-1].name) == list(PANDA.joint_names)
+        assert np.all(np.abs(qd) <= 0.5 * PANDA.velocity_limits + 1e-12)
+        values = metrics.values(plant.metrics[-1])
+        assert set(metrics.labels(node.command_joints)) == set(values)
+        assert values["task_scale"] == 1.0 and values["soft_limit_margin"] == metrics.NO_SOFT_BOX
+        assert all_finite(plant)
+
+
+def test_too_fast_a_twist_is_scaled_inside_the_velocity_limits() -> None:
+    with controller(velocity_scale=0.2) as (_, plant):
+        plant.frozen = True
+        plant.run(10, twist_sender(plant, 20 * TWIST))
+        qd = plant.velocity()
+        assert np.all(np.abs(qd) <= 0.2 * PANDA.velocity_limits + 1e-12)
+        scale = metrics.values(plant.metrics[-1])["task_scale"]
+        assert 0 < scale < 1
+        np.testing.assert_allclose(PANDA.jacobian(Q0) @ qd, scale * 20 * TWIST, atol=1e-9)
+
+
+def test_max_kfm_raises_the_published_kfm() -> None:
+    position_start = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+    runs = {}
+    for mode in ("least_norm", "max_kfm"):
+        with controller(resolution=mode, task_space="position") as (_, plant):
+            plant.q = position_start.copy()
+            plant.run(300, twist_sender(plant, np.array([0.0, 0.03, 0.0, 0, 0, 0])))
+            runs[mode] = [metrics.values(m)["kfm"] for m in plant.metrics]
+    assert runs["max_kfm"][-1] > runs["max_kfm"][0] + 0.05  # it grows
+    assert runs["max_kfm"][-1] > 1.3 * runs["least_norm"][-1]
+
+
+def test_pose_goal_is_reached_and_the_arm_stops() -> None:
+    goal = PANDA.forward(Q0)
+    goal[:3, 3] += [0.05, -0.04, 0.03]
+    with controller() as (_, plant):
+        publisher = plant.node.create_publisher(PoseStamped, "ft/target_pose", qos.RELIABLE)
+        msg = PoseStamped()
+        msg.pose = convert.pose_message(goal)
+        publisher.publish(msg)
+        plant.run(600)
+        error = PANDA.task_error(goal, plant.q)
+        assert np.linalg.norm(error[:3]) < 1e-3 and np.linalg.norm(error[3:]) < 1e-2
+        assert np.all(plant.velocity() == 0.0)  # stopped exactly
+
+
+def test_stale_twist_decays_to_zero() -> None:
+    with controller(target_timeout=0.1) as (_, plant):
+        plant.frozen = True
+        twist_sender(plant)(plant)
+        speeds = []
+        for _ in range(40):
+            plant.step()
+            speeds.append(float(np.linalg.norm(plant.velocity())))
+        assert speeds[5] > 0  # fresh
+        assert speeds[14] < speeds[8]  # decaying after 0.1 s
+        assert speeds[-1] == 0.0  # gone after 0.2 s
+
+
+def test_stale_or_invalid_joint_states_stop_the_arm_until_good_data_returns() -> None:
+    with controller(state_timeout=0.05) as (_, plant):
+        plant.frozen = True
+        send = twist_sender(plant)
+        plant.run(20, send)
+        assert np.linalg.norm(plant.velocity()) > 0
+        plant.publish_states = False  # the driver goes quiet
+        plant.run(20, send)
+        assert np.all(plant.velocity() == 0.0)
+        plant.publish_states = True
+        plant.run(5, send)
+        assert np.linalg.norm(plant.velocity()) > 0  # recovered by itself
+        bad = {"NaN": {"position": [math.nan] * 7},
+               "wrong length": {"position": [0.0] * 6},
+               "duplicate names": {"name": [*PANDA.joint_names[:6], PANDA.joint_names[0]]},
+               "missing joint": {"name": [*PANDA.joint_names[:6], "gripper"]}}
+        for overrides in bad.values():
+            plant.publish_states = False
+
+            def send_bad(p: FakePlant, overrides=overrides) -> None:
+                send(p)
+                p.publish_state(**overrides)
+
+            plant.run(5, send_bad)
+            assert np.all(plant.velocity() == 0.0), overrides
+            plant.publish_states = True
+            plant.run(3, send)
+            assert np.linalg.norm(plant.velocity()) > 0, overrides
+        plant.step(timeout=1.0)
+        spin_until(plant.executor, lambda: len(plant.diagnostics) > 0, 5.0)
+        assert all_finite(plant)
+
+
+def test_extra_joints_in_states_are_ignored_and_future_stamps_rejected() -> None:
+    with controller() as (_, plant):
+        plant.frozen = True
+        send = twist_sender(plant)
+        plant.publish_states = False
+
+        def with_fingers(p: FakePlant) -> None:
+            send(p)
+            p.publish_state(name=["finger", *p.joints], position=[0.01, *p.q])
+
+        plant.run(5, with_fingers)
+        assert np.linalg.norm(plant.velocity()) > 0
+
+        def from_the_future(p: FakePlant) -> None:
+            send(p)
+            p.publish_state(header=Header(stamp=convert.stamp_from_nanoseconds(p.t_ns + 10**9)))
+
+        plant.run(5, from_the_future)
+        assert np.all(plant.velocity() == 0.0)
+
+
+def test_errors_show_in_diagnostics() -> None:
+    with controller(state_timeout=0.05) as (_, plant):
+        plant.publish_states = False
+        plant.run(60)  # 0.6 s of simulated time: diagnostics at 2 Hz
+        status = controller_status(plant)
+        assert status.level == diagnostics.WARN and "waiting" in status.message
+        plant.publish_states = True
+        plant.run(60)
+        assert controller_status(plant).level == diagnostics.OK
+        plant.publish_states = False  # the driver goes quiet
+        plant.run(60)
+        status = controller_status(plant)
+        assert status.level == diagnostics.ERROR and "joint_states" in status.message
+        joints = [s for s in plant.diagnostics[-1].status if "joint" in s.name]
+        assert len(joints) == 7 or not joints
+
+
+def test_locked_joints_get_exactly_zero_and_the_task_is_still_tracked() -> None:
+    with controller(task_space="position") as (_, plant):
+        plant.frozen = True
+        publisher = plant.node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
+        publisher.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))
+        twist = np.array([0.03, -0.02, 0.01, 0, 0, 0])
+        plant.run(20, twist_sender(plant, twist))
+        qd = plant.velocity()
+        assert qd[3] == 0.0
+        position = robots.load("panda", task_space="position")
+        np.testing.assert_allclose(position.jacobian(Q0) @ qd, twist[:3], atol=1e-9)
+        assert metrics.values(plant.metrics[-1])["s_panda_joint4"] == metrics.LOCKED
+        publisher.publish(convert.locked_message({}, plant.stamp()))  # repaired
+        plant.run(5, twist_sender(plant, twist))
+        assert plant.velocity()[3] != 0.0
+
+
+def test_twist_in_another_frame_is_rejected() -> None:
+    with controller() as (_, plant):
+        plant.run(10, twist_sender(plant, frame="camera_link"))
+        assert np.all(plant.velocity() == 0.0)
+
+
+def test_without_a_target_the_arm_holds_still() -> None:
+    with controller(resolution="blend") as (_, plant):
+        plant.run(10)
+        assert np.all(plant.velocity() == 0.0)
+    with controller(resolution="blend", idle_null_space_motion=True,
+                    task_space="position") as (_, plant):
+        plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+        plant.run(10)
+        assert np.linalg.norm(plant.velocity()) > 0  # kfm ascent in the null space
+        J = robots.load("panda", task_space="position").jacobian(plant.q)
+        np.testing.assert_allclose(J @ plant.velocity(), 0.0, atol=1e-9)
+
+
+def test_critical_points_become_soft_limits() -> None:
+    points = [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]
+    with controller(task_space="position", critical_points=points) as (_, plant):
+        plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+        plant.run(70)
+        margin = metrics.values(plant.metrics[-1])["soft_limit_margin"]
+        assert margin < metrics.NO_SOFT_BOX
+        assert "2 critical points" in dict(
+            (kv.key, kv.value) for kv in controller_status(plant).values)["soft_limits"]
+    with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (_, plant):
+        plant.run(70)
+        status = controller_status(plant)
+        assert status.level == diagnostics.ERROR and "critical points" in status.message
+        assert metrics.values(plant.metrics[-1])["soft_limit_margin"] == metrics.NO_SOFT_BOX
+        assert np.all(np.isfinite(plant.velocity()))
+
+
+@pytest.mark.parametrize(("name", "value", "reason"), [
+    ("kfm_gain", -1.0, ""),
+    ("resolution", "fastest", "resolution"),
+    ("soft_limits.lower", [0.0, 1.0], "soft_limits"),
+    ("failure_probabilities", [1.0, -1.0, 1.0, 1.0, 1.0, 1.0, 1.0], "probabilit"),
+    ("critical_points", [0.5, 0.1], "multiple of 3"),
+    ("robot_model", "puma560", "read-only"),
+])
+def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value, reason: str,
+                                                                ) -> None:
+    with controller(task_space="position") as (node, _):
+        before = node.get_parameter(name).value
+        (result,) = node.set_parameters([Parameter(name, value=value)])
+        assert not result.successful and reason in result.reason
+        assert node.get_parameter(name).value == before
+
+
+def test_parameters_change_at_run_time() -> None:
+    with controller() as (node, plant):
+        plant.frozen = True
+        results = node.set_parameters([Parameter("velocity_scale", value=0.1),
+                                       Parameter("resolution", value="blend")])
+        assert all(result.successful for result in results)
+        assert node.engine.config.velocity_scale == 0.1
+        assert node.engine.config.resolution == "blend"
+        plant.run(5, twist_sender(plant, 20 * TWIST))
+        assert np.all(np.abs(plant.velocity()) <= 0.1 * PANDA.velocity_limits + 1e-12)
+
+
+def test_malformed_urdf_does_not_crash_and_is_reported() -> None:
+    with controller(robot_model="", robot_description="<robot name='x'><link") as (node, plant):
+        assert node.robot is None
+        for _ in range(60):
+            plant.step(timeout=0.02)  # no command is coming: the model is missing
+        assert not plant.commands
+        status = controller_status(plant)
+        assert status.level == diagnostics.ERROR and "does not parse" in status.message
+
+
+def test_model_from_the_robot_description_topic() -> None:
+    with controller(robot_model="") as (node, plant):
+        publisher = plant.node.create_publisher(String, "robot_description", qos.LATCHED)
+        publisher.publish(String(data=robots.builtin_urdf("panda")))
+        assert spin_until(plant.executor, lambda: node.robot is not None, 10.0)
+        plant.run(5, twist_sender(plant))
+        assert len(plant.commands) >= 5
+
+
+def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:
+    env = dict(os.environ)
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    env["PYTHONPATH"] = os.pathsep.join(
+        str(INSTALL / p / "lib" / version / "site-packages") for p in PACKAGES)
+    script = INSTALL / "ft_controller" / "lib" / "ft_controller" / "controller_node"
+    assert script.is_file(), "run `make build`"
+    process = subprocess.Popen([sys.executable, str(script), "--ros-args", "-p",
+                                "robot_model:=panda", "-p", "state_timeout:=60.0"], env=env)
+    try:
+        with ros_context() as (context, executor):
+            node = rclpy.create_node("probe", context=context)
+            executor.add_node(node)
+            commands: list[JointState] = []
+            node.create_subscription(JointState, "ft/command_raw", commands.append, qos.RELIABLE)
+            states = node.create_publisher(JointState, "joint_states", qos.RELIABLE)
+
+            def state_then_commands() -> bool:
+                states.publish(convert.joint_state(PANDA.joint_names,
+                                                   node.get_clock().now().to_msg(), Q0))
+                return len(commands) >= 3
+
+            assert spin_until(executor, state_then_commands, 30.0)
+            process.send_signal(signal.SIGINT)
+            assert process.wait(timeout=20) == 0
+            spin_until(executor, lambda: False, 0.5)
+            assert np.all(np.array(commands[-1].velocity) == 0.0)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+
+def test_out_of_range_start_up_values_fall_back_to_the_defaults() -> None:
+    with controller(kfm_gain=-5.0, control_rate=1e6) as (node, plant):
+        assert node.get_parameter("kfm_gain").value == 50.0
+        assert node.get_parameter("control_rate").value == 250.0
+        plant.frozen = True
+        plant.run(3, twist_sender(plant))
+        assert len(plant.commands) >= 3
