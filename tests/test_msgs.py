@@ -1,0 +1,85 @@
+"""ft_msgs_py without a running graph: conversions, metrics, diagnostics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from ft_core import robots
+from ft_msgs_py import convert, diagnostics, metrics
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import JointState
+
+JOINTS = ["a", "b", "c"]
+
+
+def state(names, positions) -> JointState:
+    return convert.joint_state(names, convert.stamp_from_nanoseconds(0), position=positions)
+
+
+def test_joint_vectors_are_matched_by_name_in_any_order_ignoring_extras() -> None:
+    msg = state(["c", "extra", "a", "b"], [3.0, 9.0, 1.0, 2.0])
+    np.testing.assert_array_equal(convert.joint_vector(msg, JOINTS), [1.0, 2.0, 3.0])
+
+
+@pytest.mark.parametrize(("names", "values", "message"), [
+    (["a", "b"], [1.0, 2.0], "lacks ['c']"),
+    (["a", "b", "x"], [1.0, 2.0, 3.0], "it has ['x']"),
+    (["a", "b", "c", "a"], [1.0, 2.0, 3.0, 4.0], "duplicate"),
+    (["a", "b", "c"], [1.0, 2.0], "3 names but 2"),
+    (["a", "b", "c"], [1.0, math.nan, 3.0], "non-finite position for ['b']"),
+    (["a", "b", "c"], [1.0, math.inf, 3.0], "non-finite"),
+])
+def test_bad_joint_states_raise_a_clear_error(names, values, message: str) -> None:
+    with pytest.raises(convert.MessageError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        convert.joint_vector(state(names, values), JOINTS)
+
+
+def test_stamps_round_trip() -> None:
+    stamp = convert.stamp_from_nanoseconds(12_345_678_901)
+    assert (stamp.sec, stamp.nanosec) == (12, 345_678_901)
+    assert convert.stamp_seconds(stamp) == pytest.approx(12.345678901)
+
+
+def test_locked_joint_messages() -> None:
+    msg = convert.locked_message({"b": 0.5, "zz": 1.0}, convert.stamp_from_nanoseconds(5))
+    locked, unknown = convert.locked_joints(msg, JOINTS)
+    assert locked == {"b": 0.5} and unknown == ["zz"]
+    bare = JointState(name=["a"])  # positions are optional
+    assert math.isnan(convert.locked_joints(bare, JOINTS)[0]["a"])
+
+
+def test_twists_and_poses() -> None:
+    twist = Twist()
+    twist.linear.x, twist.angular.z = 0.1, -0.2
+    np.testing.assert_array_equal(convert.twist_vector(twist), [0.1, 0, 0, 0, 0, -0.2])
+    twist.linear.y = math.nan
+    with pytest.raises(convert.MessageError, match="non-finite"):
+        convert.twist_vector(twist)
+    pose = robots.load("panda").forward(np.array([0.1, -0.3, 0.2, -2.0, 0.3, 1.5, 0.4]))
+    np.testing.assert_allclose(convert.pose_matrix(convert.pose_message(pose)), pose, atol=1e-12)
+    zero = convert.pose_message(pose)
+    zero.orientation.x = zero.orientation.y = zero.orientation.z = zero.orientation.w = 0.0
+    with pytest.raises(convert.MessageError, match="zero quaternion"):
+        convert.pose_matrix(zero)
+
+
+def test_metrics_are_labelled_and_always_finite() -> None:
+    labels = metrics.labels(JOINTS)
+    assert labels[:5] == ["kfm", "sigma_min", "jump_index", "task_scale", "soft_limit_margin"]
+    assert labels[5:] == ["s_a", "s_b", "s_c"]
+    values = {label: float(i) for i, label in enumerate(labels)}
+    msg = metrics.message(labels, values)
+    assert msg.layout.dim[0].label == ",".join(labels)
+    assert metrics.values(msg) == values
+    with pytest.raises(ValueError, match="non-finite"):
+        metrics.message(labels, {**values, "kfm": math.nan})
+
+
+def test_diagnostic_statuses_carry_key_values() -> None:
+    status = diagnostics.status("controller", diagnostics.WARN, "limited",
+                                {"kfm": 0.0123456789, "locked": ["b"], "ok": True})
+    assert status.level == diagnostics.WARN
+    assert {kv.key: kv.value for kv in status.values} == {
+        "kfm": "0.0123457", "locked": "[b]", "ok": "True"}
