@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+import os
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -16,12 +18,23 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+_contexts = itertools.count(1)
+
 
 @contextmanager
-def ros_context() -> Iterator[tuple[Context, SingleThreadedExecutor]]:
-    """A fresh rclpy context with its own executor, shut down afterwards."""
+def ros_context(shared: bool = False) -> Iterator[tuple[Context, SingleThreadedExecutor]]:
+    """A fresh rclpy context with its own executor, shut down afterwards.
+
+    Each context gets a DDS domain of its own, so a latched message of a node from
+    an earlier test cannot reach this one; `shared` uses the session's
+    ROS_DOMAIN_ID instead, to talk with nodes in subprocesses.
+    """
+    session = int(os.environ["ROS_DOMAIN_ID"])
+    domain = session
+    while not shared and domain == session:
+        domain = (session + next(_contexts)) % 100 + 1
     context = Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
     try:
         yield context, executor

@@ -314,7 +314,7 @@ def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:
     process = subprocess.Popen([sys.executable, str(script), "--ros-args", "-p",
                                 "robot_model:=panda", "-p", "state_timeout:=60.0"], env=env)
     try:
-        with ros_context() as (context, executor):
+        with ros_context(shared=True) as (context, executor):
             node = rclpy.create_node("probe", context=context)
             executor.add_node(node)
             commands: list[JointState] = []

@@ -46,7 +46,7 @@ def test_publisher_in_another_process_reaches_this_one() -> None:
     """)
     process = subprocess.Popen([sys.executable, "-c", script])
     try:
-        with ros_context() as (context, executor):
+        with ros_context(shared=True) as (context, executor):
             listener = rclpy.create_node("listener", context=context)
             received: list[JointState] = []
             listener.create_subscription(JointState, "remote_joint_states", received.append, 10)

@@ -16,4 +16,9 @@ setup(
     maintainer_email="maintainers@ft-arms.org",
     description="Locked-joint detection and reduced-Jacobian command remapping node.",
     license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "monitor_node = ft_monitor.monitor_node:main",
+        ],
+    },
 )

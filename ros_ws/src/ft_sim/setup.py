@@ -19,6 +19,8 @@ setup(
     entry_points={
         "console_scripts": [
             "demo = ft_sim.demo:main",
+            "sim_node = ft_sim.sim_node:main",
+            "fault_injector_node = ft_sim.fault_injector_node:main",
         ],
     },
 )

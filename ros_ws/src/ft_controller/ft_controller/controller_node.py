@@ -30,24 +30,19 @@ from ft_core.targets import (
     staleness_scale,
     twist_velocity,
 )
-from ft_msgs_py import convert, diagnostics, metrics, names, qos
+from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import InvalidParameterValueException
+from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import Float64MultiArray
 
 #: Stamps up to this far (s) ahead of the node's clock are accepted (clock skew).
 FUTURE_TOLERANCE = 0.05
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
-
-_MODEL_PARAMETERS = ("robot_description", "robot_model", "base_link", "tip_link", "joints",
-                     "task_space", "characteristic_length")
-
 
 def _floats(low: float, high: float) -> list[FloatingPointRange]:
     return [FloatingPointRange(from_value=low, to_value=high)]
@@ -55,17 +50,7 @@ def _floats(low: float, high: float) -> list[FloatingPointRange]:
 
 #: name -> (default, description, extra descriptor fields)
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
-    "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
-    "robot_model": ("", "built-in name (planar3r, puma560, panda, iiwa14) or URDF path; "
-                    "empty too: wait for the robot_description topic", {"read_only": True}),
-    "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
-    "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
-    "joints": ([], "command order of the chain's joints (empty: base to tip)",
-               {"read_only": True, "dynamic_typing": True}),
-    "task_space": ("", "pose, position or planar (empty: the model's default)",
-                   {"read_only": True}),
-    "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
-                              {"read_only": True, "floating_point_range": _floats(0.0, 100.0)}),
+    **parameters.MODEL_PARAMETERS,
     "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
     "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
                  {"floating_point_range": _floats(0.0, 1e4)}),
@@ -113,13 +98,7 @@ class ControllerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("controller", **kwargs)
-        for name, (default, description, extra) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=description, **extra)
-            try:
-                self.declare_parameter(name, default, descriptor)
-            except InvalidParameterValueException as error:
-                self.get_logger().error(f"{error}; using the default {default!r}")
-                self.declare_parameter(name, default, descriptor, ignore_override=True)
+        parameters.declare(self, PARAMETERS)
         self.robot: Robot | None = None
         self.engine: ResolutionEngine | None = None
         self.tracking = PoseTracking()
@@ -172,18 +151,9 @@ class ControllerNode(Node):
 
     # ------------------------------------------------------------------- model
     def _load_model(self) -> None:
-        description, model = self._param("robot_description"), self._param("robot_model")
-        if description:
-            self._set_model(description, "the robot_description parameter")
-        elif model:
-            self._set_model(model, f"robot_model '{model}'")
-        else:
-            self.get_logger().info("no robot_description or robot_model parameter: waiting "
-                                   f"for the '{names.ROBOT_DESCRIPTION}' topic")
+        if not (self._param("robot_description") or self._param("robot_model")):
             self._problem("model", "waiting for the robot_description topic")
-            self.create_subscription(String, names.ROBOT_DESCRIPTION,
-                                     lambda msg: self._set_model(msg.data, "the topic"),
-                                     qos.LATCHED)
+        parameters.request_model(self, self._set_model)
 
     def _set_model(self, spec: str, source: str) -> None:
         try:

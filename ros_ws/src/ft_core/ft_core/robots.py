@@ -41,6 +41,15 @@ BUILTINS = {
     "iiwa14": ("iiwa14.urdf", "pose"),
 }
 
+#: A typical working configuration of each built-in (rad), by URDF robot name, so a
+#: user's Panda URDF gets the Panda's.
+HOME = {
+    "planar3r": (0.3, 1.2, 1.0),
+    "puma560": (0.2, -0.8, 1.6, 0.3, 0.6, 0.0),
+    "panda": (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4),
+    "iiwa14": (0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0),
+}
+
 _MOVABLE = {"revolute", "continuous", "prismatic"}
 _SUPPORTED = _MOVABLE | {"fixed"}
 
@@ -344,6 +353,15 @@ class Robot:
         so every row is in m/s (seed 000, remark on eq 5).
         """
         return np.asarray(A) * self.task_scale[:, None]
+
+    def home(self) -> np.ndarray:
+        """A working configuration, moved into the limits.
+
+        The built-in's (`HOME`, matched by robot name and joint count), else all zeros.
+        """
+        home = HOME.get(self.name)
+        q = np.array(home) if home is not None and len(home) == self.n else np.zeros(self.n)
+        return np.clip(q, self.lower, self.upper)
 
     def random_configuration(self, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
         """Uniform configuration inside the limits shrunk by `margin` (continuous: +-pi)."""

@@ -11,19 +11,10 @@ Exit status 0 when every number is finite and the eq 10 check holds.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
 import numpy as np
 from ft_core import design, measures, robots
-
-#: A typical working configuration of each built-in (rad).
-WORKING_CONFIGURATIONS = {
-    "planar3r": [0.3, 1.2, 1.0],
-    "puma560": [0.2, -0.8, 1.6, 0.3, 0.6, 0.0],
-    "panda": [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4],
-    "iiwa14": [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0],
-}
 
 
 def _row(label: str, values: np.ndarray) -> str:
@@ -33,7 +24,7 @@ def _row(label: str, values: np.ndarray) -> str:
 def report(name: str) -> list[str]:
     """Lines describing the measures of one built-in robot at its working configuration."""
     robot = robots.load(name)
-    q = np.array(WORKING_CONFIGURATIONS[name])
+    q = robot.home()
     J = robot.scale_task(robot.jacobian(q))
     return [
         f"{name}: n={robot.n}, task={robot.task_space} (m={robot.m}), "
@@ -50,11 +41,11 @@ def report(name: str) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     """Print the report; return non-zero if a number is non-finite or eq 10 fails."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", choices=sorted(WORKING_CONFIGURATIONS), action="append",
+    parser.add_argument("--robot", choices=sorted(robots.BUILTINS), action="append",
                         help="robot(s) to report (default: all built-ins)")
     args = parser.parse_args(argv)
     lines = []
-    for name in args.robot or sorted(WORKING_CONFIGURATIONS):
+    for name in args.robot or sorted(robots.BUILTINS):
         lines += [*report(name), ""]
     optimal = design.optimal_jacobian([1, 1, 1, 1], 3)
     k = measures.kfm(optimal)

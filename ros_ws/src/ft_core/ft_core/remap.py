@@ -1,0 +1,54 @@
+"""Reduced-Jacobian remapping of a joint velocity command around locked joints.
+
+A controller that knows nothing about failures (MoveIt Servo, teleoperation)
+keeps commanding the locked joints. The command means a tool velocity
+x = J qd; the healthy joints alone produce it with qd' = (J_h)# x (damped least
+squares, see `pseudoinverse`; the closest achievable tool velocity when the
+reduced robot cannot produce x), and the locked joints get exactly 0. If that
+breaks a velocity limit, the whole command is scaled down, direction kept.
+Singular values are compared on `Robot.scale_task(J)`, as everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from ft_core.measures import locked_mask
+from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.robots import Robot
+
+
+def within_limits(qd: np.ndarray, velocity_limits: np.ndarray) -> np.ndarray:
+    """Qd scaled down as a whole (direction kept) so that |qd_i| <= velocity_limits_i."""
+    excess = float(np.max(np.abs(qd) / velocity_limits, initial=0.0))
+    return qd / excess if excess > 1 else qd
+
+
+def remap(robot: Robot, q: np.ndarray, qd: np.ndarray, locked: Iterable[int],
+          velocity_limits: np.ndarray | None = None,
+          damping: Damping | None = None) -> np.ndarray:
+    """The command with the same tool velocity from the healthy joints; 0 for locked ones.
+
+    Args:
+        robot: the model.
+        q: the measured configuration (rad).
+        qd: the command (rad/s).
+        locked: indices of locked joints (none: qd is returned unchanged, but scaled
+            into the velocity limits; all: zeros).
+        velocity_limits: |qd'| bounds (rad/s), default the URDF's.
+        damping: damped least squares rule, default `Damping()`.
+    """
+    qd = np.asarray(qd, dtype=float)
+    mask = locked_mask(robot.n, locked)
+    limits = robot.velocity_limits if velocity_limits is None else velocity_limits
+    result = qd.copy()
+    if mask.all():
+        return np.zeros(robot.n)
+    if mask.any():
+        J = robot.scale_task(robot.jacobian(q))
+        healthy = ~mask
+        result = np.zeros(robot.n)
+        result[healthy] = damped_pinv(J[:, healthy], damping or Damping()) @ (J @ qd)
+    return within_limits(result, limits)

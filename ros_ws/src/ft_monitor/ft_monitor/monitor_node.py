@@ -1,0 +1,328 @@
+"""monitor_node: detect locked joints and keep the task going around them.
+
+Inputs: `ft/command_raw` (what a controller commands) and `joint_states` (what
+happened). It republishes every command on `ft/command` and `ft/command_array`
+(in `joints` order, for a JointGroupVelocityController): unchanged while nothing
+is locked; with locks, the locked joints get exactly 0 and, with
+`remap_commands`, the rest is remapped through the reduced Jacobian so the tool
+velocity J qd is kept (`ft_core.remap`). Every output is scaled, direction kept,
+into `velocity_scale` times the URDF velocity limits, so detection compares the
+measured motion with a command the plant can follow. Detection (`ft_core.detection`) compares
+what it sent to the plant with the measured motion; a lock is declared after the
+evidence persists and stays until `~/reset`. `ft/declare_failure` locks joints at
+once. The full locked set goes out on `ft/locked_joints` (transient local).
+
+Safety: a malformed command (NaN, wrong lengths, unknown or missing names) is
+replaced by explicit zeros; with no fresh command for `command_timeout` the
+watchdog publishes zeros once per period until commands return (a velocity
+controller holds its last command). Problems are logged once per episode.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from ft_core import remap, robots
+from ft_core.detection import DetectorConfig, LockDetector
+from ft_msgs_py import convert, diagnostics, names, parameters, qos
+from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_srvs.srv import Trigger
+
+DIAGNOSTICS_PERIOD = 0.5
+#: Stamps up to this far (s) ahead of the node's clock are accepted.
+FUTURE_TOLERANCE = 0.05
+
+
+def _floats(low: float, high: float) -> dict:
+    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
+
+
+_DETECTION = DetectorConfig()
+PARAMETERS: dict[str, tuple[object, str, dict]] = {
+    **parameters.MODEL_PARAMETERS,
+    "detection.window": (_DETECTION.window, "s, sliding window of the comparison",
+                         _floats(0.005, 10.0)),
+    "detection.min_command": (_DETECTION.min_command, "rad/s; smaller commands are "
+                              "unobservable (no decision)", _floats(0.0, 10.0)),
+    "detection.latency": (_DETECTION.latency, "s from a command to its effect on the "
+                          "measurements", _floats(0.0, 5.0)),
+    "detection.persistence": (_DETECTION.persistence, "s the lock evidence must hold",
+                              _floats(0.0, 10.0)),
+    "detection.ratio": (_DETECTION.ratio, "measured over commanded velocity below which a "
+                        "joint looks locked", _floats(0.01, 0.99)),
+    "detection.confidence": (_DETECTION.confidence, "separation in standard errors",
+                             _floats(0.5, 50.0)),
+    "remap_commands": (True, "remap commands through the reduced Jacobian once joints lock",
+                       {}),
+    "command_timeout": (0.2, "s without a command before the watchdog publishes zeros",
+                        _floats(0.001, 60.0)),
+    "velocity_scale": (1.0, "fraction of the URDF velocity limits for remapped commands",
+                       _floats(0.01, 1.0)),
+}
+
+
+class MonitorNode(Node):
+    """The monitor; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        super().__init__("monitor", **kwargs)
+        parameters.declare(self, PARAMETERS)
+        self.robot: robots.Robot | None = None
+        self.detector: LockDetector | None = None
+        self.locked: dict[str, tuple[float, float]] = {}  # name -> (position, time)
+        self._order: list[int] = []
+        self._q: np.ndarray | None = None
+        self._last_command = -math.inf
+        self._problems: dict[str, str] = {}
+        self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
+        self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
+                                                qos.RELIABLE)
+        self._locked_pub = self.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
+                                                      qos.RELIABLE)
+        self.create_subscription(JointState, names.COMMAND_RAW, self._on_command,
+                                 qos.SENSOR_INPUT)
+        self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
+                                 qos.SENSOR_INPUT)
+        self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
+                                 qos.RELIABLE)
+        self.create_service(Trigger, names.RESET, self._on_reset)
+        self.add_on_set_parameters_callback(self._validate)
+        self.add_post_set_parameters_callback(lambda _: self._configure_detector())
+        parameters.request_model(self, self._set_model)
+        self._watchdog = self.create_timer(self._param("command_timeout"), self._check_watchdog)
+        self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
+
+    def _param(self, name: str):
+        return self.get_parameter(name).value
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _problem(self, kind: str, text: str | None) -> None:
+        if text is None:
+            if self._problems.pop(kind, None) is not None:
+                self.get_logger().info(f"{kind}: recovered")
+            return
+        if kind not in self._problems:
+            self.get_logger().error(f"{kind}: {text}")
+        self._problems[kind] = text
+
+    # ------------------------------------------------------------------ set-up
+    def _detector_config(self, changes: dict | None = None) -> DetectorConfig:
+        value = {**{k: self._param(k) for k in PARAMETERS if k.startswith("detection.")},
+                 **(changes or {})}
+        return DetectorConfig(
+            window=value["detection.window"], min_command=value["detection.min_command"],
+            latency=value["detection.latency"], persistence=value["detection.persistence"],
+            ratio=value["detection.ratio"], confidence=value["detection.confidence"])
+
+    def _validate(self, params: list) -> SetParametersResult:
+        try:
+            self._detector_config({p.name: p.value for p in params})
+        except (ValueError, TypeError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _configure_detector(self) -> None:
+        if self.detector is not None:
+            self.detector.config = self._detector_config()
+
+    def _set_model(self, spec: str, source: str) -> None:
+        try:
+            robot = robots.load(spec, self._param("base_link") or None,
+                                self._param("tip_link") or None,
+                                self._param("task_space") or None,
+                                self._param("characteristic_length") or None)
+            joints = [str(j) for j in self._param("joints") or robot.joint_names]
+            if sorted(joints) != sorted(robot.joint_names):
+                raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
+        except (robots.RobotModelError, ValueError) as error:
+            self._problem("model", f"cannot use the model from {source}: {error}")
+            return
+        self.robot = robot
+        self._order = [robot.joint_names.index(j) for j in joints]
+        self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
+        self._problem("model", None)
+        self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
+        self._publish_locked(self._now())
+
+    @property
+    def command_joints(self) -> list[str]:
+        """Joint names in command order."""
+        return [self.robot.joint_names[i] for i in self._order]
+
+    # ------------------------------------------------------------------ inputs
+    def _stamp(self, stamp, kind: str) -> float | None:
+        now, seconds = self._now(), convert.stamp_seconds(stamp)
+        if seconds == 0.0:
+            return now
+        if seconds > now + FUTURE_TOLERANCE:
+            self._problem(kind, f"stamp {seconds:.3f} s is ahead of the clock ({now:.3f} s)")
+            return None
+        return seconds
+
+    def _on_state(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        stamp = self._stamp(msg.header.stamp, "joint_states")
+        if stamp is None:
+            return
+        try:
+            q = convert.joint_vector(msg, self.robot.joint_names)
+        except convert.MessageError as error:
+            self._problem("joint_states", str(error))
+            return
+        self._problem("joint_states", None)
+        self._q = q
+        newly = self.detector.measure(stamp, q)
+        if newly:
+            for j in newly:
+                name = self.robot.joint_names[j]
+                evidence = self.detector.joints[j]
+                self.locked[name] = (evidence.position, stamp)
+                self.get_logger().error(
+                    f"joint {name} locked at {evidence.position:.4f} rad (t = {stamp:.3f} s): "
+                    f"measured {evidence.measured:.4f} rad/s against {evidence.commanded:.4f}")
+            self._publish_locked(stamp)
+
+    def _on_declare(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        now = self._now()
+        for name in msg.name:
+            if name not in self.robot.joint_names:
+                self.get_logger().warning(f"declare_failure: unknown joint {name!r} ignored")
+                continue
+            j = self.robot.joint_names.index(name)
+            position = float(self._q[j]) if self._q is not None else math.nan
+            self.detector.lock(j, position, now)
+            if name not in self.locked:
+                self.locked[name] = (position, now)
+                self.get_logger().error(f"joint {name} declared locked")
+        self._publish_locked(now)
+
+    def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
+        released = sorted(self.locked)
+        self.locked.clear()
+        if self.detector is not None:
+            self.detector.reset()
+        self._publish_locked(self._now())
+        self.get_logger().info(f"reset: released {released or 'nothing'}")
+        response.success, response.message = True, f"released {released or 'nothing'}"
+        return response
+
+    def _on_command(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        stamp = self._stamp(msg.header.stamp, "ft/command_raw")
+        try:
+            if stamp is None:
+                raise convert.MessageError("stamp ahead of the clock")
+            qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
+        except convert.MessageError as error:
+            self._problem("ft/command_raw", f"{error}: commanding zeros")
+            self._publish_command(np.zeros(self.robot.n), msg.header.stamp)
+            return
+        self._problem("ft/command_raw", None)
+        self._last_command = self._now()
+        locked = [self.robot.joint_names.index(name) for name in self.locked]
+        limits = self.robot.velocity_limits * self._param("velocity_scale")
+        if locked and self._param("remap_commands") and self._q is not None:
+            qd = remap.remap(self.robot, self._q, qd, locked, limits)
+        else:
+            qd = qd.copy()
+            qd[locked] = 0.0
+            qd = remap.within_limits(qd, limits)
+        if not np.all(np.isfinite(qd)):
+            qd = np.zeros(self.robot.n)
+        self._publish_command(qd, msg.header.stamp, stamp)
+
+    # ----------------------------------------------------------------- outputs
+    def _publish_command(self, qd_chain: np.ndarray, stamp, seconds: float | None = None) -> None:
+        ordered = qd_chain[self._order]
+        self._command_pub.publish(convert.joint_state(self.command_joints, stamp,
+                                                      velocity=ordered))
+        array = Float64MultiArray(data=[float(v) for v in ordered])
+        array.layout.dim = [MultiArrayDimension(label="joints", size=len(ordered),
+                                                stride=len(ordered))]
+        self._array_pub.publish(array)
+        self.detector.command(self._now() if seconds is None else seconds, qd_chain)
+
+    def stop(self) -> None:
+        """Publish explicit zero velocities (used on shutdown)."""
+        if self.robot is not None:
+            self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
+
+    def _publish_locked(self, time: float) -> None:
+        msg = convert.locked_message({n: p for n, (p, _) in self.locked.items()},
+                                     convert.stamp_from_nanoseconds(round(time * 1e9)))
+        self._locked_pub.publish(msg)
+
+    def _check_watchdog(self) -> None:
+        if self.robot is None:
+            return
+        age = self._now() - self._last_command
+        if age > self._param("command_timeout"):
+            self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
+
+    def _publish_diagnostics(self) -> None:
+        now = self._now()
+        age = now - self._last_command
+        values = {"locked_joints": sorted(self.locked), "remap_commands":
+                  self._param("remap_commands"),
+                  "command_age_s": age if math.isfinite(age) else "none"}
+        stalls = []
+        statuses = []
+        if self.robot is not None:
+            for name in self.command_joints:
+                evidence = self.detector.joints[self.robot.joint_names.index(name)]
+                level, message = diagnostics.OK, "ok"
+                if name in self.locked:
+                    level, message = diagnostics.ERROR, "locked"
+                elif evidence.at_limit:
+                    level, message = diagnostics.WARN, "stalled at a joint limit"
+                    stalls.append(name)
+                statuses.append(diagnostics.status(f"{self.get_name()}: joint {name}", level,
+                                                   message, {
+                    "observable": evidence.observable, "measured_velocity": evidence.measured,
+                    "commanded_velocity": evidence.commanded,
+                    "standard_error": evidence.standard_error}))
+        if self._problems:
+            level, message = diagnostics.ERROR, "; ".join(
+                f"{k}: {v}" for k, v in sorted(self._problems.items()))
+        elif self.locked:
+            level, message = diagnostics.ERROR, f"locked: {sorted(self.locked)}"
+        elif stalls:
+            level, message = diagnostics.WARN, f"stalled at a limit: {stalls}"
+        elif age > self._param("command_timeout"):
+            level, message = diagnostics.WARN, "no fresh command: publishing zeros"
+        else:
+            level, message = diagnostics.OK, "no locked joint"
+        statuses.insert(0, diagnostics.status(self.get_name(), level, message, values))
+        self._diagnostics_pub.publish(diagnostics.array(statuses, self.get_clock().now().to_msg()))
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the monitor until SIGINT, then command zero velocity and exit."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = MonitorNode()
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

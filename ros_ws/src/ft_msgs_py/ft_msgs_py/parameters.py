@@ -1,0 +1,64 @@
+"""Model-selection parameters shared by every node, and where the model comes from.
+
+`robot_description` (URDF XML) if set, else `robot_model` (a built-in name or a URDF
+path), else the `robot_description` topic (std_msgs/String, transient local, as
+robot_state_publisher provides it). They are read-only once the node runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from ft_msgs_py import names, qos
+
+#: name -> (default, description, extra descriptor fields)
+MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
+    "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
+    "robot_model": ("", "built-in name (planar3r, puma560, panda, iiwa14) or URDF path; "
+                    "empty too: wait for the robot_description topic", {"read_only": True}),
+    "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
+    "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
+    "joints": ([], "command order of the chain's joints (empty: base to tip)",
+               {"read_only": True, "dynamic_typing": True}),
+    "task_space": ("", "pose, position or planar (empty: the model's default)",
+                   {"read_only": True}),
+    "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
+                              {"read_only": True, "floating_point_range": [
+                                  FloatingPointRange(from_value=0.0, to_value=100.0)]}),
+}
+
+
+def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None:
+    """Declare parameters with descriptions and ranges.
+
+    An invalid start-up value is logged and replaced by the default, so a typo in a
+    launch file does not stop the node.
+    """
+    for name, (default, description, extra) in parameters.items():
+        descriptor = ParameterDescriptor(description=description, **extra)
+        try:
+            node.declare_parameter(name, default, descriptor)
+        except InvalidParameterValueException as error:
+            node.get_logger().error(f"{error}; using the default {default!r}")
+            node.declare_parameter(name, default, descriptor, ignore_override=True)
+
+
+def request_model(node: Node, use: Callable[[str, str], None]) -> None:
+    """Call `use(spec, source)` with the model spec from the parameters or, later, the topic."""
+    description = node.get_parameter("robot_description").value
+    model = node.get_parameter("robot_model").value
+    if description:
+        use(description, "the robot_description parameter")
+    elif model:
+        use(model, f"robot_model '{model}'")
+    else:
+        node.get_logger().info("no robot_description or robot_model parameter: waiting for "
+                               f"the '{names.ROBOT_DESCRIPTION}' topic")
+        node.create_subscription(String, names.ROBOT_DESCRIPTION,
+                                 lambda msg: use(msg.data, "the robot_description topic"),
+                                 qos.LATCHED)

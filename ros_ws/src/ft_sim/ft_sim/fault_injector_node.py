@@ -1,0 +1,95 @@
+"""fault_injector_node: lock joints of a plant we do not own (Gazebo, hardware).
+
+A proxy on the command path: it forwards `ft/command` (JointState) to
+`faulty/command` and `ft/command_array` (Float64MultiArray, in `joints` order) to
+`faulty/command_array`, with the commands of locked joints forced to exactly 0.
+Remap the outputs to the plant's command topics. `ft/inject_failure` (names) locks
+joints from now on; `~/reset` releases them. Unknown names are rejected with a
+warning; a malformed command is dropped (the plant's own timeout then stops it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import rclpy
+from ft_msgs_py import convert, names, qos
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+OUTPUT_COMMAND = "faulty/command"
+OUTPUT_COMMAND_ARRAY = "faulty/command_array"
+
+
+class FaultInjectorNode(Node):
+    """The command-path proxy; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        super().__init__("fault_injector", **kwargs)
+        self.declare_parameter("joints", [], ParameterDescriptor(
+            description="joint order of ft/command_array (needed only for the array)",
+            read_only=True, dynamic_typing=True))
+        self.joints = [str(j) for j in self.get_parameter("joints").value or []]
+        self.locked: set[str] = set()
+        self._out = self.create_publisher(JointState, OUTPUT_COMMAND, qos.RELIABLE)
+        self._out_array = self.create_publisher(Float64MultiArray, OUTPUT_COMMAND_ARRAY,
+                                                qos.RELIABLE)
+        self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
+        self.create_subscription(Float64MultiArray, names.COMMAND_ARRAY, self._on_array,
+                                 qos.SENSOR_INPUT)
+        self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
+        self.create_service(Trigger, names.RESET, self._on_reset)
+
+    def _on_inject(self, msg: JointState) -> None:
+        known = set(self.joints) if self.joints else None
+        for name in msg.name:
+            if known is not None and name not in known:
+                self.get_logger().warning(f"inject_failure: unknown joint {name!r} rejected")
+                continue
+            if name not in self.locked:
+                self.locked.add(name)
+                self.get_logger().warning(f"joint {name} locked on the command path")
+
+    def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
+        response.success, response.message = True, f"released {sorted(self.locked) or 'nothing'}"
+        self.locked.clear()
+        return response
+
+    def _on_command(self, msg: JointState) -> None:
+        if len(msg.velocity) != len(msg.name):
+            self.get_logger().warning("ft/command without one velocity per name: dropped",
+                                      throttle_duration_sec=5.0)
+            return
+        velocity = [0.0 if name in self.locked else float(v)
+                    for name, v in zip(msg.name, msg.velocity, strict=True)]
+        self._out.publish(convert.joint_state(list(msg.name), msg.header.stamp,
+                                              velocity=velocity))
+
+    def _on_array(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != len(self.joints):
+            self.get_logger().warning(f"ft/command_array needs {len(self.joints)} values (the "
+                                      "`joints` parameter): dropped", throttle_duration_sec=5.0)
+            return
+        data = np.array(msg.data, dtype=float)
+        data[[i for i, j in enumerate(self.joints) if j in self.locked]] = 0.0
+        self._out_array.publish(Float64MultiArray(layout=msg.layout, data=data.tolist()))
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the proxy until SIGINT."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = FaultInjectorNode()
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,194 @@
+"""sim_node: a kinematic plant for any model the suite loads, with failure injection.
+
+Every step (at `rate`) integrates the latest velocity command from `ft/command`,
+applied `command_latency` seconds after it arrived and dropped to zero once older
+than `command_timeout`, clipped to the URDF velocity limits and, for positions, to
+the URDF position limits. Locked joints do not move. It publishes `joint_states`
+(positions with optional Gaussian `position_noise`, and the integrated velocities).
+
+With `publish_clock` the sim owns the time: it starts at 0, advances exactly one
+period per step and publishes `/clock` (run the other nodes with use_sim_time);
+otherwise it follows its node clock. `step()` is public, so tests and the demo can
+run the plant faster than real time.
+
+`ft/inject_failure` (JointState, names) locks those joints where they are, from the
+next step, until `~/reset`; unknown names are rejected with a warning. A lock can
+also be scheduled with `failure.joint` and `failure.time` (s of plant time).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import rclpy
+from ft_core import robots
+from ft_msgs_py import convert, names, parameters, qos
+from rcl_interfaces.msg import FloatingPointRange
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMessage
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+
+def _floats(low: float, high: float) -> dict:
+    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
+
+
+PARAMETERS: dict[str, tuple[object, str, dict]] = {
+    **parameters.MODEL_PARAMETERS,
+    "initial_positions": ([], "rad, `joints` order (empty: the model's home configuration)",
+                          {"read_only": True, "dynamic_typing": True}),
+    "rate": (500.0, "Hz, integration and joint_states rate", {"read_only": True,
+                                                             **_floats(1.0, 10000.0)}),
+    "position_noise": (0.0, "rad, standard deviation of the published positions",
+                       _floats(0.0, 1.0)),
+    "command_latency": (0.0, "s from a command's arrival to its effect", _floats(0.0, 10.0)),
+    "command_timeout": (0.1, "s; older commands are dropped (the arm stops)",
+                        _floats(0.001, 60.0)),
+    "publish_clock": (False, "own the time: start at 0 and publish /clock", {"read_only": True}),
+    "seed": (0, "seed of the position noise", {"read_only": True}),
+    "failure.joint": ("", "joint to lock at failure.time (empty: none)", {}),
+    "failure.time": (-1.0, "s of plant time at which failure.joint locks (< 0: never)", {}),
+}
+
+
+class SimNode(Node):
+    """The kinematic plant; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        super().__init__("sim", **kwargs)
+        parameters.declare(self, PARAMETERS)
+        self.robot: robots.Robot | None = None
+        self.q = np.zeros(0)
+        self.qd = np.zeros(0)
+        self.locked: dict[str, float] = {}
+        self._commands: deque[tuple[float, np.ndarray]] = deque()
+        self._rng = np.random.default_rng(self.get_parameter("seed").value)
+        self._own_clock = self.get_parameter("publish_clock").value
+        self.period = 1.0 / self.get_parameter("rate").value
+        self.t = 0.0 if self._own_clock else self._node_time()
+        self._state_pub = self.create_publisher(JointState, names.JOINT_STATES, qos.RELIABLE)
+        self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
+                           if self._own_clock else None)
+        self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
+        self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
+        self.create_service(Trigger, names.RESET, self._on_reset)
+        parameters.request_model(self, self._set_model)
+        # Owning the clock, the sim must not wait for it: its timer runs on steady time.
+        self.timer = self.create_timer(self.period, self.step,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME)
+                                       if self._own_clock else None)
+
+    def _node_time(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _set_model(self, spec: str, source: str) -> None:
+        try:
+            robot = robots.load(spec, self.get_parameter("base_link").value or None,
+                                self.get_parameter("tip_link").value or None,
+                                self.get_parameter("task_space").value or None)
+            joints = list(self.get_parameter("joints").value or robot.joint_names)
+            if sorted(joints) != sorted(robot.joint_names):
+                raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
+            initial = list(self.get_parameter("initial_positions").value or [])
+            q = robot.home()
+            if initial:
+                by_name = dict(zip(joints, initial, strict=True))
+                q = np.array([float(by_name[j]) for j in robot.joint_names])
+                if not np.all(np.isfinite(q)):
+                    raise ValueError("initial_positions must be finite")
+        except (robots.RobotModelError, ValueError) as error:
+            self.get_logger().error(f"cannot use the model from {source}: {error}")
+            return
+        self.robot, self.q, self.qd = robot, np.clip(q, robot.lower, robot.upper), np.zeros(robot.n)
+        self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
+
+    def _on_command(self, msg: JointState) -> None:
+        if self.robot is None:
+            return
+        try:
+            velocity = convert.joint_vector(msg, self.robot.joint_names, "velocity")
+        except convert.MessageError as error:
+            self.get_logger().warning(f"ft/command ignored: {error}", throttle_duration_sec=5.0)
+            return
+        self._commands.append((self.t, velocity))
+
+    def lock(self, joint_names: list[str]) -> None:
+        """Lock joints where they are (failure injection)."""
+        unknown = [n for n in joint_names if n not in self.robot.joint_names]
+        if unknown:
+            self.get_logger().warning(f"inject_failure: unknown joints {unknown} rejected")
+        for name in joint_names:
+            if name in self.robot.joint_names and name not in self.locked:
+                self.locked[name] = float(self.q[self.robot.joint_names.index(name)])
+                self.get_logger().warning(f"joint {name} locked at {self.locked[name]:.4f} rad "
+                                          f"(t = {self.t:.3f} s)")
+
+    def _on_inject(self, msg: JointState) -> None:
+        if self.robot is not None:
+            self.lock(list(msg.name))
+
+    def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
+        released = sorted(self.locked)
+        self.locked.clear()
+        response.success, response.message = True, f"released {released or 'nothing'}"
+        return response
+
+    def _command(self) -> np.ndarray:
+        """The command in force now: the newest one whose latency has passed, if fresh."""
+        latency = self.get_parameter("command_latency").value
+        while len(self._commands) > 1 and self._commands[1][0] + latency <= self.t:
+            self._commands.popleft()
+        if not self._commands:
+            return np.zeros(self.robot.n)
+        arrived, velocity = self._commands[0]
+        if arrived + latency > self.t:
+            return np.zeros(self.robot.n)  # the first command has not taken effect yet
+        if self.t - arrived - latency > self.get_parameter("command_timeout").value:
+            return np.zeros(self.robot.n)
+        return velocity
+
+    def step(self) -> None:
+        """Advance the plant by one period (or to the node clock) and publish."""
+        if self.robot is None:
+            return
+        robot = self.robot
+        now = self.t + self.period if self._own_clock else self._node_time()
+        dt, self.t = max(now - self.t, 0.0), now
+        scheduled = self.get_parameter("failure.joint").value
+        if scheduled and 0 <= self.get_parameter("failure.time").value <= self.t:
+            self.lock([scheduled])
+            self.set_parameters([Parameter("failure.joint", value="")])
+        velocity = np.clip(self._command(), -robot.velocity_limits, robot.velocity_limits)
+        for name in self.locked:
+            velocity[robot.joint_names.index(name)] = 0.0
+        q = np.clip(self.q + dt * velocity, robot.lower, robot.upper)
+        self.qd = (q - self.q) / dt if dt > 0 else np.zeros(robot.n)
+        self.q = q
+        stamp = convert.stamp_from_nanoseconds(round(self.t * 1e9))
+        if self._clock_pub is not None:
+            self._clock_pub.publish(ClockMessage(clock=stamp))
+        noise = self.get_parameter("position_noise").value
+        measured = self.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
+        self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured, self.qd))
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the sim until SIGINT."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = SimNode()
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,253 @@
+"""monitor_node and sim_node in-process: detection, remap, declared failures, watchdog."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import rclpy
+from ft_core import robots
+from ft_monitor.monitor_node import MonitorNode
+from ft_msgs_py import convert, qos
+from ft_sim.sim_node import SimNode
+from rclpy.parameter import Parameter
+from rosutil import ros_context, spin_until
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+PANDA = robots.load("panda")
+START = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]
+
+
+class Loop:
+    """Sim (owning the clock, stepped by hand), monitor and a test-side commander."""
+
+    def __init__(self, context, executor, sim: SimNode, monitor: MonitorNode):
+        self.executor, self.sim, self.monitor = executor, sim, monitor
+        self.node = rclpy.create_node("commander", context=context)
+        executor.add_node(self.node)
+        self.raw = self.node.create_publisher(JointState, "ft/command_raw", qos.RELIABLE)
+        self.inject = self.node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
+        self.declare = self.node.create_publisher(JointState, "ft/declare_failure", qos.RELIABLE)
+        self.commands: list[JointState] = []
+        self.arrays: list[Float64MultiArray] = []
+        self.locked: list[JointState] = []
+        self.node.create_subscription(JointState, "ft/command", self.commands.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(Float64MultiArray, "ft/command_array", self.arrays.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(JointState, "ft/locked_joints", self.locked.append,
+                                      qos.LATCHED)
+
+    def stamp(self):
+        return convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
+
+    def send(self, velocity, names=None) -> None:
+        self.last_raw = np.asarray(velocity, dtype=float)
+        self.raw.publish(convert.joint_state(names or PANDA.joint_names, self.stamp(),
+                                             velocity=velocity))
+
+    def step(self, command: Callable[[Loop], None] | None = None) -> None:
+        before = len(self.commands)
+        if command is not None:
+            measured = self.monitor._q
+            self.q_at_command = None if measured is None else measured.copy()
+            command(self)
+            spin_until(self.executor, lambda: len(self.commands) > before, 2.0)
+            # The sim has the monitor's output once its buffer holds it.
+            spin_until(self.executor, lambda: bool(self.sim._commands) and
+                       self.sim._commands[-1][0] >= self.sim.t, 2.0)
+        self.sim.step()
+        spin_until(self.executor, lambda: bool(self.monitor.detector._times)
+                   and self.monitor.detector._times[-1] >= self.sim.t - 1e-9, 2.0)
+
+    def locked_names(self) -> list[str]:
+        return list(self.locked[-1].name) if self.locked else []
+
+
+@contextmanager
+def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
+         sim_parameters: dict | None = None) -> Iterator[Loop]:
+    with ros_context() as (context, executor):
+        sim = SimNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {
+                "robot_model": "panda", "publish_clock": True, "rate": 250.0,
+                "position_noise": noise, "initial_positions": START, "seed": 3,
+                **(sim_parameters or {})}.items()])
+        sim.timer.cancel()  # stepped by hand
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {"robot_model": "panda", "use_sim_time": True,
+                                               **(monitor_parameters or {})}.items()])
+        executor.add_node(sim)
+        executor.add_node(monitor)
+        yield Loop(context, executor, sim, monitor)
+
+
+def constant(velocity) -> Callable[[Loop], None]:
+    return lambda lp: lp.send(velocity)
+
+
+def test_healthy_motion_with_noise_declares_no_lock() -> None:
+    """60 s of simulated time at 250 Hz, 1e-3 rad noise, speeds 0.05 to 1 rad/s."""
+    with loop(noise=1e-3) as lp:
+        def sweep(lp: Loop) -> None:
+            t = lp.sim.t
+            speed = 0.05 + 0.95 * (0.5 + 0.5 * np.sin(2 * np.pi * t / 7 + np.arange(7)))
+            lp.send(speed * np.where(np.sin(2 * np.pi * t + np.arange(7)) >= 0, 1.0, -1.0))
+
+        for _ in range(60 * 250):
+            lp.step(sweep)
+        assert lp.locked_names() == [] and lp.monitor.locked == {}
+
+
+def test_each_injected_lock_is_detected_on_the_right_joint_quickly() -> None:
+    latencies = {}
+    for joint in PANDA.joint_names:
+        with loop(noise=1e-3) as lp:
+            command = constant(np.full(7, 0.2))
+            for _ in range(100):
+                lp.step(command)
+            lp.inject.publish(JointState(name=[joint]))
+            assert spin_until(lp.executor, lambda j=joint: j in lp.sim.locked, 2.0)
+            injected = lp.sim.t
+            while not lp.locked_names() and lp.sim.t < injected + 1.0:
+                lp.step(command)
+            assert lp.locked_names() == [joint]
+            latencies[joint] = convert.stamp_seconds(lp.locked[-1].header.stamp) - injected
+            assert lp.commands[-1].velocity[PANDA.joint_names.index(joint)] == 0.0
+    print("\ndetection latency (ms):",
+          {j.removeprefix("panda_"): round(1000 * v) for j, v in latencies.items()})
+    assert max(latencies.values()) < 0.1
+
+
+def test_remap_keeps_the_tool_velocity_behind_a_failure_unaware_controller() -> None:
+    xd = np.array([0.1, -0.06, 0.06, 0.0, 0.0, 0.3])  # joint 3 moves at 0.12 rad/s
+    with loop() as lp:
+        def least_norm(lp: Loop) -> None:  # ignores ft/locked_joints
+            lp.send(np.linalg.pinv(PANDA.jacobian(lp.sim.q)) @ xd)
+
+        for _ in range(50):
+            lp.step(least_norm)
+        lp.inject.publish(JointState(name=["panda_joint3"]))
+        spin_until(lp.executor, lambda: "panda_joint3" in lp.sim.locked, 2.0)
+        for _ in range(60):
+            lp.step(least_norm)
+        assert lp.locked_names() == ["panda_joint3"]
+        out = np.array(lp.commands[-1].velocity)
+        assert out[2] == 0.0
+        q = lp.q_at_command  # what the monitor had measured when it remapped
+        reduced = np.delete(PANDA.scale_task(PANDA.jacobian(q)), 2, axis=1)
+        assert np.linalg.svd(reduced, compute_uv=False)[-1] > 0.01  # it can produce xd
+        J = PANDA.jacobian(q)
+        np.testing.assert_allclose(J @ out, J @ lp.last_raw, atol=1e-9)
+        np.testing.assert_allclose(J @ out, xd, atol=1e-3)
+        np.testing.assert_allclose(lp.arrays[-1].data, out)
+
+
+def test_declared_failure_reset_and_the_latched_locked_set() -> None:
+    with loop() as lp:
+        command = constant(np.full(7, 0.1))
+        lp.step(command)
+        lp.declare.publish(JointState(name=["panda_joint5", "not_a_joint"]))
+        assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
+        lp.step(command)
+        assert lp.commands[-1].velocity[4] == 0.0
+        # A node that starts later still learns the locked set (transient local).
+        late: list[JointState] = []
+        lp.node.create_subscription(JointState, "ft/locked_joints", late.append, qos.LATCHED)
+        assert spin_until(lp.executor, lambda: bool(late), 2.0)
+        assert list(late[-1].name) == ["panda_joint5"]
+        client = lp.node.create_client(Trigger, "monitor/reset")
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(lp.executor, future.done, 5.0) and future.result().success
+        assert spin_until(lp.executor, lambda: lp.locked_names() == [], 2.0)
+        lp.step(command)
+        assert lp.commands[-1].velocity[4] != 0.0
+
+
+def test_watchdog_publishes_zeros_until_commands_return() -> None:
+    with loop(monitor_parameters={"command_timeout": 0.05}) as lp:
+        command = constant(np.full(7, 0.1))
+        for _ in range(5):
+            lp.step(command)
+        before = len(lp.commands)
+        for _ in range(40):  # 0.16 s without commands
+            lp.step()
+        zeros = lp.commands[before:]
+        assert len(zeros) >= 2 and all(np.all(np.array(c.velocity) == 0.0) for c in zeros)
+        lp.step(command)
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.1)
+
+
+def test_malformed_commands_become_explicit_zeros() -> None:
+    with loop() as lp:
+        lp.step(constant(np.full(7, 0.1)))
+        for bad in ([np.nan] * 7, [0.1] * 6):
+            lp.step(lambda lp, bad=bad: lp.raw.publish(JointState(
+                header=JointState().header, name=list(PANDA.joint_names), velocity=bad)))
+            assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+        lp.step(lambda lp: lp.send([0.1] * 7, [*PANDA.joint_names[:6], "elbow"]))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+        lp.step(constant(np.full(7, 0.1)))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.1)  # recovered
+
+
+def test_sim_limits_timeout_latency_and_scheduled_failure() -> None:
+    with loop(sim_parameters={"command_timeout": 0.02, "command_latency": 0.008,
+                              "failure.joint": "panda_joint1", "failure.time": 0.1}) as lp:
+        direct = lp.node.create_publisher(JointState, "ft/command", qos.RELIABLE)
+        direct.publish(convert.joint_state(PANDA.joint_names, lp.stamp(),
+                                           velocity=np.full(7, 100.0)))  # beyond the limits
+        assert spin_until(lp.executor, lambda: bool(lp.sim._commands), 2.0)
+        lp.sim.step()  # latency 8 ms: 2 periods
+        assert np.all(lp.sim.qd == 0.0)
+        lp.sim.step()
+        np.testing.assert_allclose(np.abs(lp.sim.qd[1:]), PANDA.velocity_limits[1:])
+        for _ in range(10):  # no new command: after 20 ms the arm stops
+            lp.sim.step()
+        assert np.all(lp.sim.qd == 0.0)
+        for _ in range(30):
+            lp.step(constant(np.full(7, 0.1)))
+        assert "panda_joint1" in lp.sim.locked and lp.sim.qd[0] == 0.0
+        lp.inject.publish(JointState(name=["no_such_joint"]))
+        spin_until(lp.executor, lambda: False, 0.2)
+        assert set(lp.sim.locked) == {"panda_joint1"}
+
+
+def test_fault_injector_zeroes_the_locked_joints_on_the_command_path() -> None:
+    from ft_sim.fault_injector_node import FaultInjectorNode
+
+    joints = list(PANDA.joint_names)
+    with ros_context() as (context, executor):
+        proxy = FaultInjectorNode(context=context,
+                                  parameter_overrides=[Parameter("joints", value=joints)])
+        node = rclpy.create_node("plant_side", context=context)
+        for n in (proxy, node):
+            executor.add_node(n)
+        commands, arrays = [], []
+        node.create_subscription(JointState, "faulty/command", commands.append, qos.RELIABLE)
+        node.create_subscription(Float64MultiArray, "faulty/command_array", arrays.append,
+                                 qos.RELIABLE)
+        command = node.create_publisher(JointState, "ft/command", qos.RELIABLE)
+        array = node.create_publisher(Float64MultiArray, "ft/command_array", qos.RELIABLE)
+        inject = node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
+
+        def send() -> None:
+            command.publish(convert.joint_state(joints, convert.stamp_from_nanoseconds(1),
+                                                velocity=np.full(7, 0.3)))
+            array.publish(Float64MultiArray(data=[0.3] * 7))
+
+        assert spin_until(executor, lambda: (send(), bool(commands) and bool(arrays))[1], 5.0)
+        assert list(commands[-1].velocity) == [0.3] * 7
+        inject.publish(JointState(name=["panda_joint2", "bogus"]))
+        assert spin_until(executor, lambda: proxy.locked == {"panda_joint2"}, 5.0)
+        def zeroed() -> bool:  # commands sent before the lock may still be in flight
+            send()
+            return (bool(commands) and commands[-1].velocity[1] == 0.0
+                    and bool(arrays) and arrays[-1].data[1] == 0.0)
+
+        assert spin_until(executor, zeroed, 5.0)
+        assert commands[-1].velocity[0] == 0.3 and arrays[-1].data[0] == 0.3

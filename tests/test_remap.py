@@ -1,0 +1,42 @@
+"""ft_core.remap: the tool velocity survives a lock."""
+
+from __future__ import annotations
+
+import numpy as np
+from ft_core import remap, robots
+
+PANDA = robots.load("panda")
+Q = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
+QD = np.array([0.1, -0.2, 0.1, 0.3, -0.1, 0.2, 0.1])
+
+
+def test_without_locks_the_command_passes_unchanged() -> None:
+    np.testing.assert_array_equal(remap.remap(PANDA, Q, QD, []), QD)
+
+
+def test_locked_joints_get_zero_and_the_tool_velocity_is_kept() -> None:
+    J = PANDA.jacobian(Q)
+    for joint in (0, 2, 5):
+        out = remap.remap(PANDA, Q, QD, [joint])
+        assert out[joint] == 0.0
+        np.testing.assert_allclose(J @ out, J @ QD, atol=1e-9)
+
+
+def test_a_task_the_reduced_robot_cannot_do_gets_least_squares() -> None:
+    out = remap.remap(PANDA, Q, QD, [1, 4])  # 5 joints for a 6-D pose task
+    assert out[1] == out[4] == 0.0
+    J = PANDA.scale_task(PANDA.jacobian(Q))
+    healthy = [0, 2, 3, 5, 6]
+    best = np.linalg.lstsq(J[:, healthy], J @ QD, rcond=None)[0]
+    np.testing.assert_allclose(out[healthy], best, atol=1e-6)
+
+
+def test_velocity_limits_scale_the_whole_command() -> None:
+    out = remap.remap(PANDA, Q, 30 * QD, [2], velocity_limits=np.full(7, 1.0))
+    assert np.max(np.abs(out)) == np.float64(1.0)
+    direction = remap.remap(PANDA, Q, 30 * QD, [2], velocity_limits=np.full(7, 1e9))
+    np.testing.assert_allclose(out / np.linalg.norm(out), direction / np.linalg.norm(direction))
+
+
+def test_every_joint_locked_gives_zeros() -> None:
+    np.testing.assert_array_equal(remap.remap(PANDA, Q, QD, range(7)), np.zeros(7))
