@@ -41,6 +41,7 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
+	$(BIN)/ft-campaign --runs 20 --out bench_out
 
 clean:
 	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log

@@ -9,6 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", ["launch/demo.launch.py"]),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -19,6 +20,7 @@ setup(
     entry_points={
         "console_scripts": [
             "demo = ft_sim.demo:main",
+            "campaign = ft_sim.campaign:main",
             "sim_node = ft_sim.sim_node:main",
             "fault_injector_node = ft_sim.fault_injector_node:main",
         ],

@@ -1,59 +1,168 @@
-"""`make demo` / `ft-demo` / `ros2 run ft_sim demo`: the fault-tolerance measures of the built-ins.
+"""`make demo` / `ft-demo` / `ros2 run ft_sim demo`: a joint locks mid-task and the task goes on.
 
-For each built-in robot at a typical working configuration it prints the
-post-failure smallest singular values s_i, kfm, the failure-probability-weighted
-measure and the relative manipulability, and it checks the optimal Jacobian of
-seed 002 eq 10 (K = sqrt((n - m) / n) = 0.5). The closed-loop story (sim,
-controller, monitor, a locked joint) replaces this once those nodes exist.
-Exit status 0 when every number is finite and the eq 10 check holds.
+In one process, on real topics: the sim (owning the clock), the controller (with
+bounding-box soft limits from the task's critical points) and the monitor. The
+Panda visits three task points in turn; mid-task a joint is locked through
+`ft/inject_failure`; the monitor detects it and the controller carries on with
+the remaining joints. It prints a report and writes it, with a figure, to the
+output folder:
+
+- detection latency: from the injection to `ft/locked_joints`;
+- tool-velocity error |J (qd_actual - qd_commanded)| before the lock, while it is
+  undetected, and after detection;
+- the joint-velocity jump the lock caused (command after detection against the
+  command just before the lock);
+- kfm before and after (the latter for a further failure);
+- whether each task point was reached again after the lock (a tour of them).
+
+Exit status 0 when the story holds: the right joint detected, every task point
+reached after the lock, no non-finite value on any topic.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
-from ft_core import design, measures, robots
+
+from ft_sim.scenario import Record, ScenarioConfig, run
 
 
-def _row(label: str, values: np.ndarray) -> str:
-    return f"  {label:<28}" + " ".join(f"{v:7.3f}" for v in values)
+def summarise(config: ScenarioConfig, record: Record) -> dict:
+    """The report's numbers from a record."""
+    a = record.arrays()
+    t, error = a["t"], a["tool_velocity_error"]
+    injected = record.injected_at
+    i = int(np.searchsorted(t, injected)) if injected is not None else len(t)
+    detected = record.detected_at
+    d = int(np.searchsorted(t, detected)) if detected is not None else len(t)
+    after = t > (detected if detected is not None else np.inf) + 2 / config.rate
+    reached_after = sorted(p for p, ok in record.tour.items() if ok)
+    jump = None
+    if detected is not None and 0 < i and d + 1 < len(t):
+        jump = float(np.linalg.norm(a["qd_command"][d + 1] - a["qd_command"][i - 1]))
+    return {
+        "robot": config.robot, "resolution": config.resolution, "locked": config.lock_joint,
+        "injected_at_s": injected, "detected_at_s": detected, "detected": record.detected,
+        "latency_ms": None if detected is None else 1000 * (detected - injected),
+        "error_before": float(error[:i].max()) if i else 0.0,
+        "error_during": float(error[i:d + 1].max()) if d > i else 0.0,
+        "error_after": float(error[after].max()) if after.any() else None,
+        "velocity_jump": jump,
+        "kfm_before": float(a["kfm"][i - 1]) if i else None,
+        "kfm_after": float(a["kfm"][-1]),
+        "points": len(record.tour) or len(config.points), "reached_after": reached_after,
+        "non_finite": record.non_finite,
+    }
 
 
-def report(name: str) -> list[str]:
-    """Lines describing the measures of one built-in robot at its working configuration."""
-    robot = robots.load(name)
-    q = robot.home()
-    J = robot.scale_task(robot.jacobian(q))
-    return [
-        f"{name}: n={robot.n}, task={robot.task_space} (m={robot.m}), "
-        f"L={robot.characteristic_length:.3f} m",
-        _row("q (rad)", q),
-        _row("s_i post-failure sigma_min", measures.post_failure_sigmas(J)),
-        _row("relative manipulability", measures.relative_manipulability(J)),
-        f"  kfm = {measures.kfm(J):.4f}   weighted (equal p) = "
-        f"{measures.weighted_fault_tolerance(J, None):.4f}   "
-        f"sigma_min = {np.linalg.svd(J, compute_uv=False)[-1]:.4f}",
+def verdict(summary: dict) -> list[str]:
+    """What went wrong (empty: the story holds)."""
+    problems = []
+    if summary["detected"] != [summary["locked"]]:
+        problems.append(f"detected {summary['detected']} instead of {summary['locked']}")
+    if len(summary["reached_after"]) < summary["points"]:
+        problems.append(f"only {len(summary['reached_after'])} of {summary['points']} task "
+                        "points reached after the lock")
+    if summary["non_finite"]:
+        problems.append(f"{summary['non_finite']} messages with non-finite values")
+    return problems
+
+
+def _fmt(value, unit: str = "", digits: int = 4) -> str:
+    return "n/a" if value is None else f"{value:.{digits}g}{unit}"
+
+
+def report(summary: dict, problems: list[str]) -> str:
+    """The report as Markdown."""
+    s = summary
+    lines = [
+        f"# ft-arms demo: {s['robot']}, {s['resolution']}, {s['locked']} locks", "",
+        "| | |", "|---|---|",
+        f"| lock injected | {_fmt(s['injected_at_s'], ' s')} |",
+        f"| detected | {', '.join(s['detected']) or 'nothing'} at "
+        f"{_fmt(s['detected_at_s'], ' s')} |",
+        f"| detection latency | {_fmt(s['latency_ms'], ' ms', 3)} |",
+        f"| tool-velocity error before the lock | {_fmt(s['error_before'], ' m/s', 2)} |",
+        f"| tool-velocity error while undetected | {_fmt(s['error_during'], ' m/s', 2)} |",
+        f"| tool-velocity error after detection | {_fmt(s['error_after'], ' m/s', 2)} |",
+        f"| joint-velocity jump at the lock | {_fmt(s['velocity_jump'], ' rad/s', 3)} |",
+        f"| kfm before / after | {_fmt(s['kfm_before'], ' m', 3)} / "
+        f"{_fmt(s['kfm_after'], ' m', 3)} |",
+        f"| task points reached after the lock | "
+        f"{len(s['reached_after'])} of {s['points']} |", "",
+        "Verdict: " + ("the task went on after the failure." if not problems
+                       else "FAILED: " + "; ".join(problems)),
     ]
+    return "\n".join(lines) + "\n"
+
+
+def figure(record: Record, summary: dict, path: Path) -> None:
+    """Tool-velocity error, joint velocity commands and kfm against time (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a = record.arrays()
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    axes[0].semilogy(a["t"], np.maximum(a["tool_velocity_error"], 1e-12))
+    axes[0].set_ylabel("tool velocity error (m/s)")
+    for j, name in enumerate(record.joint_names):
+        axes[1].plot(a["t"], a["qd_command"][:, j], label=name.removeprefix("panda_"), lw=1)
+    axes[1].set_ylabel("commanded joint velocity (rad/s)")
+    axes[1].legend(ncol=4, fontsize=7, loc="upper left")
+    axes[2].plot(a["t"], a["kfm"])
+    axes[2].set_ylabel("kfm (m)")
+    axes[2].set_xlabel("simulated time (s)")
+    for ax in axes:
+        if summary["injected_at_s"] is not None:
+            ax.axvline(summary["injected_at_s"], color="r", ls="--", lw=1)
+        if summary["detected_at_s"] is not None:
+            ax.axvline(summary["detected_at_s"], color="g", ls=":", lw=1)
+    axes[0].set_title(f"{summary['locked']} locks (red), detected (green)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the report; return non-zero if a number is non-finite or eq 10 fails."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", choices=sorted(robots.BUILTINS), action="append",
-                        help="robot(s) to report (default: all built-ins)")
+    """Run the demo; return 0 when the story holds."""
+    defaults = ScenarioConfig()
+    parser = argparse.ArgumentParser(prog="ft-demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--resolution", default=defaults.resolution,
+                        choices=["least_norm", "max_kfm", "min_jump", "blend"])
+    parser.add_argument("--joint", default=defaults.lock_joint, help="joint to lock")
+    parser.add_argument("--lock-time", type=float, default=defaults.lock_time,
+                        help="s of simulated time (default %(default)s)")
+    parser.add_argument("--duration", type=float, default=defaults.duration,
+                        help="longest run, s of simulated time (default %(default)s)")
+    parser.add_argument("--seed", type=int, default=defaults.seed, help="noise seed")
+    parser.add_argument("--no-soft-limits", action="store_true",
+                        help="run without the critical points' bounding-box soft limits")
+    parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     args = parser.parse_args(argv)
-    lines = []
-    for name in args.robot or sorted(robots.BUILTINS):
-        lines += [*report(name), ""]
-    optimal = design.optimal_jacobian([1, 1, 1, 1], 3)
-    k = measures.kfm(optimal)
-    lines.append(f"seed 002 eq 10 optimal 3x4 Jacobian: K = {k:.4f} (bound sqrt(1/4) = 0.5)")
-    print("\n".join(lines))
-    text = " ".join(lines)
-    ok = "nan" not in text and "inf" not in text and abs(k - 0.5) < 1e-12
-    return 0 if ok else 1
+    config = ScenarioConfig(resolution=args.resolution, lock_joint=args.joint,
+                            lock_time=args.lock_time, duration=args.duration, seed=args.seed,
+                            soft_limits=not args.no_soft_limits)
+    if args.joint not in [f"panda_joint{i}" for i in range(1, 8)]:
+        parser.error(f"--joint must be one of the Panda's joints, got {args.joint!r}")
+    if not 0 < args.lock_time < args.duration:
+        parser.error("--lock-time must lie inside the run")
+    print(f"running the Panda in simulated time; {args.joint} locks at {args.lock_time:g} s, "
+          "then it visits every task point again ...", flush=True)
+    record = run(config)
+    summary = summarise(config, record)
+    problems = verdict(summary)
+    text = report(summary, problems)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "report.md").write_text(text)
+    figure(record, summary, args.out / "demo.png")
+    print(text)
+    print(f"wrote {args.out / 'report.md'} and {args.out / 'demo.png'}")
+    return 0 if not problems else 1
 
 
 if __name__ == "__main__":

@@ -1,0 +1,33 @@
+"""Controller and monitor for a robot driven by ros2_control.
+
+    ros2 launch ft_controller controller.launch.py params:=/path/to/controller.yaml
+
+The controller's parameters come from the YAML file (default: this package's
+config/controller.yaml); the monitor shares the model selection. The monitor's
+`ft/command_array` is remapped to a JointGroupVelocityController named
+`forward_velocity_controller`; `joint_states` comes from joint_state_broadcaster.
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    """The controller and monitor nodes."""
+    default = os.path.join(get_package_share_directory("ft_controller"), "config",
+                           "controller.yaml")
+    params = LaunchConfiguration("params")
+    return LaunchDescription([
+        DeclareLaunchArgument("params", default_value=default,
+                              description="YAML parameters file of the controller"),
+        Node(package="ft_controller", executable="controller_node", name="controller",
+             parameters=[params], output="screen"),
+        Node(package="ft_monitor", executable="monitor_node", name="monitor",
+             parameters=[params], output="screen",
+             remappings=[("ft/command_array", "/forward_velocity_controller/commands")]),
+    ])

@@ -1,0 +1,242 @@
+"""An in-process closed loop: sim, controller and monitor on real topics, in simulated time.
+
+The sim owns the clock and is stepped by hand, so a run is as fast as the
+computation allows and the same on every machine. Each step: the sim integrates
+and publishes `/clock` and `joint_states`; the controller's timer fires and
+commands; the monitor republishes; the step ends once the sim holds the command
+for the new instant. A driver visits the task points in turn with `ft/target_pose`
+(the next one once the tool is within `goal_tolerance`, or after `goal_timeout`)
+and locks `lock_joint` at `lock_time` through `ft/inject_failure`. After the lock
+it tours the critical points once, each until reached or `goal_timeout` (seed 000
+sec. V: can every critical point still be reached?), and the run ends. Every
+step is recorded for the report.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import rclpy
+from ft_controller.controller_node import ControllerNode
+from ft_core import robots
+from ft_monitor.monitor_node import MonitorNode
+from ft_msgs_py import convert, metrics, names, qos
+from geometry_msgs.msg import PoseStamped
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from ft_sim.sim_node import SimNode
+
+#: Critical points of the built-in Panda for a position task (m, base frame): a
+#: pick place, a place place and a tool rest.
+PANDA_POINTS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
+
+
+@dataclass
+class ScenarioConfig:
+    """What to run.
+
+    Attributes:
+        robot: model (built-in name or URDF path); task_space its task.
+        resolution: the controller's mode.
+        points: task points visited in turn (m); all critical unless `critical` says otherwise.
+        critical: indices of the critical points (default: all).
+        soft_limits: give the controller the critical points (bounding-box soft limits).
+        lock_joint: joint to lock ("" for none); lock_time: when (s of simulated time).
+        duration: longest run (simulated s); rate: sim, controller and joint-state rate (Hz).
+        noise: position noise (rad); seed: noise seed.
+        goal_tolerance: m; goal_timeout: s per visit.
+    """
+
+    robot: str = "panda"
+    task_space: str = "position"
+    resolution: str = "blend"
+    points: tuple[tuple[float, ...], ...] = PANDA_POINTS
+    critical: tuple[int, ...] | None = None
+    soft_limits: bool = True
+    lock_joint: str = "panda_joint2"
+    lock_time: float = 5.0
+    duration: float = 20.0
+    rate: float = 250.0
+    noise: float = 1e-3
+    seed: int = 0
+    goal_tolerance: float = 2e-3
+    goal_timeout: float = 4.0
+
+
+@dataclass
+class Record:
+    """What happened, step by step (arrays over steps) and at the failure."""
+
+    joint_names: list[str]
+    t: list[float] = field(default_factory=list)
+    q: list[np.ndarray] = field(default_factory=list)
+    qd_actual: list[np.ndarray] = field(default_factory=list)
+    qd_command: list[np.ndarray] = field(default_factory=list)
+    kfm: list[float] = field(default_factory=list)
+    tool_velocity_error: list[float] = field(default_factory=list)
+    goal: list[int] = field(default_factory=list)
+    reached: list[tuple[float, int]] = field(default_factory=list)  #: (time, point index)
+    tour: dict[int, bool] = field(default_factory=dict)  #: critical point -> reached after lock
+    injected_at: float | None = None
+    detected_at: float | None = None
+    detected: list[str] = field(default_factory=list)
+    non_finite: int = 0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The step series as arrays."""
+        return {k: np.array(getattr(self, k)) for k in
+                ("t", "q", "qd_actual", "qd_command", "kfm", "tool_velocity_error", "goal")}
+
+
+class Scenario:
+    """Builds the nodes in their own context (and DDS domain) and runs them."""
+
+    def __init__(self, config: ScenarioConfig, domain_id: int | None = None):
+        self.config = config
+        self.robot = robots.load(config.robot, task_space=config.task_space)
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        model = {"robot_model": config.robot, "task_space": config.task_space}
+        critical = config.critical if config.critical is not None else range(len(config.points))
+        self.critical = list(critical)
+        flat = [v for i in self.critical for v in config.points[i]]
+        self.sim = SimNode(context=self.context, parameter_overrides=_params(
+            model, publish_clock=True, rate=config.rate, position_noise=config.noise,
+            seed=config.seed))
+        self.sim.timer.cancel()  # stepped by hand
+        self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
+            model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
+            critical_points=flat if config.soft_limits else []))
+        self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
+            model, use_sim_time=True))
+        self.driver = rclpy.create_node("driver", context=self.context)
+        self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
+                                                      qos.RELIABLE)
+        self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,
+                                                        qos.RELIABLE)
+        self._raw: JointState | None = None
+        self._metrics: dict[str, float] = {}
+        self.driver.create_subscription(JointState, names.COMMAND_RAW, self._on_raw,
+                                        qos.SENSOR_INPUT)
+        self.driver.create_subscription(Float64MultiArray, names.METRICS, self._on_metrics,
+                                        qos.SENSOR_INPUT)
+        self.driver.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked,
+                                        qos.LATCHED)
+        for node in (self.sim, self.controller, self.monitor, self.driver):
+            self.executor.add_node(node)
+        self.record = Record(list(self.robot.joint_names))
+
+    # ----------------------------------------------------------------- inputs
+    def _on_raw(self, msg: JointState) -> None:
+        self._raw = msg
+        if not np.all(np.isfinite(msg.velocity)):
+            self.record.non_finite += 1
+
+    def _on_metrics(self, msg: Float64MultiArray) -> None:
+        if not np.all(np.isfinite(msg.data)):
+            self.record.non_finite += 1
+        self._metrics = metrics.values(msg)
+
+    def _on_locked(self, msg: JointState) -> None:
+        if msg.name and self.record.detected_at is None and self.record.injected_at is not None:
+            self.record.detected_at = convert.stamp_seconds(msg.header.stamp)
+            self.record.detected = list(msg.name)
+
+    # ------------------------------------------------------------------- loop
+    def _spin_until(self, condition, timeout: float = 5.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
+            self.executor.spin_once(timeout_sec=0.01)
+        return True
+
+    def _send_goal(self, index: int) -> None:
+        msg = PoseStamped()
+        msg.header.stamp = convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (
+            float(v) for v in self.config.points[index])
+        msg.pose.orientation.w = 1.0
+        self._goal_pub.publish(msg)
+
+    def step(self) -> None:
+        """One period of the loop."""
+        self.sim.step()
+        now = self.sim.t
+        self._spin_until(lambda: bool(self.sim._commands) and self.sim._commands[-1][0] >= now)
+
+    def run(self) -> Record:
+        """Run until the post-lock tour ends (or `duration`); return the record."""
+        cfg, rec, robot = self.config, self.record, self.robot
+        self._spin_until(lambda: self.controller.robot is not None and
+                         self.monitor.robot is not None, 10.0)
+        goal, since = 0, 0.0
+        tour: list[int] = []  # critical points still to visit after the lock
+        self._send_goal(goal)
+        for _ in range(round(cfg.duration * cfg.rate)):
+            if cfg.lock_joint and rec.injected_at is None and self.sim.t >= cfg.lock_time:
+                self._inject_pub.publish(JointState(name=[cfg.lock_joint]))
+                self._spin_until(lambda: cfg.lock_joint in self.sim.locked)
+                rec.injected_at = self.sim.t
+                tour = [p for p in range(goal, len(cfg.points)) if p in self.critical]
+                tour += [p for p in range(goal) if p in self.critical]
+                goal, since = tour[0], self.sim.t
+                self._send_goal(goal)
+            # The controller's command in force during this step, before the monitor.
+            command = (np.array(self._raw.velocity) if self._raw is not None
+                       else np.zeros(robot.n))
+            before = self.sim.q.copy()
+            self.step()
+            q = self.sim.q.copy()
+            rec.t.append(self.sim.t)
+            rec.q.append(q)
+            rec.qd_actual.append(self.sim.qd.copy())
+            rec.qd_command.append(command)
+            rec.kfm.append(self._metrics.get("kfm", math.nan))
+            rec.tool_velocity_error.append(float(np.linalg.norm(
+                robot.jacobian(before) @ (self.sim.qd - command))))
+            rec.goal.append(goal)
+            distance = float(np.linalg.norm(robot.forward(q)[:3] - np.array(cfg.points[goal])))
+            reached = distance < cfg.goal_tolerance
+            if not reached and self.sim.t - since <= cfg.goal_timeout:
+                continue
+            if reached:
+                rec.reached.append((self.sim.t, goal))
+            if rec.injected_at is None:
+                goal = (goal + 1) % len(cfg.points)
+            else:
+                rec.tour[tour.pop(0)] = reached
+                if not tour:
+                    break
+                goal = tour[0]
+            since = self.sim.t
+            self._send_goal(goal)
+        return rec
+
+    def close(self) -> None:
+        """Shut the nodes and the context down."""
+        self.executor.shutdown()
+        for node in (self.sim, self.controller, self.monitor, self.driver):
+            node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+def _params(model: dict, **values) -> list[Parameter]:
+    return [Parameter(k, value=v) for k, v in {**model, **values}.items()]
+
+
+def run(config: ScenarioConfig, domain_id: int | None = None) -> Record:
+    """Build, run and close a scenario."""
+    scenario = Scenario(config, domain_id)
+    try:
+        return scenario.run()
+    finally:
+        scenario.close()

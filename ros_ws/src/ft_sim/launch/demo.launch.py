@@ -1,0 +1,29 @@
+r"""The closed loop as separate processes: sim (owning the clock), controller and monitor.
+
+    ros2 launch ft_sim demo.launch.py
+    ros2 topic pub --once /ft/target_pose geometry_msgs/PoseStamped \\
+      "{pose: {position: {x: 0.45, y: -0.15, z: 0.35}, orientation: {w: 1.0}}}"
+    ros2 topic pub --once /ft/inject_failure sensor_msgs/JointState "{name: [panda_joint2]}"
+
+Watch `ft/locked_joints`, `ft/metrics` and `/diagnostics`. (`ros2 run ft_sim demo`
+runs the scripted story with its report and figure in one process.)
+"""
+
+from launch import LaunchDescription
+from launch_ros.actions import Node
+
+MODEL = {"robot_model": "panda", "task_space": "position"}
+
+
+def generate_launch_description():
+    """Sim, controller and monitor."""
+    return LaunchDescription([
+        Node(package="ft_sim", executable="sim_node", name="sim",
+             parameters=[{**MODEL, "publish_clock": True, "rate": 250.0,
+                          "position_noise": 0.001}]),
+        Node(package="ft_controller", executable="controller_node", name="controller",
+             parameters=[{**MODEL, "use_sim_time": True, "resolution": "blend",
+                          "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}]),
+        Node(package="ft_monitor", executable="monitor_node", name="monitor",
+             parameters=[{**MODEL, "use_sim_time": True}]),
+    ])
