@@ -30,8 +30,10 @@ def test_writes_soft_limits_the_controller_accepts(tmp_path: Path,
     robot = robots.load("panda", task_space="position")
     assert np.all(lower <= upper)
     assert np.all(lower >= robot.lower) and np.all(upper <= robot.upper)
-    expected = selfmotion.intersect([selfmotion.bounding_box(robot, np.array(p))
-                                     for p in ([0.5, 0.1, 0.4], [0.45, -0.15, 0.35])])
+    targets = [np.array(p) for p in ([0.5, 0.1, 0.4], [0.45, -0.15, 0.35])]
+    expected = selfmotion.intersect([  # seeded from the home configuration, as the CLI
+        selfmotion.bounding_box(robot, t, selfmotion.find_seed(robot, t, robot.home()))
+        for t in targets])
     np.testing.assert_allclose(lower, expected[0], atol=1e-9)
     np.testing.assert_allclose(upper, expected[1], atol=1e-9)
 

@@ -94,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--task", default="position", choices=sorted(robots.TASK_DIMENSIONS))
     parser.add_argument("--points", required=True,
                         help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: x,y,z,qx,qy,qz,qw)")
-    parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing")
+    parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing "
+                        "(default: the robot's home configuration)")
     parser.add_argument("--base-link")
     parser.add_argument("--tip-link")
     parser.add_argument("--step", type=float, default=selfmotion.STEP,
@@ -121,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         label = np.round(target[:3, 3] if target.ndim == 2 else target, 4).tolist()
         progress.point(index, f"point {label}")
         try:
-            start = seed if seed is None else selfmotion.find_seed(robot, target, seed)
+            start = selfmotion.find_seed(robot, target, robot.home() if seed is None else seed)
             manifold = selfmotion.trace(robot, target, start, step=args.step,
                                         progress=progress.step)
         except selfmotion.UnreachableError as error:
@@ -144,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
               "point reachable after a failure", file=sys.stderr)
         return 4
     print(f"  volume {selfmotion.box_volume(robot, lower, upper):.4g}")
-    unreachable = [i + 1 for i, q in enumerate(
-        selfmotion.reachability(robot, targets, lower, upper, seed)) if q is None]
+    unreachable = [i + 1 for i, q in enumerate(selfmotion.reachability(
+        robot, targets, lower, upper, robot.home() if seed is None else seed)) if q is None]
     if unreachable:
         print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection",
               file=sys.stderr)

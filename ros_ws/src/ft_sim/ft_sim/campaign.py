@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ft_sim.demo import summarise
-from ft_sim.scenario import PANDA_POINTS, ScenarioConfig, run
+from ft_sim.scenario import TASK_POINTS, ScenarioConfig, run
 
-#: Critical points, then a non-critical waypoint far from them (m).
-POINTS = (*PANDA_POINTS, (0.15, 0.5, 0.25))
+#: The Panda's critical points, then a non-critical waypoint far from them (m).
+POINTS = (*TASK_POINTS["panda"], (0.15, 0.5, 0.25))
 MODES = ("least_norm", "max_kfm", "min_jump", "blend")
 
 

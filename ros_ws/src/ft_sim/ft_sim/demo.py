@@ -26,8 +26,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from ft_core import robots
 
-from ft_sim.scenario import Record, ScenarioConfig, run
+from ft_sim.scenario import TASK_POINTS, Record, Scenario, ScenarioConfig
 
 
 def summarise(config: ScenarioConfig, record: Record) -> dict:
@@ -111,7 +112,7 @@ def figure(record: Record, summary: dict, path: Path) -> None:
     axes[0].semilogy(a["t"], np.maximum(a["tool_velocity_error"], 1e-12))
     axes[0].set_ylabel("tool velocity error (m/s)")
     for j, name in enumerate(record.joint_names):
-        axes[1].plot(a["t"], a["qd_command"][:, j], label=name.removeprefix("panda_"), lw=1)
+        axes[1].plot(a["t"], a["qd_command"][:, j], label=name.split("_")[-1], lw=1)
     axes[1].set_ylabel("commanded joint velocity (rad/s)")
     axes[1].legend(ncol=4, fontsize=7, loc="upper left")
     axes[2].plot(a["t"], a["kfm"])
@@ -132,9 +133,11 @@ def main(argv: list[str] | None = None) -> int:
     """Run the demo; return 0 when the story holds."""
     defaults = ScenarioConfig()
     parser = argparse.ArgumentParser(prog="ft-demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default=defaults.robot, choices=sorted(TASK_POINTS))
     parser.add_argument("--resolution", default=defaults.resolution,
                         choices=["least_norm", "max_kfm", "min_jump", "blend"])
-    parser.add_argument("--joint", default=defaults.lock_joint, help="joint to lock")
+    parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
+                        "name (default %(default)s)")
     parser.add_argument("--lock-time", type=float, default=defaults.lock_time,
                         help="s of simulated time (default %(default)s)")
     parser.add_argument("--duration", type=float, default=defaults.duration,
@@ -144,16 +147,24 @@ def main(argv: list[str] | None = None) -> int:
                         help="run without the critical points' bounding-box soft limits")
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     args = parser.parse_args(argv)
-    config = ScenarioConfig(resolution=args.resolution, lock_joint=args.joint,
-                            lock_time=args.lock_time, duration=args.duration, seed=args.seed,
-                            soft_limits=not args.no_soft_limits)
-    if args.joint not in [f"panda_joint{i}" for i in range(1, 8)]:
-        parser.error(f"--joint must be one of the Panda's joints, got {args.joint!r}")
+    joints = robots.load(args.robot).joint_names
+    joint = joints[int(args.joint) - 1] if args.joint.isdigit() and \
+        1 <= int(args.joint) <= len(joints) else args.joint
+    if joint not in joints:
+        parser.error(f"--joint must be 1..{len(joints)} or one of {list(joints)}")
     if not 0 < args.lock_time < args.duration:
         parser.error("--lock-time must lie inside the run")
-    print(f"running the Panda in simulated time; {args.joint} locks at {args.lock_time:g} s, "
+    scenario = Scenario(ScenarioConfig(
+        robot=args.robot, resolution=args.resolution, lock_joint=joint,
+        lock_time=args.lock_time, duration=args.duration, seed=args.seed,
+        soft_limits=not args.no_soft_limits))
+    print(f"running the {args.robot} in simulated time; {joint} locks at {args.lock_time:g} s, "
           "then it visits every task point again ...", flush=True)
-    record = run(config)
+    try:
+        record = scenario.run()
+    finally:
+        scenario.close()
+    config = scenario.config
     summary = summarise(config, record)
     problems = verdict(summary)
     text = report(summary, problems)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import rclpy
@@ -33,9 +33,13 @@ from std_msgs.msg import Float64MultiArray
 
 from ft_sim.sim_node import SimNode
 
-#: Critical points of the built-in Panda for a position task (m, base frame): a
-#: pick place, a place place and a tool rest.
-PANDA_POINTS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
+#: Critical points of the built-in 7-DOF arms for a position task (m, base frame): a
+#: pick place, a place place and a tool rest, all reachable inside their intersected
+#: bounding boxes from the arm's home configuration.
+TASK_POINTS = {
+    "panda": ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55)),
+    "iiwa14": ((0.55, 0.1, 0.5), (0.5, -0.15, 0.45), (0.45, 0.05, 0.65)),
+}
 
 
 @dataclass
@@ -45,10 +49,11 @@ class ScenarioConfig:
     Attributes:
         robot: model (built-in name or URDF path); task_space its task.
         resolution: the controller's mode.
-        points: task points visited in turn (m); all critical unless `critical` says otherwise.
+        points: task points visited in turn (m; default the robot's `TASK_POINTS`); all
+            critical unless `critical` says otherwise.
         critical: indices of the critical points (default: all).
         soft_limits: give the controller the critical points (bounding-box soft limits).
-        lock_joint: joint to lock ("" for none); lock_time: when (s of simulated time).
+        lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s).
         duration: longest run (simulated s); rate: sim, controller and joint-state rate (Hz).
         noise: position noise (rad); seed: noise seed.
         goal_tolerance: m; goal_timeout: s per visit.
@@ -57,7 +62,7 @@ class ScenarioConfig:
     robot: str = "panda"
     task_space: str = "position"
     resolution: str = "blend"
-    points: tuple[tuple[float, ...], ...] = PANDA_POINTS
+    points: tuple[tuple[float, ...], ...] = ()
     critical: tuple[int, ...] | None = None
     soft_limits: bool = True
     lock_joint: str = "panda_joint2"
@@ -99,6 +104,8 @@ class Scenario:
     """Builds the nodes in their own context (and DDS domain) and runs them."""
 
     def __init__(self, config: ScenarioConfig, domain_id: int | None = None):
+        if not config.points:
+            config = replace(config, points=TASK_POINTS[config.robot])
         self.config = config
         self.robot = robots.load(config.robot, task_space=config.task_space)
         self.context = Context()
