@@ -251,3 +251,12 @@ def test_fault_injector_zeroes_the_locked_joints_on_the_command_path() -> None:
 
         assert spin_until(executor, zeroed, 5.0)
         assert commands[-1].velocity[0] == 0.3 and arrays[-1].data[0] == 0.3
+
+
+def test_velocity_arrays_in_joints_order_are_accepted_as_commands() -> None:
+    with loop() as lp:
+        array = lp.node.create_publisher(Float64MultiArray, "ft/command_raw_array", qos.RELIABLE)
+        lp.step(lambda lp: array.publish(Float64MultiArray(data=[0.1] * 7)))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.1)
+        lp.step(lambda lp: array.publish(Float64MultiArray(data=[0.1] * 5)))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.0)  # malformed: zeros

@@ -1,8 +1,10 @@
 """monitor_node: detect locked joints and keep the task going around them.
 
-Inputs: `ft/command_raw` (what a controller commands) and `joint_states` (what
-happened). It republishes every command on `ft/command` and `ft/command_array`
-(in `joints` order, for a JointGroupVelocityController): unchanged while nothing
+Inputs: `ft/command_raw` (what a controller commands; or `ft/command_raw_array`,
+a Float64MultiArray of velocities in `joints` order, as MoveIt Servo publishes
+them) and `joint_states` (what happened). It republishes every command on
+`ft/command` and `ft/command_array` (in `joints` order, for a
+JointGroupVelocityController): unchanged while nothing
 is locked; with locks, the locked joints get exactly 0 and, with
 `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
 velocity J qd is kept (`ft_core.remap`). Every output is scaled, direction kept,
@@ -88,6 +90,8 @@ class MonitorNode(Node):
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
         self.create_subscription(JointState, names.COMMAND_RAW, self._on_command,
+                                 qos.SENSOR_INPUT)
+        self.create_subscription(Float64MultiArray, names.COMMAND_RAW_ARRAY, self._on_array,
                                  qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
                                  qos.SENSOR_INPUT)
@@ -244,6 +248,14 @@ class MonitorNode(Node):
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(self.robot.n)
         self._publish_command(qd, msg.header.stamp, stamp)
+
+    def _on_array(self, msg: Float64MultiArray) -> None:
+        """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output)."""
+        if self.robot is None:
+            return
+        command = convert.joint_state(self.command_joints, self.get_clock().now().to_msg())
+        command.velocity = list(msg.data)  # a wrong length is caught as a malformed command
+        self._on_command(command)
 
     # ----------------------------------------------------------------- outputs
     def _publish_command(self, qd_chain: np.ndarray, stamp, seconds: float | None = None) -> None:
