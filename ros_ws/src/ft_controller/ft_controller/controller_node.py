@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
@@ -30,17 +29,15 @@ from ft_core.targets import (
     staleness_scale,
     twist_velocity,
 )
-from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos
+from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
+from ft_msgs_py.episodes import Episodes
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-#: Stamps up to this far (s) ahead of the node's clock are accepted (clock skew).
-FUTURE_TOLERANCE = 0.05
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
 
@@ -104,7 +101,7 @@ class ControllerNode(Node):
         self.tracking = PoseTracking()
         self._order: np.ndarray | None = None  # command index -> chain index
         self._labels: list[str] = []
-        self._problems: dict[str, str] = {}
+        self._problems = Episodes(self.get_logger())
         self._q: np.ndarray | None = None
         self._state_stamp = -math.inf
         self._target: _Target | None = None
@@ -140,14 +137,7 @@ class ControllerNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _problem(self, kind: str, text: str | None) -> None:
-        """Log a problem once when it starts (text) and once when it ends (None)."""
-        if text is None:
-            if self._problems.pop(kind, None) is not None:
-                self.get_logger().info(f"{kind}: recovered")
-            return
-        if kind not in self._problems:
-            self.get_logger().error(f"{kind}: {text}")
-        self._problems[kind] = text
+        self._problems.report(kind, text)
 
     # ------------------------------------------------------------------- model
     def _load_model(self) -> None:
@@ -298,21 +288,10 @@ class ControllerNode(Node):
         self._rebuild_engine(box)
 
     # ------------------------------------------------------------------ inputs
-    def _stamp(self, header_stamp, kind: str) -> float | None:
-        """Seconds of a message stamp (0: the time of receipt); None if in the future."""
-        now = self._now()
-        stamp = convert.stamp_seconds(header_stamp)
-        if stamp == 0.0:
-            return now
-        if stamp > now + FUTURE_TOLERANCE:
-            self._problem(kind, f"stamp {stamp:.3f} s is ahead of the clock ({now:.3f} s)")
-            return None
-        return stamp
-
     def _on_state(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._stamp(msg.header.stamp, "joint_states")
+        stamp = self._problems.message_time("joint_states", msg.header.stamp, self._now())
         if stamp is None:
             self._q = None
             return
@@ -334,16 +313,14 @@ class ControllerNode(Node):
         if frame in ("", self.robot.base_link):
             self._problem(kind, None)
             return True
-        if kind not in self._problems:
-            self.get_logger().warning(f"{kind}: frame '{frame}' is not the base frame "
-                                      f"'{self.robot.base_link}': ignored")
-        self._problems[kind] = f"frame '{frame}' rejected"
+        self._problems.report(kind, f"frame '{frame}' is not the base frame "
+                                    f"'{self.robot.base_link}': ignored", warning=True)
         return False
 
     def _on_twist(self, msg: TwistStamped) -> None:
         if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_twist"):
             return
-        stamp = self._stamp(msg.header.stamp, "ft/target_twist")
+        stamp = self._problems.message_time("ft/target_twist", msg.header.stamp, self._now())
         try:
             twist = convert.twist_vector(msg.twist)
         except convert.MessageError as error:
@@ -465,9 +442,8 @@ class ControllerNode(Node):
         if self._last is not None:
             values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
                           status=self._last.status)
-        if self._problems:
-            level, message = diagnostics.ERROR, "; ".join(
-                f"{k}: {v}" for k, v in sorted(self._problems.items()))
+        if self._problems.active:
+            level, message = diagnostics.ERROR, self._problems.summary()
         elif self._last is None:
             level, message = diagnostics.WARN, "waiting for joint states"
         elif self._last.status == "infeasible":
@@ -484,16 +460,7 @@ class ControllerNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the controller until SIGINT, then command zero velocity and exit."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = ControllerNode()
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.stop()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin.run_node(ControllerNode, args)
 
 
 if __name__ == "__main__":

@@ -25,21 +25,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
-from ft_msgs_py import convert, diagnostics, names, parameters, qos
+from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
+from ft_msgs_py.episodes import Episodes
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
 DIAGNOSTICS_PERIOD = 0.5
-#: Stamps up to this far (s) ahead of the node's clock are accepted.
-FUTURE_TOLERANCE = 0.05
 
 
 def _floats(low: float, high: float) -> dict:
@@ -82,7 +79,7 @@ class MonitorNode(Node):
         self._order: list[int] = []
         self._q: np.ndarray | None = None
         self._last_command = -math.inf
-        self._problems: dict[str, str] = {}
+        self._problems = Episodes(self.get_logger())
         self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                 qos.RELIABLE)
@@ -111,13 +108,7 @@ class MonitorNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _problem(self, kind: str, text: str | None) -> None:
-        if text is None:
-            if self._problems.pop(kind, None) is not None:
-                self.get_logger().info(f"{kind}: recovered")
-            return
-        if kind not in self._problems:
-            self.get_logger().error(f"{kind}: {text}")
-        self._problems[kind] = text
+        self._problems.report(kind, text)
 
     # ------------------------------------------------------------------ set-up
     def _detector_config(self, changes: dict | None = None) -> DetectorConfig:
@@ -164,19 +155,10 @@ class MonitorNode(Node):
         return [self.robot.joint_names[i] for i in self._order]
 
     # ------------------------------------------------------------------ inputs
-    def _stamp(self, stamp, kind: str) -> float | None:
-        now, seconds = self._now(), convert.stamp_seconds(stamp)
-        if seconds == 0.0:
-            return now
-        if seconds > now + FUTURE_TOLERANCE:
-            self._problem(kind, f"stamp {seconds:.3f} s is ahead of the clock ({now:.3f} s)")
-            return None
-        return seconds
-
     def _on_state(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._stamp(msg.header.stamp, "joint_states")
+        stamp = self._problems.message_time("joint_states", msg.header.stamp, self._now())
         if stamp is None:
             return
         try:
@@ -226,7 +208,7 @@ class MonitorNode(Node):
     def _on_command(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._stamp(msg.header.stamp, "ft/command_raw")
+        stamp = self._problems.message_time("ft/command_raw", msg.header.stamp, self._now())
         try:
             if stamp is None:
                 raise convert.MessageError("stamp ahead of the clock")
@@ -307,9 +289,8 @@ class MonitorNode(Node):
                     "observable": evidence.observable, "measured_velocity": evidence.measured,
                     "commanded_velocity": evidence.commanded,
                     "standard_error": evidence.standard_error}))
-        if self._problems:
-            level, message = diagnostics.ERROR, "; ".join(
-                f"{k}: {v}" for k, v in sorted(self._problems.items()))
+        if self._problems.active:
+            level, message = diagnostics.ERROR, self._problems.summary()
         elif self.locked:
             level, message = diagnostics.ERROR, f"locked: {sorted(self.locked)}"
         elif stalls:
@@ -324,16 +305,7 @@ class MonitorNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the monitor until SIGINT, then command zero velocity and exit."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = MonitorNode()
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.stop()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin.run_node(MonitorNode, args)
 
 
 if __name__ == "__main__":

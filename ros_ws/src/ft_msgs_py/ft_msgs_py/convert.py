@@ -126,3 +126,14 @@ def pose_message(matrix: np.ndarray) -> Pose:
     msg.orientation.x, msg.orientation.y = float(quaternion.x), float(quaternion.y)
     msg.orientation.z, msg.orientation.w = float(quaternion.z), float(quaternion.w)
     return msg
+
+
+def message_time(stamp: Time, now: float, future_tolerance: float) -> float | None:
+    """Seconds of a message stamp; 0 means `now`; None when it is ahead of `now`.
+
+    `future_tolerance` (s) allows for clock skew between machines.
+    """
+    seconds = stamp_seconds(stamp)
+    if seconds == 0.0:
+        return now
+    return None if seconds > now + future_tolerance else seconds

@@ -11,11 +11,9 @@ warning; a malformed command is dropped (the plant's own timeout then stops it).
 from __future__ import annotations
 
 import numpy as np
-import rclpy
-from ft_msgs_py import convert, names, qos
+from ft_msgs_py import convert, names, qos, spin
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -80,15 +78,7 @@ class FaultInjectorNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the proxy until SIGINT."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = FaultInjectorNode()
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin.run_node(FaultInjectorNode, args)
 
 
 if __name__ == "__main__":

@@ -21,14 +21,12 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
-import rclpy
 from ft_core import robots
-from ft_msgs_py import convert, names, parameters, qos
+from ft_msgs_py import convert, names, parameters, qos, spin
 from rcl_interfaces.msg import FloatingPointRange
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -179,15 +177,7 @@ class SimNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the sim until SIGINT."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = SimNode()
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin.run_node(SimNode, args)
 
 
 if __name__ == "__main__":
