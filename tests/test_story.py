@@ -48,3 +48,21 @@ def test_launch_files_compile() -> None:
         assert any(isinstance(node, ast.FunctionDef) and node.name ==
                    "generate_launch_description" for node in tree.body)
         compile(tree, str(path), "exec")
+
+
+def test_docker_files_refer_to_what_the_workspace_provides() -> None:
+    import yaml
+
+    compose = yaml.safe_load((REPO / "docker" / "compose.yaml").read_text())
+    services = compose["services"]
+    assert set(services) == {"sim", "controller", "monitor"}
+    installed = {(p.parent.name, p.name) for p in (REPO / "ros_ws" / "install").glob("*/lib/*/*")}
+    for service in services.values():
+        words = service["command"].split()
+        assert words[:2] == ["ros2", "run"]
+        assert (words[2], words[3]) in installed, words[:4]
+        assert service["environment"]["ROS_DOMAIN_ID"] == "42"
+    dockerfile = (REPO / "docker" / "Dockerfile").read_text()
+    assert next(line for line in dockerfile.splitlines() if line.startswith("FROM")) == (
+        "FROM ros:jazzy")
+    assert "colcon build" in dockerfile and "install/setup.sh" in dockerfile
