@@ -1,1 +1,1 @@
-"""Fault-tolerant redundancy-resolution controller node (filled by the controller issue)."""
+"""Fault-tolerant redundancy-resolution controller node (`controller_node`)."""

@@ -5,4 +5,14 @@ Modules:
     measures: post-failure singular values, kfm, weighted and relative measures.
     design: optimally fault tolerant null vectors and isotropic Jacobians.
     parallel: failure-tolerance measures of parallel manipulators (seed 003).
+    pseudoinverse: damped pseudo-inverse acting only near singularities.
+    postfailure: post-failure quantities from J J^T and its rank-one downdates (fast path).
+    resolution: minimum joint-velocity jump (seed 004).
+    limits: velocity bounds, soft-limit avoidance, saturation in the null space.
+    engine: one control cycle of fault-tolerant redundancy resolution.
+    targets: task velocities from pose goals and twists.
+    selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
+    bounds: the `ft-bounds` command line.
+    detection: locked-joint detection from commanded and measured motion.
+    remap: reduced-Jacobian remapping of commands around locked joints.
 """

@@ -1,1 +1,1 @@
-"""Locked-joint monitor node (filled by the monitor issue)."""
+"""Locked-joint monitor node (`monitor_node`): detection and reduced-Jacobian remapping."""

@@ -6,4 +6,7 @@ Modules:
     convert: messages <-> the suite's arrays (joint vectors by name, twists, poses, stamps).
     metrics: the labelled `ft/metrics` array.
     diagnostics: `diagnostic_msgs` statuses.
+    parameters: the model-selection parameters every node shares.
+    episodes: problems logged once per episode; stamp checks.
+    spin: the executables' entry point (spin until SIGINT, stop, shut down).
 """
