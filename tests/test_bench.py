@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -32,3 +33,18 @@ def test_selfmotion_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     figures = json.loads((tmp_path / "selfmotion_trace.json").read_text())["results"]
     assert {f["method"] for f in figures.values()} == {"curve", "extremal", "spiral"}
     assert all(f["median_s"] > 0 for f in figures.values())
+
+
+def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
+    session = os.environ["ROS_DOMAIN_ID"]  # parts A and B run one after the other
+    env = {**os.environ, "FT_BENCH_DOMAIN": session, "FT_BENCH_DOMAIN_PROCESSES": session}
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "nodes.py"), "--out", str(tmp_path),
+         "--seconds", "2", "--memory-seconds", "2"],
+        capture_output=True, text=True, timeout=300, check=False, env=env)
+    assert result.returncode == 0, result.stderr[-2000:]
+    figures = json.loads((tmp_path / "nodes.json").read_text())
+    assert figures["one_process"]["achieved_rate_hz"] > 0
+    assert set(figures["separate_processes"]["rss_kib_at_end"]) == {"sim", "controller",
+                                                                    "monitor"}
+    assert figures["detection"]["0.2 rad/s"]["detected"] > 0

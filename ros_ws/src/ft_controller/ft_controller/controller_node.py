@@ -31,6 +31,7 @@ from ft_core.targets import (
 )
 from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
 from ft_msgs_py.episodes import Episodes
+from ft_msgs_py.loop import LoopAccounting
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.node import Node
@@ -110,7 +111,8 @@ class ControllerNode(Node):
         self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
         self._boxes_dirty = False
         self._last = None
-        self._cycles = 0
+        self.accounting = LoopAccounting(1.0 / self._param("control_rate"),
+                                         count_missed=not self._param("use_sim_time"))
         self._rate_window = (0, self._now())
         self._rate = 0.0
 
@@ -236,6 +238,7 @@ class ControllerNode(Node):
         self.tracking = PoseTracking(self._param("position_gain"), self._param("max_linear_speed"),
                                      self._param("max_angular_speed"))
         if "control_rate" in changed:
+            self.accounting.period = 1.0 / self._param("control_rate")
             self._timer.cancel()
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(1.0 / self._param("control_rate"), self._cycle)
@@ -355,7 +358,13 @@ class ControllerNode(Node):
 
     # ------------------------------------------------------------------- cycle
     def _cycle(self) -> None:
-        self._cycles += 1
+        self.accounting.start()
+        try:
+            self._control()
+        finally:
+            self.accounting.end()
+
+    def _control(self) -> None:
         robot = self.robot
         if robot is None:
             return
@@ -414,8 +423,8 @@ class ControllerNode(Node):
         now = self._now()
         cycles, since = self._rate_window
         if now > since:
-            self._rate = (self._cycles - cycles) / (now - since)
-        self._rate_window = (self._cycles, now)
+            self._rate = (self.accounting.cycles - cycles) / (now - since)
+        self._rate_window = (self.accounting.cycles, now)
         statuses = [self._controller_status(now)]
         if self.robot is not None and self._last is not None:
             for joint, i in zip(self.command_joints, self._order, strict=True):
@@ -435,6 +444,10 @@ class ControllerNode(Node):
     def _controller_status(self, now: float):
         values = {"mode": self._param("resolution"), "loop_rate_hz": self._rate,
                   "control_rate_hz": self._param("control_rate"),
+                  "cycle_compute_median_ms": self.accounting.compute_ms(50),
+                  "cycle_compute_p99_ms": self.accounting.compute_ms(99),
+                  "missed_cycles": self.accounting.missed if self.accounting.count_missed
+                  else "n/a (simulated time)",
                   "state_age_s": now - self._state_stamp if self._q is not None else "none",
                   "target": self._target.kind if self._target else "none",
                   "target_age_s": now - self._target.stamp if self._target else "none",
