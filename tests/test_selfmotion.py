@@ -176,8 +176,8 @@ def test_puma_first_task_point_compared_with_table_ii() -> None:
     not give P1's azimuth: we put P1 at 90 degrees and compare joint 1 relative to
     it, from a seed facing the point (elbow up), as the paper's Fig. 9.
 
-    Reported, not asserted exactly. Found: widths 0.88, 1.84, 2.95, 4.89, 3.22 rad
-    and 76 rad^5, against 0.91, 1.73, 3.47, 4.83, 3.44 and 91 in Table II. Joint 1
+    Reported, not asserted exactly. Found: widths 0.88, 1.84, 3.08, 4.89, 3.22 rad
+    and 79 rad^5, against 0.91, 1.73, 3.47, 4.83, 3.44 and 91 in Table II. Joint 1
     matches, joint 4 spans its limits in both; the gaps in joints 2, 3 and 5 and in
     the volume come from (i) the joint zero and sign conventions of the authors'
     PUMA model, which the DH table alone does not fix (our joint 2 range is shifted
