@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -57,11 +58,10 @@ class Loop:
             command(self)
             spin_until(self.executor, lambda: len(self.commands) > before, 2.0)
             # The sim has the monitor's output once its buffer holds it.
-            spin_until(self.executor, lambda: bool(self.sim._commands) and
-                       self.sim._commands[-1][0] >= self.sim.t, 2.0)
+            spin_until(self.executor, lambda: self.sim.command_time >= self.sim.t, 2.0)
         self.sim.step()
-        spin_until(self.executor, lambda: bool(self.monitor.detector._times)
-                   and self.monitor.detector._times[-1] >= self.sim.t - 1e-9, 2.0)
+        spin_until(self.executor,
+                   lambda: self.monitor.detector.latest_time >= self.sim.t - 1e-9, 2.0)
 
     def locked_names(self) -> list[str]:
         return list(self.locked[-1].name) if self.locked else []
@@ -201,7 +201,7 @@ def test_sim_limits_timeout_latency_and_scheduled_failure() -> None:
         direct = lp.node.create_publisher(JointState, "ft/command", qos.RELIABLE)
         direct.publish(convert.joint_state(PANDA.joint_names, lp.stamp(),
                                            velocity=np.full(7, 100.0)))  # beyond the limits
-        assert spin_until(lp.executor, lambda: bool(lp.sim._commands), 2.0)
+        assert spin_until(lp.executor, lambda: lp.sim.command_time > -math.inf, 2.0)
         lp.sim.step()  # latency 8 ms: 2 periods
         assert np.all(lp.sim.qd == 0.0)
         lp.sim.step()

@@ -103,6 +103,11 @@ class LockDetector:
         self.joints = [JointEvidence() for _ in range(self.n)]
 
     @property
+    def latest_time(self) -> float:
+        """Time (s) of the newest measurement; -inf before any."""
+        return self._times[-1] if self._times else -math.inf
+
+    @property
     def locked(self) -> dict[int, float]:
         """{joint index: position at lock} of every locked joint."""
         return {i: e.position for i, e in enumerate(self.joints) if e.locked_at is not None}

@@ -178,7 +178,7 @@ class Scenario:
         """One period of the loop."""
         self.sim.step()
         now = self.sim.t
-        self._spin_until(lambda: bool(self.sim._commands) and self.sim._commands[-1][0] >= now)
+        self._spin_until(lambda: self.sim.command_time >= now)
 
     def run(self) -> Record:
         """Run until the post-lock tour ends (or `duration`); return the record."""

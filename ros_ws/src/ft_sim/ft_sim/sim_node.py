@@ -18,6 +18,7 @@ also be scheduled with `failure.joint` and `failure.time` (s of plant time).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
@@ -114,6 +115,11 @@ class SimNode(Node):
             self.get_logger().warning(f"ft/command ignored: {error}", throttle_duration_sec=5.0)
             return
         self._commands.append((self.t, velocity))
+
+    @property
+    def command_time(self) -> float:
+        """Plant time (s) at which the newest command arrived; -inf before any."""
+        return self._commands[-1][0] if self._commands else -math.inf
 
     def lock(self, joint_names: list[str]) -> None:
         """Lock joints where they are (failure injection)."""
