@@ -312,7 +312,8 @@ def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:
     script = INSTALL / "ft_controller" / "lib" / "ft_controller" / "controller_node"
     assert script.is_file(), "run `make build`"
     process = subprocess.Popen([sys.executable, str(script), "--ros-args", "-p",
-                                "robot_model:=panda", "-p", "state_timeout:=60.0"], env=env)
+                                "robot_model:=panda", "-p", "state_timeout:=60.0"], env=env,
+                               stderr=subprocess.PIPE, text=True)
     try:
         with ros_context(shared=True) as (context, executor):
             node = rclpy.create_node("probe", context=context)
@@ -328,7 +329,8 @@ def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:
 
             assert spin_until(executor, state_then_commands, 30.0)
             process.send_signal(signal.SIGINT)
-            assert process.wait(timeout=20) == 0
+            _, errors = process.communicate(timeout=20)
+            assert process.returncode == 0, errors[-3000:]
             spin_until(executor, lambda: False, 0.5)
             assert np.all(np.array(commands[-1].velocity) == 0.0)
     finally:

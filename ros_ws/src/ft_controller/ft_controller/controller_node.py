@@ -30,11 +30,10 @@ from ft_core.targets import (
     twist_velocity,
 )
 from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
-from ft_msgs_py.episodes import Episodes
 from ft_msgs_py.loop import LoopAccounting
+from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -91,7 +90,7 @@ class _Target:
     stamp: float  # s
 
 
-class ControllerNode(Node):
+class ControllerNode(SuiteNode):
     """The controller; see the module docstring."""
 
     def __init__(self, **kwargs):
@@ -102,7 +101,6 @@ class ControllerNode(Node):
         self.tracking = PoseTracking()
         self._order: np.ndarray | None = None  # command index -> chain index
         self._labels: list[str] = []
-        self._problems = Episodes(self.get_logger())
         self._q: np.ndarray | None = None
         self._state_stamp = -math.inf
         self._target: _Target | None = None
@@ -111,9 +109,9 @@ class ControllerNode(Node):
         self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
         self._boxes_dirty = False
         self._last = None
-        self.accounting = LoopAccounting(1.0 / self._param("control_rate"),
-                                         count_missed=not self._param("use_sim_time"))
-        self._rate_window = (0, self._now())
+        self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
+                                         count_missed=not self.param("use_sim_time"))
+        self._rate_window = (0, self.now())
         self._rate = 0.0
 
         self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
@@ -128,40 +126,30 @@ class ControllerNode(Node):
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self._load_model()
-        self._timer = self.create_timer(1.0 / self._param("control_rate"), self._cycle)
+        self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
-
-    # ----------------------------------------------------------------- helpers
-    def _param(self, name: str):
-        return self.get_parameter(name).value
-
-    def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
-    def _problem(self, kind: str, text: str | None) -> None:
-        self._problems.report(kind, text)
 
     # ------------------------------------------------------------------- model
     def _load_model(self) -> None:
-        if not (self._param("robot_description") or self._param("robot_model")):
-            self._problem("model", "waiting for the robot_description topic")
+        if not (self.param("robot_description") or self.param("robot_model")):
+            self.problems.report("model", "waiting for the robot_description topic")
         parameters.request_model(self, self._set_model)
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
-            robot = robots.load(spec, self._param("base_link") or None,
-                                self._param("tip_link") or None,
-                                self._param("task_space") or None,
-                                self._param("characteristic_length") or None)
-            order = self._command_order(robot, list(self._param("joints") or []))
+            robot = robots.load(spec, self.param("base_link") or None,
+                                self.param("tip_link") or None,
+                                self.param("task_space") or None,
+                                self.param("characteristic_length") or None)
+            order = self._command_order(robot, list(self.param("joints") or []))
             engine = ResolutionEngine(robot, self._engine_config(robot, order, {}))
         except (RobotModelError, ValueError) as error:
-            self._problem("model", f"cannot use the model from {source}: {error}")
+            self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self.robot, self._order, self.engine = robot, order, engine
         self._labels = metrics.labels(self.command_joints)
-        self._boxes_dirty = len(self._param("critical_points")) > 0
-        self._problem("model", None)
+        self._boxes_dirty = len(self.param("critical_points")) > 0
+        self.problems.report("model", None)
         self.get_logger().info(
             f"model from {source}: {robot.name}, {robot.base_link} -> {robot.tip_link}, "
             f"{robot.task_space} task, joints {self.command_joints}")
@@ -191,7 +179,7 @@ class ControllerNode(Node):
     def _engine_config(self, robot: Robot, order: np.ndarray, changes: dict,
                        soft: tuple | None = None) -> EngineConfig:
         """The engine configuration from the parameters (with pending `changes`)."""
-        value = {name: changes.get(name, self._param(name)) for name in PARAMETERS}
+        value = {name: changes.get(name, self.param(name)) for name in PARAMETERS}
         probabilities = list(value["failure_probabilities"] or [])
         if probabilities:
             probabilities = list(self._chain(probabilities, order, "failure_probabilities"))
@@ -220,9 +208,9 @@ class ControllerNode(Node):
         try:
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
-            PoseTracking(changes.get("position_gain", self._param("position_gain")),
-                         changes.get("max_linear_speed", self._param("max_linear_speed")),
-                         changes.get("max_angular_speed", self._param("max_angular_speed")))
+            PoseTracking(changes.get("position_gain", self.param("position_gain")),
+                         changes.get("max_linear_speed", self.param("max_linear_speed")),
+                         changes.get("max_angular_speed", self.param("max_angular_speed")))
             if self.robot is not None:
                 robot = self.robot
                 config = self._engine_config(robot, self._order, changes)
@@ -235,13 +223,13 @@ class ControllerNode(Node):
 
     def _apply(self, parameters: list[Parameter]) -> None:
         changed = {p.name for p in parameters}
-        self.tracking = PoseTracking(self._param("position_gain"), self._param("max_linear_speed"),
-                                     self._param("max_angular_speed"))
+        self.tracking = PoseTracking(self.param("position_gain"), self.param("max_linear_speed"),
+                                     self.param("max_angular_speed"))
         if "control_rate" in changed:
-            self.accounting.period = 1.0 / self._param("control_rate")
+            self.accounting.period = 1.0 / self.param("control_rate")
             self._timer.cancel()
             self.destroy_timer(self._timer)
-            self._timer = self.create_timer(1.0 / self._param("control_rate"), self._cycle)
+            self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
         if self.robot is None:
             return
         if "critical_points" in changed:
@@ -257,10 +245,10 @@ class ControllerNode(Node):
     def _compute_boxes(self, q: np.ndarray) -> None:
         """Critical points -> intersected self-motion boxes -> soft limits (seed 000 sec. III)."""
         self._boxes_dirty = False
-        flat = list(self._param("critical_points") or [])
+        flat = list(self.param("critical_points") or [])
         if not flat:
             self._soft_note = "none"
-            self._problem("critical points", None)
+            self.problems.report("critical points", None)
             self._rebuild_engine(None)
             return
         robot = self.robot
@@ -280,11 +268,11 @@ class ControllerNode(Node):
                     f"critical points {unreachable} cannot be reached inside the intersection")
         except (selfmotion.UnreachableError, ValueError) as error:
             self._soft_note = "none (critical points failed)"
-            self._problem("critical points", f"{error}; running without their soft limits")
+            self.problems.report("critical points", f"{error}; running without their soft limits")
             self._rebuild_engine(None)
             return
         self._soft_note = f"{len(targets)} critical points"
-        self._problem("critical points", None)
+        self.problems.report("critical points", None)
         self.get_logger().info(f"soft limits from {len(targets)} critical points: "
                                f"lower {np.round(box[0], 3).tolist()}, "
                                f"upper {np.round(box[1], 3).tolist()}")
@@ -294,40 +282,40 @@ class ControllerNode(Node):
     def _on_state(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._problems.message_time("joint_states", msg.header.stamp, self._now())
+        stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
         if stamp is None:
             self._q = None
             return
         if stamp < self._state_stamp:
-            self._problem("joint_states", f"stamp {stamp:.3f} s goes backwards "
+            self.problems.report("joint_states", f"stamp {stamp:.3f} s goes backwards "
                                           f"(last {self._state_stamp:.3f} s)")
             self._q = None
             return
         try:
             q = convert.joint_vector(msg, self.robot.joint_names)
         except convert.MessageError as error:
-            self._problem("joint_states", str(error))
+            self.problems.report("joint_states", str(error))
             self._q = None
             return
-        self._problem("joint_states", None)
+        self.problems.report("joint_states", None)
         self._q, self._state_stamp = q, stamp
 
     def _frame_ok(self, frame: str, kind: str) -> bool:
         if frame in ("", self.robot.base_link):
-            self._problem(kind, None)
+            self.problems.report(kind, None)
             return True
-        self._problems.report(kind, f"frame '{frame}' is not the base frame "
+        self.problems.report(kind, f"frame '{frame}' is not the base frame "
                                     f"'{self.robot.base_link}': ignored", warning=True)
         return False
 
     def _on_twist(self, msg: TwistStamped) -> None:
         if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_twist"):
             return
-        stamp = self._problems.message_time("ft/target_twist", msg.header.stamp, self._now())
+        stamp = self.problems.message_time("ft/target_twist", msg.header.stamp, self.now())
         try:
             twist = convert.twist_vector(msg.twist)
         except convert.MessageError as error:
-            self._problem("ft/target_twist", str(error))
+            self.problems.report("ft/target_twist", str(error))
             return
         if stamp is not None:
             self._target = _Target("twist", twist_velocity(self.robot, twist), stamp)
@@ -338,9 +326,9 @@ class ControllerNode(Node):
         try:
             goal = goal_from_transform(self.robot, convert.pose_matrix(msg.pose))
         except convert.MessageError as error:
-            self._problem("ft/target_pose", str(error))
+            self.problems.report("ft/target_pose", str(error))
             return
-        self._target = _Target("pose", goal, self._now())
+        self._target = _Target("pose", goal, self.now())
 
     def _on_locked(self, msg: JointState) -> None:
         if self.robot is None:
@@ -368,10 +356,11 @@ class ControllerNode(Node):
         robot = self.robot
         if robot is None:
             return
-        now = self._now()
+        now = self.now()
         q = self._q
-        if q is not None and now - self._state_stamp > self._param("state_timeout"):
-            self._problem("joint_states", f"no joint state for {now - self._state_stamp:.3f} s")
+        if q is not None and now - self._state_stamp > self.param("state_timeout"):
+            self.problems.report("joint_states",
+                                 f"no joint state for {now - self._state_stamp:.3f} s")
             q = None
         if q is None:
             self._last = None
@@ -383,7 +372,7 @@ class ControllerNode(Node):
         locked = [robot.joint_names.index(name) for name in self._locked]
         result = self.engine.step(q, xd, locked)
         qd = result.qd
-        if idle and not self._param("idle_null_space_motion"):
+        if idle and not self.param("idle_null_space_motion"):
             qd = np.zeros(robot.n)
             result.jump_index = 0.0
         if not np.all(np.isfinite(qd)):
@@ -399,7 +388,7 @@ class ControllerNode(Node):
         if target.kind == "pose":
             xd, reached = pose_velocity(robot, target.value, q, self.tracking)
             return xd, reached
-        scale = staleness_scale(now - target.stamp, self._param("target_timeout"))
+        scale = staleness_scale(now - target.stamp, self.param("target_timeout"))
         return scale * target.value, scale == 0.0
 
     def _publish(self, qd_chain: np.ndarray, result=None) -> None:
@@ -420,7 +409,7 @@ class ControllerNode(Node):
 
     # ------------------------------------------------------------- diagnostics
     def _publish_diagnostics(self) -> None:
-        now = self._now()
+        now = self.now()
         cycles, since = self._rate_window
         if now > since:
             self._rate = (self.accounting.cycles - cycles) / (now - since)
@@ -442,8 +431,8 @@ class ControllerNode(Node):
                                                         self.get_clock().now().to_msg()))
 
     def _controller_status(self, now: float):
-        values = {"mode": self._param("resolution"), "loop_rate_hz": self._rate,
-                  "control_rate_hz": self._param("control_rate"),
+        values = {"mode": self.param("resolution"), "loop_rate_hz": self._rate,
+                  "control_rate_hz": self.param("control_rate"),
                   "cycle_compute_median_ms": self.accounting.compute_ms(50),
                   "cycle_compute_p99_ms": self.accounting.compute_ms(99),
                   "missed_cycles": self.accounting.missed if self.accounting.count_missed
@@ -455,8 +444,8 @@ class ControllerNode(Node):
         if self._last is not None:
             values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
                           status=self._last.status)
-        if self._problems.active:
-            level, message = diagnostics.ERROR, self._problems.summary()
+        if self.problems.active:
+            level, message = diagnostics.ERROR, self.problems.summary()
         elif self._last is None:
             level, message = diagnostics.WARN, "waiting for joint states"
         elif self._last.status == "infeasible":

@@ -29,9 +29,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
-from ft_msgs_py.episodes import Episodes
+from ft_msgs_py.node import SuiteNode
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
-from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -67,7 +66,7 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
 }
 
 
-class MonitorNode(Node):
+class MonitorNode(SuiteNode):
     """The monitor; see the module docstring."""
 
     def __init__(self, **kwargs):
@@ -79,7 +78,6 @@ class MonitorNode(Node):
         self._order: list[int] = []
         self._q: np.ndarray | None = None
         self._last_command = -math.inf
-        self._problems = Episodes(self.get_logger())
         self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                 qos.RELIABLE)
@@ -98,21 +96,12 @@ class MonitorNode(Node):
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(lambda _: self._configure_detector())
         parameters.request_model(self, self._set_model)
-        self._watchdog = self.create_timer(self._param("command_timeout"), self._check_watchdog)
+        self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
-
-    def _param(self, name: str):
-        return self.get_parameter(name).value
-
-    def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
-    def _problem(self, kind: str, text: str | None) -> None:
-        self._problems.report(kind, text)
 
     # ------------------------------------------------------------------ set-up
     def _detector_config(self, changes: dict | None = None) -> DetectorConfig:
-        value = {**{k: self._param(k) for k in PARAMETERS if k.startswith("detection.")},
+        value = {**{k: self.param(k) for k in PARAMETERS if k.startswith("detection.")},
                  **(changes or {})}
         return DetectorConfig(
             window=value["detection.window"], min_command=value["detection.min_command"],
@@ -132,22 +121,22 @@ class MonitorNode(Node):
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
-            robot = robots.load(spec, self._param("base_link") or None,
-                                self._param("tip_link") or None,
-                                self._param("task_space") or None,
-                                self._param("characteristic_length") or None)
-            joints = [str(j) for j in self._param("joints") or robot.joint_names]
+            robot = robots.load(spec, self.param("base_link") or None,
+                                self.param("tip_link") or None,
+                                self.param("task_space") or None,
+                                self.param("characteristic_length") or None)
+            joints = [str(j) for j in self.param("joints") or robot.joint_names]
             if sorted(joints) != sorted(robot.joint_names):
                 raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
         except (robots.RobotModelError, ValueError) as error:
-            self._problem("model", f"cannot use the model from {source}: {error}")
+            self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self.robot = robot
         self._order = [robot.joint_names.index(j) for j in joints]
         self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
-        self._problem("model", None)
+        self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
-        self._publish_locked(self._now())
+        self._publish_locked(self.now())
 
     @property
     def command_joints(self) -> list[str]:
@@ -158,15 +147,15 @@ class MonitorNode(Node):
     def _on_state(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._problems.message_time("joint_states", msg.header.stamp, self._now())
+        stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
         if stamp is None:
             return
         try:
             q = convert.joint_vector(msg, self.robot.joint_names)
         except convert.MessageError as error:
-            self._problem("joint_states", str(error))
+            self.problems.report("joint_states", str(error))
             return
-        self._problem("joint_states", None)
+        self.problems.report("joint_states", None)
         self._q = q
         newly = self.detector.measure(stamp, q)
         if newly:
@@ -182,7 +171,7 @@ class MonitorNode(Node):
     def _on_declare(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        now = self._now()
+        now = self.now()
         for name in msg.name:
             if name not in self.robot.joint_names:
                 self.get_logger().warning(f"declare_failure: unknown joint {name!r} ignored")
@@ -200,7 +189,7 @@ class MonitorNode(Node):
         self.locked.clear()
         if self.detector is not None:
             self.detector.reset()
-        self._publish_locked(self._now())
+        self._publish_locked(self.now())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
@@ -208,20 +197,20 @@ class MonitorNode(Node):
     def _on_command(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self._problems.message_time("ft/command_raw", msg.header.stamp, self._now())
+        stamp = self.problems.message_time("ft/command_raw", msg.header.stamp, self.now())
         try:
             if stamp is None:
                 raise convert.MessageError("stamp ahead of the clock")
             qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
         except convert.MessageError as error:
-            self._problem("ft/command_raw", f"{error}: commanding zeros")
+            self.problems.report("ft/command_raw", f"{error}: commanding zeros")
             self._publish_command(np.zeros(self.robot.n), msg.header.stamp)
             return
-        self._problem("ft/command_raw", None)
-        self._last_command = self._now()
+        self.problems.report("ft/command_raw", None)
+        self._last_command = self.now()
         locked = [self.robot.joint_names.index(name) for name in self.locked]
-        limits = self.robot.velocity_limits * self._param("velocity_scale")
-        if locked and self._param("remap_commands") and self._q is not None:
+        limits = self.robot.velocity_limits * self.param("velocity_scale")
+        if locked and self.param("remap_commands") and self._q is not None:
             qd = remap.remap(self.robot, self._q, qd, locked, limits)
         else:
             qd = qd.copy()
@@ -248,7 +237,7 @@ class MonitorNode(Node):
         array.layout.dim = [MultiArrayDimension(label="joints", size=len(ordered),
                                                 stride=len(ordered))]
         self._array_pub.publish(array)
-        self.detector.command(self._now() if seconds is None else seconds, qd_chain)
+        self.detector.command(self.now() if seconds is None else seconds, qd_chain)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""
@@ -263,15 +252,15 @@ class MonitorNode(Node):
     def _check_watchdog(self) -> None:
         if self.robot is None:
             return
-        age = self._now() - self._last_command
-        if age > self._param("command_timeout"):
+        age = self.now() - self._last_command
+        if age > self.param("command_timeout"):
             self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
 
     def _publish_diagnostics(self) -> None:
-        now = self._now()
+        now = self.now()
         age = now - self._last_command
         values = {"locked_joints": sorted(self.locked), "remap_commands":
-                  self._param("remap_commands"),
+                  self.param("remap_commands"),
                   "command_age_s": age if math.isfinite(age) else "none"}
         stalls = []
         statuses = []
@@ -289,13 +278,13 @@ class MonitorNode(Node):
                     "observable": evidence.observable, "measured_velocity": evidence.measured,
                     "commanded_velocity": evidence.commanded,
                     "standard_error": evidence.standard_error}))
-        if self._problems.active:
-            level, message = diagnostics.ERROR, self._problems.summary()
+        if self.problems.active:
+            level, message = diagnostics.ERROR, self.problems.summary()
         elif self.locked:
             level, message = diagnostics.ERROR, f"locked: {sorted(self.locked)}"
         elif stalls:
             level, message = diagnostics.WARN, f"stalled at a limit: {stalls}"
-        elif age > self._param("command_timeout"):
+        elif age > self.param("command_timeout"):
             level, message = diagnostics.WARN, "no fresh command: publishing zeros"
         else:
             level, message = diagnostics.OK, "no locked joint"

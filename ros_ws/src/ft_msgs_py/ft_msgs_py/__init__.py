@@ -8,5 +8,6 @@ Modules:
     diagnostics: `diagnostic_msgs` statuses.
     parameters: the model-selection parameters every node shares.
     episodes: problems logged once per episode; stamp checks.
+    node: the suite's node base (parameters, clock seconds, problems).
     spin: the executables' entry point (spin until SIGINT, stop, shut down).
 """

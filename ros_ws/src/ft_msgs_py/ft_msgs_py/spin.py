@@ -1,28 +1,45 @@
-"""The executables' entry point: spin a node until SIGINT, then stop it and shut down."""
+"""The executables' entry point: spin a node until SIGINT or SIGTERM, stop it, shut down.
+
+rclpy's own signal handling is off, and so is Python's KeyboardInterrupt: a signal
+only sets a flag, which the loop checks between short spins. An exception raised
+by a signal inside rclpy's C++ layer (while it converts a message) would surface as
+an unrelated RuntimeError and end the process with an error; with the flag it
+cannot happen, and the node always gets to run its `stop()` (e.g. command zeros).
+"""
 
 from __future__ import annotations
 
+import signal
+import threading
 from collections.abc import Callable
 
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+#: Longest time (s) between two checks of the stop flag.
+CHECK_PERIOD = 0.1
+
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
-    """Spin the node until SIGINT; then its `stop()` (if any: e.g. command zeros) and exit.
-
-    rclpy's own SIGINT handler is off so the node can still publish in `stop()`.
-    """
+    """Spin the node until SIGINT or SIGTERM; then its `stop()` (if any) and exit cleanly."""
+    stop_requested = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = make_node()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+        while not stop_requested.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=CHECK_PERIOD)
     finally:
         stop = getattr(node, "stop", None)
         if stop is not None:
             stop()
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
