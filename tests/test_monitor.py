@@ -260,3 +260,14 @@ def test_velocity_arrays_in_joints_order_are_accepted_as_commands() -> None:
         assert np.all(np.array(lp.commands[-1].velocity) == 0.1)
         lp.step(lambda lp: array.publish(Float64MultiArray(data=[0.1] * 5)))
         assert np.all(np.array(lp.commands[-1].velocity) == 0.0)  # malformed: zeros
+
+
+def test_joint_states_going_back_in_time_are_rejected() -> None:
+    with loop() as lp:
+        lp.step(constant(np.full(7, 0.1)))
+        latest = lp.monitor._q.copy()
+        old = convert.joint_state(PANDA.joint_names, convert.stamp_from_nanoseconds(1),
+                                  position=np.zeros(7))
+        lp.node.create_publisher(JointState, "joint_states", qos.RELIABLE).publish(old)
+        assert spin_until(lp.executor, lambda: "joint_states" in lp.monitor.problems.active, 2.0)
+        np.testing.assert_array_equal(lp.monitor._q, latest)  # the older state is not used

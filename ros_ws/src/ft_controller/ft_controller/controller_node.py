@@ -102,7 +102,6 @@ class ControllerNode(SuiteNode):
         self._order: np.ndarray | None = None  # command index -> chain index
         self._labels: list[str] = []
         self._q: np.ndarray | None = None
-        self._state_stamp = -math.inf
         self._target: _Target | None = None
         self._locked: dict[str, float] = {}
         self._soft_note = "none"
@@ -280,25 +279,8 @@ class ControllerNode(SuiteNode):
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
-        if self.robot is None:
-            return
-        stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
-        if stamp is None:
-            self._q = None
-            return
-        if stamp < self._state_stamp:
-            self.problems.report("joint_states", f"stamp {stamp:.3f} s goes backwards "
-                                          f"(last {self._state_stamp:.3f} s)")
-            self._q = None
-            return
-        try:
-            q = convert.joint_vector(msg, self.robot.joint_names)
-        except convert.MessageError as error:
-            self.problems.report("joint_states", str(error))
-            self._q = None
-            return
-        self.problems.report("joint_states", None)
-        self._q, self._state_stamp = q, stamp
+        if self.robot is not None:
+            self._q = self.read_joint_state(msg, self.robot.joint_names)
 
     def _frame_ok(self, frame: str, kind: str) -> bool:
         if frame in ("", self.robot.base_link):
@@ -358,9 +340,9 @@ class ControllerNode(SuiteNode):
             return
         now = self.now()
         q = self._q
-        if q is not None and now - self._state_stamp > self.param("state_timeout"):
+        if q is not None and now - self.state_stamp > self.param("state_timeout"):
             self.problems.report("joint_states",
-                                 f"no joint state for {now - self._state_stamp:.3f} s")
+                                 f"no joint state for {now - self.state_stamp:.3f} s")
             q = None
         if q is None:
             self._last = None
@@ -437,7 +419,7 @@ class ControllerNode(SuiteNode):
                   "cycle_compute_p99_ms": self.accounting.compute_ms(99),
                   "missed_cycles": self.accounting.missed if self.accounting.count_missed
                   else "n/a (simulated time)",
-                  "state_age_s": now - self._state_stamp if self._q is not None else "none",
+                  "state_age_s": now - self.state_stamp if self._q is not None else "none",
                   "target": self._target.kind if self._target else "none",
                   "target_age_s": now - self._target.stamp if self._target else "none",
                   "locked_joints": sorted(self._locked), "soft_limits": self._soft_note}

@@ -147,16 +147,10 @@ class MonitorNode(SuiteNode):
     def _on_state(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
-        if stamp is None:
+        q = self.read_joint_state(msg, self.robot.joint_names)
+        if q is None:
             return
-        try:
-            q = convert.joint_vector(msg, self.robot.joint_names)
-        except convert.MessageError as error:
-            self.problems.report("joint_states", str(error))
-            return
-        self.problems.report("joint_states", None)
-        self._q = q
+        self._q, stamp = q, self.state_stamp
         newly = self.detector.measure(stamp, q)
         if newly:
             for j in newly:

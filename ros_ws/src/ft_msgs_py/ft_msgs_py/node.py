@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
-from rclpy.node import Node
+import math
+from collections.abc import Sequence
 
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from ft_msgs_py import convert
 from ft_msgs_py.episodes import Episodes
 
 
@@ -13,6 +19,7 @@ class SuiteNode(Node):
     def __init__(self, name: str, **kwargs):
         super().__init__(name, **kwargs)
         self.problems = Episodes(self.get_logger())
+        self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
 
     def param(self, name: str):
         """The current value of a parameter."""
@@ -21,3 +28,25 @@ class SuiteNode(Node):
     def now(self) -> float:
         """The node clock (wall or simulated) in seconds."""
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def read_joint_state(self, msg: JointState, joints: Sequence[str]) -> np.ndarray | None:
+        """Positions of `joints` from a joint state, or None (reported under `joint_states`).
+
+        Rejected: a stamp ahead of the clock or going backwards, and what
+        `convert.joint_vector` rejects. On success `state_stamp` is the message's time.
+        """
+        stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
+        if stamp is None:
+            return None
+        if stamp < self.state_stamp:
+            self.problems.report("joint_states", f"stamp {stamp:.3f} s goes backwards "
+                                                 f"(last {self.state_stamp:.3f} s)")
+            return None
+        try:
+            q = convert.joint_vector(msg, joints)
+        except convert.MessageError as error:
+            self.problems.report("joint_states", str(error))
+            return None
+        self.problems.report("joint_states", None)
+        self.state_stamp = stamp
+        return q
