@@ -36,8 +36,10 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from ft_core import limits, measures, postfailure
+from ft_core.checks import all_finite
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
 
@@ -48,6 +50,9 @@ OK, NEAR_SINGULARITY, LIMITED, INFEASIBLE = "ok", "near_singularity", "limited",
 
 #: Distance (rad or m) within which a joint counts as at a limit.
 AT_LIMIT = 1e-3
+
+#: dJ/dq placeholder for cycles that do not need it (the compiled cycle takes an array).
+_NO_DERIVATIVES = np.zeros((0, 0, 0))
 
 
 @dataclass(frozen=True)
@@ -133,49 +138,133 @@ class CycleResult:
 class _LockedSet:
     """What depends only on which joints are locked, computed once per locked set."""
 
-    mask: np.ndarray  #: locked joints (n,)
-    healthy: np.ndarray | None  #: indices of healthy joints, None when none is locked
+    locked: bool  #: whether any joint is locked
+    healthy: np.ndarray  #: indices of the healthy joints
     weights: np.ndarray  #: failure weights of the healthy joints
     soft: bool  #: whether the soft box applies
     lower: np.ndarray  #: effective lower limits of the healthy joints (rad)
     upper: np.ndarray  #: effective upper limits of the healthy joints (rad)
     velocity: np.ndarray  #: velocity limits of the healthy joints (rad/s)
+    use_kfm: bool  #: whether the kfm gradient is part of the preference
+    use_jump: bool  #: whether the minimum-jump term is part of the preference
+
+
+@njit(cache=True)
+def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
+                weights: np.ndarray) -> float:
+    """N sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2): the weighted jump index (seed 004 eq 9)."""
+    n = qd.size
+    total = 0.0
+    for i in range(n):
+        squared = 0.0
+        for j in range(n):
+            jump = scale * reduced[i, j] - qd[j]
+            squared += jump * jump
+        total += weights[i] * squared
+    return n * total
+
+
+@njit(cache=True)
+def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
+           task_scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray,
+           weights: np.ndarray, gains: np.ndarray, use_kfm: bool, use_jump: bool,
+           probabilities: bool):
+    """The arithmetic of `ResolutionEngine.step` for m <= healthy joints, compiled.
+
+    `gains` = (kfm_gain, jump_gain, limit_gain, kfm_temperature, limit_buffer, dt,
+    damping threshold, max_damping). Returns, for the healthy joints: the scaled
+    Jacobian, the scaled task velocity, z, lo, hi, the damped inverse, post-failure
+    sigmas, sigma_min, the reduced velocities (0 x 0 without a next failure), and
+    qd = J# x + (I - J# J) z with whether it is within [lo, hi].
+    """
+    m, nh = task_scale.size, healthy.size
+    kfm_gain, jump_gain, limit_gain, temperature, buffer, dt, threshold, max_damping = gains
+    Js = np.empty((m, nh))
+    for a in range(m):
+        for j in range(nh):
+            Js[a, j] = task_scale[a] * J[a, healthy[j]]
+    x = task_scale * xd
+    qh = q[healthy]
+    L, V, sigmas, vectors = postfailure.analyse(Js)
+    z = limit_gain * limits.avoidance(qh, lower, upper, buffer)
+    reduced = np.zeros((0, 0))
+    if nh > m:
+        reduced = postfailure.reduced_velocities(Js, x, L, V, sigmas, threshold, max_damping)
+        if use_jump:
+            z += jump_gain * (weights @ reduced)
+        if use_kfm:
+            dJs = np.empty((nh, m, nh))
+            for k in range(nh):
+                for a in range(m):
+                    for j in range(nh):
+                        dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
+            grads = postfailure.sigma_gradients(Js, dJs, sigmas, vectors)
+            ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
+            z += kfm_gain * (ascent @ grads)
+    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
+    pinv = postfailure.damped_inverse(Js, L, V, threshold, max_damping)
+    task = pinv @ x
+    qd = task + z - pinv @ (Js @ z)
+    return (Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L), reduced,
+            qd, limits.within(qd, lo, hi))
+
+
+@njit(cache=True)
+def _limit_report(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, soft_lower: np.ndarray,
+                  soft_upper: np.ndarray, soft: bool) -> tuple[float, np.ndarray, np.ndarray]:
+    """(soft-limit margin, at_soft_limit, at_hard_limit) of `CycleResult`."""
+    margin = np.inf
+    at_soft = np.zeros(q.size, dtype=np.bool_)
+    if soft:
+        distance = np.minimum(q - soft_lower, soft_upper - q)
+        margin = distance.min()
+        at_soft = distance < AT_LIMIT
+    return margin, at_soft, np.minimum(q - lower, upper - q) < AT_LIMIT
 
 
 class ResolutionEngine:
-    """Fault-tolerant redundancy resolution for one robot and one configuration."""
+    """Fault-tolerant redundancy resolution for one robot and one configuration.
+
+    The cycle's arithmetic is compiled by numba on first use after installation
+    (about 10 s on 2 cores) and cached on disk; the constructor runs one cycle so
+    that happens, or the cache is loaded, before the first control cycle.
+    """
 
     def __init__(self, robot: Robot, config: EngineConfig | None = None):
         self.robot = robot
         self.config = config or EngineConfig()
-        n = robot.n
+        cfg, n = self.config, robot.n
         self._probabilities = None
-        if len(self.config.failure_probabilities):
-            self._probabilities = np.asarray(self.config.failure_probabilities, dtype=float)
+        if len(cfg.failure_probabilities):
+            self._probabilities = np.asarray(cfg.failure_probabilities, dtype=float)
             measures.failure_weights(self._probabilities, n)  # validates
-        self._soft = None
-        if len(self.config.soft_lower):
-            lower = np.asarray(self.config.soft_lower, dtype=float)
-            upper = np.asarray(self.config.soft_upper, dtype=float)
+        self._soft = (np.zeros(0), np.zeros(0))
+        if len(cfg.soft_lower):
+            lower = np.asarray(cfg.soft_lower, dtype=float)
+            upper = np.asarray(cfg.soft_upper, dtype=float)
             if lower.shape != (n,) or not np.all(np.isfinite(lower) & np.isfinite(upper)):
                 raise ValueError(f"soft limits need {n} finite values each")
             if np.any(lower > upper):
                 raise ValueError("a soft lower limit is above its upper limit")
             self._soft = (lower, upper)
+        self._gains = np.array([cfg.kfm_gain, cfg.jump_gain, cfg.limit_gain, cfg.kfm_temperature,
+                                cfg.limit_buffer, cfg.dt, cfg.damping.threshold,
+                                cfg.damping.max_damping])
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
+        self.step(robot.home(), np.zeros(robot.m))
 
     def soft_limits_active(self, any_locked: bool) -> bool:
         """Whether the soft box applies (configured, and not released by a failure)."""
-        return self._soft is not None and not (
+        return self._soft[0].size > 0 and not (
             any_locked and self.config.release_soft_limits_on_failure)
 
     def _locked_set(self, locked: Iterable[int]) -> _LockedSet:
         """The cached view of the robot with `locked` joints (validated on first use)."""
         key = tuple(sorted(set(locked)))
-        if key not in self._locked_sets:
-            robot = self.robot
-            mask = measures.locked_mask(robot.n, key)
-            healthy = ~mask
+        view = self._locked_sets.get(key)
+        if view is None:
+            cfg, robot = self.config, self.robot
+            healthy = ~measures.locked_mask(robot.n, key)
             soft = self.soft_limits_active(bool(key))
             lower, upper = robot.lower, robot.upper
             if soft:
@@ -184,12 +273,16 @@ class ResolutionEngine:
             if p is not None and p.sum() <= 0:
                 p = None  # none of the healthy joints is expected to fail: equal weights
             nh = int(healthy.sum())
-            self._locked_sets[key] = _LockedSet(
-                mask=mask, healthy=np.flatnonzero(healthy) if key else None,
+            next_failure = nh - 1 >= robot.m
+            view = self._locked_sets[key] = _LockedSet(
+                locked=bool(key), healthy=np.flatnonzero(healthy),
                 weights=measures.failure_weights(p, nh) if nh else np.zeros(0), soft=soft,
                 lower=lower[healthy], upper=upper[healthy],
-                velocity=robot.velocity_limits[healthy] * self.config.velocity_scale)
-        return self._locked_sets[key]
+                velocity=robot.velocity_limits[healthy] * cfg.velocity_scale,
+                use_kfm=(next_failure and cfg.resolution in ("max_kfm", "blend")
+                         and cfg.kfm_gain > 0),
+                use_jump=next_failure and cfg.resolution in ("min_jump", "blend"))
+        return view
 
     def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
@@ -204,67 +297,40 @@ class ResolutionEngine:
             raise ValueError(f"q must have {n} entries, got shape {q.shape}")
         if xd.shape != (m,):
             raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
-        if not (np.isfinite(q).all() and np.isfinite(xd).all()):
+        if not (all_finite(q) and all_finite(xd)):
             raise ValueError("q and xd must be finite")
         view = self._locked_set(locked)
-        index = view.healthy
-        nh = n if index is None else index.size
-        next_failure = nh - 1 >= m
-        use_kfm = next_failure and cfg.resolution in ("max_kfm", "blend") and cfg.kfm_gain > 0
-        if use_kfm:
+        index, nh = view.healthy, view.healthy.size
+        if view.use_kfm:
             J, dJ = robot.jacobian_and_derivatives(q)
-            dJ = robot.scale_task(dJ)
-            if index is not None:
-                dJ = dJ[np.ix_(index, np.arange(m), index)]
         else:
-            J = robot.jacobian(q)
-        J = robot.scale_task(J)
-        x = robot.task_scale * xd
-        qh = q
-        if index is not None:
-            J, qh = J[:, index], q[index]
-
-        # One eigen-decomposition of J J^T and of its n downdates (module postfailure).
-        z = np.zeros(nh)
-        sigmas_h, reduced, sigma_min = np.zeros(nh), None, 0.0
+            J, dJ = robot.jacobian(q), _NO_DERIVATIVES
+        jump, sigma_min = 0.0, 0.0
         if nh >= m:
-            post = postfailure.analyse(J, with_vectors=use_kfm)
-            sigmas_h, sigma_min = post.sigmas, post.sigma_min
-        if next_failure:
-            reduced = postfailure.reduced_velocities(post, J, x, cfg.damping)
-            if use_kfm:
-                grads = postfailure.sigma_gradients(post, J, dJ)
-                ascent = (view.weights if self._probabilities is not None
-                          else measures.kfm_weights(sigmas_h, cfg.kfm_temperature))
-                z += cfg.kfm_gain * (ascent @ grads)
-            if cfg.resolution in ("min_jump", "blend"):
-                z += cfg.jump_gain * (view.weights @ reduced)
-        z += cfg.limit_gain * limits.avoidance(qh, view.lower, view.upper, cfg.limit_buffer)
-        lo, hi = limits.velocity_bounds(qh, view.lower, view.upper, view.velocity, cfg.dt)
-
-        if nh >= m:
-            pinv = postfailure.damped_inverse(post, J, cfg.damping)
-            result = limits.saturate_in_null_space(J, x, z, lo, hi, cfg.damping, pinv)
-            qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
-        else:
-            qd_h = damped_pinv(J, cfg.damping) @ x if nh else np.zeros(0)
+            Js, x, z, lo, hi, pinv, sigmas_h, sigma_min, reduced, qd_h, fits = _cycle(
+                J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper, view.velocity,
+                view.weights, self._gains, view.use_kfm, view.use_jump,
+                self._probabilities is not None)
+            scale, saturated_h = 1.0, np.zeros(nh, dtype=bool)
+            if not fits:
+                result = limits.saturate_in_null_space(Js, x, z, lo, hi, cfg.damping, pinv)
+                qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
+            if reduced.size:
+                jump = _jump_index(reduced, qd_h, scale, view.weights)
+        else:  # fewer healthy joints than task coordinates: least squares, scaled into bounds
+            Js, x = robot.scale_task(J)[:, index], robot.task_scale * xd
+            lo, hi = limits.velocity_bounds(q[index], view.lower, view.upper, view.velocity,
+                                            cfg.dt)
+            qd_h = damped_pinv(Js, cfg.damping) @ x if nh else np.zeros(0)
             scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
-            qd_h, saturated_h = scale * qd_h, np.zeros(nh, dtype=bool)
-
-        jump = 0.0
-        if reduced is not None:
-            jumps = scale * reduced - qd_h
-            jump = float(nh * view.weights @ np.einsum("ij,ij->i", jumps, jumps))
-        if index is None:
-            qd, saturated, sigmas = qd_h, saturated_h, sigmas_h
-        else:
+            qd_h, saturated_h, sigmas_h = scale * qd_h, np.zeros(nh, dtype=bool), np.zeros(nh)
+        if view.locked:
             qd, saturated, sigmas = np.zeros(n), np.zeros(n, dtype=bool), np.full(n, np.nan)
             qd[index], saturated[index], sigmas[index] = qd_h, saturated_h, sigmas_h
-        margin, at_soft = math.inf, np.zeros(n, dtype=bool)
-        if view.soft:
-            distance = np.minimum(q - self._soft[0], self._soft[1] - q)
-            margin = float(distance.min())
-            at_soft = distance < AT_LIMIT
+        else:
+            qd, saturated, sigmas = qd_h, saturated_h, sigmas_h
+        margin, at_soft, at_hard = _limit_report(q, robot.lower, robot.upper, *self._soft,
+                                                 view.soft)
         if nh < m:
             status = INFEASIBLE
         elif scale < 1.0:
@@ -277,6 +343,5 @@ class ResolutionEngine:
             qd=qd, status=status, kfm=float(sigmas_h.min()) if nh else 0.0,
             sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
             task_scale=float(scale), soft_limit_margin=margin, saturated=saturated,
-            at_soft_limit=at_soft,
-            at_hard_limit=np.minimum(q - robot.lower, robot.upper - q) < AT_LIMIT,
+            at_soft_limit=at_soft, at_hard_limit=at_hard,
         )

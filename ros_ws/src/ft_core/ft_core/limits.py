@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ft_core.pseudoinverse import Damping, damped_pinv, pseudo_inverse_from_svd
 
@@ -24,6 +25,7 @@ from ft_core.pseudoinverse import Damping, damped_pinv, pseudo_inverse_from_svd
 TOLERANCE = 1e-10
 
 
+@njit(cache=True)
 def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                     velocity_limits: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi.
@@ -35,21 +37,37 @@ def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     return lo, hi
 
 
+@njit(cache=True)
 def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float) -> np.ndarray:
     """Smooth push (dimensionless, <= 1 at an edge) away from the edges of [lower, upper].
 
     ((lower + b - q) / b)^2 inside the lower zone, -((q - upper + b) / b)^2 inside
     the upper zone, 0 elsewhere, with b = min(buffer, half the box width). It keeps
     growing outside the box, so a joint that starts outside is pushed back in.
+    Infinite limits have no zone.
     """
-    if np.all((q > lower + buffer) & (q < upper - buffer)):
-        return np.zeros(q.shape)
-    width = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
-    b = np.minimum(buffer, width / 2)
-    safe = np.where(b > 0, b, 1.0)
-    below = np.where(b > 0, np.clip((lower + b - q) / safe, 0.0, None), 0.0)
-    above = np.where(b > 0, np.clip((q - upper + b) / safe, 0.0, None), 0.0)
-    return np.nan_to_num(below**2 - above**2)
+    push = np.zeros(q.size)
+    for j in range(q.size):
+        if lower[j] + buffer < q[j] < upper[j] - buffer:
+            continue
+        width = upper[j] - lower[j]
+        b = min(buffer, width / 2) if np.isfinite(width) else buffer
+        if b <= 0:
+            continue
+        if np.isfinite(lower[j]) and q[j] < lower[j] + b:
+            push[j] += ((lower[j] + b - q[j]) / b) ** 2
+        if np.isfinite(upper[j]) and q[j] > upper[j] - b:
+            push[j] -= ((q[j] - upper[j] + b) / b) ** 2
+    return push
+
+
+@njit(cache=True)
+def within(qd: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether lo <= qd <= hi for every joint, up to `TOLERANCE`."""
+    for j in range(qd.size):
+        if not (lo[j] - TOLERANCE <= qd[j] <= hi[j] + TOLERANCE):
+            return False
+    return True
 
 
 def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -115,7 +133,7 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     a = pinv @ xd
     null_motion = z - pinv @ (J @ z) if z.any() else z
     qd = a + null_motion
-    if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE)):
+    if within(qd, lo, hi):
         return Saturated(qd, 1.0, np.zeros(n, dtype=bool))
     svd = np.linalg.svd(J, full_matrices=False)
     # The task has priority: shrink the preference until it fits beside the task.

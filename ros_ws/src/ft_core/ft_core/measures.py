@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+from numba import njit
 
 
 def as_matrix(J: np.ndarray) -> np.ndarray:
@@ -247,6 +248,7 @@ def soft_kfm(J: np.ndarray, locked: Iterable[int] = (), temperature: float = 0.0
     return float(low - temperature * np.log(np.sum(np.exp(-(healthy - low) / temperature))))
 
 
+@njit(cache=True)
 def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
     """Weights (n,) such that grad K = weights @ G; 0 for nan (locked) entries.
 
@@ -255,19 +257,23 @@ def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
     weights are softmax(-s_i / tau), the exact gradient of `soft_kfm`, which blends
     the joints within a few tau of the minimum so the ascent direction changes
     continuously when the minimising joint changes. With tau = 0 all weight goes to
-    the (first) minimising joint: seed 002 eq 8.
+    the (first) minimising joint: seed 002 eq 8. Compiled (numba): the engine's
+    cycle calls it.
     """
-    healthy = ~np.isnan(sigmas)
-    weights = np.zeros(sigmas.shape)
-    if not healthy.any():
+    weights = np.zeros(sigmas.size)
+    first, smallest = -1, np.inf
+    for i in range(sigmas.size):
+        if sigmas[i] < smallest or (first < 0 and not np.isnan(sigmas[i])):
+            first, smallest = i, sigmas[i]
+    if first < 0:
         return weights
-    s = np.where(healthy, sigmas, np.inf)
     if temperature <= 0:
-        weights[np.argmin(s)] = 1.0
-    else:
-        weights = np.exp(-(s - s.min()) / temperature)
-        weights /= weights.sum()
-    return weights
+        weights[first] = 1.0
+        return weights
+    for i in range(sigmas.size):
+        if not np.isnan(sigmas[i]):
+            weights[i] = np.exp(-(sigmas[i] - smallest) / temperature)
+    return weights / weights.sum()
 
 
 def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),

@@ -1,107 +1,215 @@
-"""Per-cycle post-failure analysis from A = J J^T and its rank-one downdates.
+"""Per-cycle post-failure analysis from A = J J^T and its rank-one downdates (compiled).
 
 The control loop needs, for every joint i, the smallest singular value s_i of iJ
 (J with column i removed), its gradient, and the velocity iqd' = (iJ)# xd the
 robot would have if i locked. Removing column j_i is a rank-one downdate:
-iJ iJ^T = A - j_i j_i^T. So instead of n SVDs of m x (n - 1) matrices:
+iJ iJ^T = A - j_i j_i^T. So instead of n SVDs of m x (n - 1) matrices, one
+symmetric eigen-decomposition A = V diag(L) V^T (ascending L) and, per joint:
 
-- s_i^2 is the smallest eigenvalue of A - j_i j_i^T (one batched `eigvalsh` of
-  n symmetric m x m matrices), u_i its eigenvector;
+- s_i^2 = L_0 - tau_i, the smallest root of the secular equation of the downdate
+  (Golub 1973; the same equation LAPACK's dlaed4 solves): with c = V^T j_i and
+  d_k = L_k - L_0, tau_i > 0 is the root of the concave function
+      G(tau) = c_0^2 + sum_{k>0} c_k^2 tau / (d_k + tau) - tau,
+  found by Newton's method from tau = |c|^2 (Weyl's bound, where G <= 0), which
+  converges monotonically from the right. Equal eigenvalues need no deflation
+  (their terms are constant in tau). Its eigenvector is u_i = V y / |y| with
+  y_k = c_k / (d_k + tau_i);
 - the damped inverse of iJ is iJ^T (iJ iJ^T + lambda_i^2 I)^-1 (the same matrix as
-  `pseudoinverse.pseudo_inverse_from_svd`), and with A = V diag(L) V^T,
-  (A + lambda_i^2 I - j_i j_i^T)^-1 follows from Sherman-Morrison in the
-  eigenbasis of A, for every i at once. Its denominator is positive because the
-  downdated matrix is positive definite (lambda_i > 0) or iJ has full row rank
-  (lambda_i = 0 only when s_i >= epsilon).
+  `pseudoinverse.pseudo_inverse_from_svd`); (A + lambda_i^2 I - j_i j_i^T)^-1
+  follows from Sherman-Morrison in the eigenbasis of A. Its denominator is
+  positive because the downdated matrix is positive definite (lambda_i > 0) or
+  iJ has full row rank (lambda_i = 0 only when s_i >= epsilon).
 
-`measures` (SVD based) is the reference; the tests check this module against it.
-Squaring costs precision near zero: s_i carries an absolute error of about
+The functions are compiled with numba (nopython, cached on disk) and take plain
+arrays, so the engine's compiled cycle calls them without Python in between;
+from Python they are called like any function. `measures` and `resolution` (SVD
+based) are the reference; the tests check this module against them. Squaring
+costs precision near zero: s_i carries an absolute error of about
 sqrt(machine epsilon) * sigma_max(J), some 2e-8 m for a 7-DOF arm, where the SVD
-gives 1e-16. Nothing in the control loop can tell the two apart (K, and the
-damping of the inverses, change by far less than their own tolerances).
-All inputs are for the robot as it is (healthy columns only) with m <= n.
+gives 1e-16; nothing in the control loop can tell the two apart. All inputs are
+for the robot as it is (healthy columns only), float64, with m <= n.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+from numba import njit
 
-from ft_core.pseudoinverse import Damping
+from ft_core.pseudoinverse import squared_damping
 
 #: Below this post-failure singular value (m) its gradient is taken as 0.
 GRADIENT_FLOOR = 1e-12
 
+#: Newton iterations of the secular equation never exceed this (5-10 are typical).
+MAX_NEWTON_STEPS = 60
 
-@dataclass(frozen=True)
-class PostFailure:
-    """Eigen-decompositions of J J^T and of its n downdates.
 
-    Attributes:
-        eigenvalues, eigenvectors: of A = J J^T (ascending; (m,), (m, m)).
-        sigmas: s_i = sigma_m(iJ) (n,).
-        vectors: u_i, the left singular vector of s_i (n, m); None unless requested.
+@njit(cache=True)
+def downdate_root(c: np.ndarray, d: np.ndarray) -> tuple[float, int]:
+    """(tau, Newton steps taken): tau >= 0 with G(tau) = 0 (module docstring).
+
+    tau = 0 when c_0 = 0 and no root is positive (the smallest eigenvalue stays).
     """
-
-    eigenvalues: np.ndarray
-    eigenvectors: np.ndarray
-    sigmas: np.ndarray
-    vectors: np.ndarray | None
-
-    @property
-    def sigma_min(self) -> float:
-        """Smallest singular value of J itself."""
-        return float(np.sqrt(max(self.eigenvalues[0], 0.0)))
-
-
-def analyse(J: np.ndarray, with_vectors: bool = False) -> PostFailure:
-    """Decompose J J^T and every J J^T - j_i j_i^T (m x n, m <= n)."""
-    A = J @ J.T
-    eigenvalues, eigenvectors = np.linalg.eigh(A)
-    downdated = A[None] - J.T[:, :, None] * J.T[:, None, :]
-    if with_vectors:
-        mu, U = np.linalg.eigh(downdated)
-        vectors = U[:, :, 0]
-    else:
-        mu, vectors = np.linalg.eigvalsh(downdated), None
-    return PostFailure(eigenvalues, eigenvectors, np.sqrt(np.maximum(mu[:, 0], 0.0)), vectors)
+    tau = 0.0
+    for k in range(c.size):
+        tau += c[k] * c[k]
+    steps = 0
+    for steps in range(MAX_NEWTON_STEPS):  # noqa: B007 (the count is returned)
+        g, slope = c[0] * c[0] - tau, -1.0
+        for k in range(1, c.size):
+            denominator = d[k] + tau
+            if denominator > 0.0:
+                g += c[k] * c[k] * tau / denominator
+                slope += c[k] * c[k] * d[k] / (denominator * denominator)
+            else:
+                g += c[k] * c[k]
+        if g >= 0.0 or slope >= 0.0:
+            break  # at the root, up to rounding
+        step = g / slope
+        if step <= 4e-16 * tau:
+            break
+        tau = max(tau - step, 0.0)
+    return tau, steps
 
 
-def sigma_gradients(post: PostFailure, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Decompose A = J J^T and every downdate A - j_i j_i^T of an m x n J (m <= n).
+
+    Returns (L, V, sigmas, vectors): eigenvalues (m,) ascending and eigenvectors
+    (m, m) of A; s_i = sigma_m(iJ) (n,); u_i, the left singular vector of s_i, as
+    row i of vectors (n, m).
+    """
+    m, n = J.shape
+    L, V = np.linalg.eigh(gram(J))
+    d = L - L[0]
+    columns = in_eigenbasis(J, V)
+    sigmas, vectors = np.empty(n), np.zeros((n, m))
+    y = np.empty(m)
+    for i in range(n):
+        c = columns[i]
+        tau, _ = downdate_root(c, d)
+        sigmas[i] = np.sqrt(max(L[0] - tau, 0.0))
+        norm = 0.0
+        for k in range(m):
+            denominator = d[k] + tau
+            y[k] = c[k] / denominator if denominator > 0.0 else 0.0
+            norm += y[k] * y[k]
+        if norm == 0.0:  # c_0 = 0: the smallest eigenpair of A survives the downdate
+            y[:] = 0.0
+            y[0] = 1.0
+            norm = 1.0
+        scale = 1.0 / np.sqrt(norm)
+        for a in range(m):
+            for k in range(m):
+                vectors[i, a] += V[a, k] * y[k] * scale
+    return L, V, sigmas, vectors
+
+
+@njit(cache=True)
+def gram(J: np.ndarray) -> np.ndarray:
+    """A = J J^T (m, m), in loops: cheaper than a BLAS call at this size."""
+    m, n = J.shape
+    A = np.empty((m, m))
+    for a in range(m):
+        for b in range(a, m):
+            total = 0.0
+            for k in range(n):
+                total += J[a, k] * J[b, k]
+            A[a, b] = total
+            A[b, a] = total
+    return A
+
+
+@njit(cache=True)
+def in_eigenbasis(J: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """J^T V (n, m): row i is column j_i in the eigenbasis of A."""
+    m, n = J.shape
+    columns = np.zeros((n, m))
+    for i in range(n):
+        for k in range(m):
+            for a in range(m):
+                columns[i, k] += J[a, i] * V[a, k]
+    return columns
+
+
+@njit(cache=True)
+def smallest_singular_value(L: np.ndarray) -> float:
+    """sigma_m(J) from the eigenvalues of J J^T (ascending)."""
+    return np.sqrt(max(L[0], 0.0))
+
+
+@njit(cache=True)
+def sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
+                    vectors: np.ndarray) -> np.ndarray:
     """G[i, k] = ds_i/dq_k = u_i^T dJ[k] v_i with v_i = iJ^T u_i / s_i (seed 002 eq 8).
 
-    Rows with s_i below `GRADIENT_FLOOR` are 0 (a subgradient there).
+    dJ is (n, m, n), dJ[k] = dJ/dq_k. Rows with s_i below `GRADIENT_FLOOR` are 0
+    (a subgradient there).
     """
-    n = J.shape[1]
-    u = post.vectors
-    w = u @ J  # row i: J^T u_i
-    w[np.arange(n), np.arange(n)] = 0.0  # iJ^T u_i
-    live = post.sigmas > GRADIENT_FLOOR
-    v = np.where(live[:, None], w / np.where(live, post.sigmas, 1.0)[:, None], 0.0)
-    return np.einsum("ia,kab,ib->ik", u, dJ, v)
+    m, n = J.shape
+    G = np.zeros((n, n))
+    for i in range(n):
+        if sigmas[i] <= GRADIENT_FLOOR:
+            continue
+        u = vectors[i]
+        v = np.zeros(n)  # iJ^T u_i / s_i
+        for b in range(n):
+            if b != i:
+                for a in range(m):
+                    v[b] += u[a] * J[a, b]
+                v[b] /= sigmas[i]
+        for k in range(n):
+            total = 0.0
+            for a in range(m):
+                row = 0.0
+                for b in range(n):
+                    row += dJ[k, a, b] * v[b]
+                total += u[a] * row
+            G[i, k] = total
+    return G
 
 
-def damped_inverse(post: PostFailure, J: np.ndarray, damping: Damping) -> np.ndarray:
+@njit(cache=True)
+def damped_inverse(J: np.ndarray, L: np.ndarray, V: np.ndarray, threshold: float,
+                   max_damping: float) -> np.ndarray:
     """Damped pseudo-inverse of J itself (n, m): J^T (J J^T + lambda^2 I)^-1."""
-    lam2 = damping.squared(post.sigma_min)
-    V = post.eigenvectors
-    return J.T @ (V / (post.eigenvalues + lam2)) @ V.T
+    m, n = J.shape
+    lam2 = squared_damping(smallest_singular_value(L), threshold, max_damping)
+    columns = in_eigenbasis(J, V)
+    inverse = np.zeros((n, m))
+    for i in range(n):
+        for k in range(m):
+            factor = columns[i, k] / (L[k] + lam2)
+            for a in range(m):
+                inverse[i, a] += factor * V[a, k]
+    return inverse
 
 
-def reduced_velocities(post: PostFailure, J: np.ndarray, xd: np.ndarray,
-                       damping: Damping) -> np.ndarray:
+@njit(cache=True)
+def reduced_velocities(J: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
+                       sigmas: np.ndarray, threshold: float, max_damping: float) -> np.ndarray:
     """Row i: iqd' = (iJ)# xd with the damped inverse of iJ, 0 at joint i (n, n)."""
-    n = J.shape[1]
-    V, L = post.eigenvectors, post.eigenvalues
-    lam2 = damping.squared(post.sigmas)  # (n,)
-    D = 1.0 / (L[None, :] + lam2[:, None])  # (n, m): (A + lambda_i^2)^-1 in the eigenbasis
-    columns = J.T @ V  # (n, m): row i is j_i in the eigenbasis
-    y = D * (xd @ V)  # row i: (A + lambda_i^2)^-1 xd
-    c = D * columns  # row i: (A + lambda_i^2)^-1 j_i
-    jy = np.einsum("ij,ij->i", columns, y)  # j_i^T (A + lambda_i^2)^-1 xd
-    d = np.einsum("ij,ij->i", columns, c)  # j_i^T (A + lambda_i^2)^-1 j_i
-    w = y + c * (jy / (1.0 - d))[:, None]  # (iJ iJ^T + lambda_i^2)^-1 xd, eigenbasis
-    reduced = w @ columns.T  # row i: J^T w_i
-    reduced[np.arange(n), np.arange(n)] = 0.0
+    m, n = J.shape
+    columns = in_eigenbasis(J, V)
+    xv = np.zeros(m)
+    for k in range(m):
+        for a in range(m):
+            xv[k] += xd[a] * V[a, k]
+    reduced = np.zeros((n, n))
+    w = np.empty(m)
+    for i in range(n):
+        lam2 = squared_damping(sigmas[i], threshold, max_damping)
+        jy, jc = 0.0, 0.0  # j_i^T (A + lambda_i^2)^-1 xd and j_i^T (A + lambda_i^2)^-1 j_i
+        for k in range(m):
+            inverse = 1.0 / (L[k] + lam2)
+            jy += columns[i, k] * inverse * xv[k]
+            jc += columns[i, k] * inverse * columns[i, k]
+        factor = jy / (1.0 - jc)
+        for k in range(m):  # (iJ iJ^T + lambda_i^2)^-1 xd in the eigenbasis
+            w[k] = (xv[k] + columns[i, k] * factor) / (L[k] + lam2)
+        for b in range(n):  # J^T V w, 0 at joint i
+            if b != i:
+                for k in range(m):
+                    reduced[i, b] += columns[b, k] * w[k]
     return reduced

@@ -17,6 +17,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def squared_damping(sigma_min: float | np.ndarray, threshold: float,
+                    max_damping: float) -> float | np.ndarray:
+    """lambda^2 (m^2) for a smallest singular value, or elementwise for an array of them."""
+    ratio = np.minimum(sigma_min / threshold, 1.0)
+    return max_damping**2 * (1.0 - ratio**2)
 
 
 @dataclass(frozen=True)
@@ -38,8 +47,7 @@ class Damping:
 
     def squared(self, sigma_min: np.ndarray) -> np.ndarray:
         """lambda^2 for each matrix of a stack, given its smallest singular value."""
-        ratio = np.minimum(np.asarray(sigma_min) / self.threshold, 1.0)
-        return self.max_damping**2 * (1.0 - ratio**2)
+        return np.asarray(squared_damping(sigma_min, self.threshold, self.max_damping))
 
 
 def pseudo_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,

@@ -29,6 +29,9 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
+
+from ft_core.checks import all_finite
 
 #: Task-space name -> number of task coordinates m.
 TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
@@ -52,6 +55,48 @@ HOME = {
 
 _MOVABLE = {"revolute", "continuous", "prismatic"}
 _SUPPORTED = _MOVABLE | {"fixed"}
+
+
+@njit(cache=True)
+def _cross(a: np.ndarray | tuple, b: np.ndarray | tuple) -> tuple[float, float, float]:
+    """A x b of two 3-vectors, as a tuple (no allocation in compiled code)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True)
+def _task_jacobians(J: np.ndarray, w: np.ndarray, hessian: np.ndarray, r: np.ndarray,
+                    rotate: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Task rows of the tool Jacobian and its derivatives (m, n), (n, m, n), in the base frame.
+
+    `hessian` is the flat memory of the last joint's kinematic Hessian (6, n, n):
+    Pinocchio 4.1 hands it over column-major while flagged C-contiguous, so entry
+    (a, j, k) = d J_last[a, j] / dq_k sits at a + 6 j + 6 n k. The tool point sits
+    at r from the last joint's origin, rigidly attached to the last link, so the
+    tool's linear column j is v_j + w_j x r and its derivative over q_k is
+    dv_j + dw_j x r + w_j x (w_k x r). `rotate` (6, 6) maps world to base axes.
+    Compiled (numba): some twenty small numpy operations otherwise.
+    """
+    n = J.shape[1]
+    world = np.empty((n, 6, n))
+    for k in range(n):
+        dr = _cross(w[:, k], r)  # dr/dq_k
+        for j in range(n):
+            for a in range(6):
+                world[k, a, j] = hessian[a + 6 * j + 6 * n * k]
+            a_x, a_y, a_z = _cross(world[k, 3:, j], r)
+            b_x, b_y, b_z = _cross(w[:, j], dr)
+            world[k, 0, j] += a_x + b_x
+            world[k, 1, j] += a_y + b_y
+            world[k, 2, j] += a_z + b_z
+    base_J = np.zeros((m, n))
+    base_dJ = np.zeros((n, m, n))
+    for a in range(m):
+        for b in range(6):
+            if rotate[a, b] != 0.0:
+                base_J[a] += rotate[a, b] * J[b]
+                for k in range(n):
+                    base_dJ[k, a] += rotate[a, b] * world[k, b]
+    return base_J, base_dJ
 
 
 class RobotModelError(ValueError):
@@ -260,6 +305,7 @@ class Robot:
         rotation = base_pose.rotation.T
         self._rotate = np.zeros((6, 6))
         self._rotate[:3, :3] = self._rotate[3:, 3:] = rotation
+        self._base_aligned = bool(np.array_equal(rotation, np.eye(3)))
         self._rows = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[
             self.task_space
         ]
@@ -289,7 +335,7 @@ class Robot:
         q = np.asarray(q, dtype=float)
         if q.shape != (self.n,):
             raise ValueError(f"q must have shape ({self.n},), got {q.shape}")
-        if not np.all(np.isfinite(q)):
+        if not all_finite(q):
             raise ValueError(f"q has non-finite entries: {q}")
         return q
 
@@ -310,7 +356,7 @@ class Robot:
         q = self._check(q)
         J = pin.computeFrameJacobian(self._model, self._data, q, self._tip,
                                      pin.LOCAL_WORLD_ALIGNED)
-        return (self._rotate @ J)[self._rows]
+        return J[self._rows] if self._base_aligned else (self._rotate @ J)[self._rows]
 
     def jacobian_derivatives(self, q: np.ndarray) -> np.ndarray:
         """dJ/dq_k for every joint k, shape (n, m, n) (see `jacobian_and_derivatives`)."""
@@ -320,9 +366,7 @@ class Robot:
         """Task Jacobian (m, n) and dJ/dq_k (n, m, n) in one kinematics pass.
 
         Pinocchio gives the Hessian of the last joint's world-aligned Jacobian
-        (v, w). The tool point sits at r from that joint's origin, rigidly attached
-        to the last link, so the tool's linear column is v + w x r and
-        d(v + w x r)/dq_k = dv/dq_k + dw/dq_k x r + w x dr/dq_k, dr/dq_k = w_k x r.
+        (v, w); see `_task_jacobians` for the tool point.
         """
         q = self._check(q)
         model, data = self._model, self._data
@@ -332,19 +376,8 @@ class Robot:
         w = pin.getJointJacobian(model, data, self._last_joint, pin.LOCAL_WORLD_ALIGNED)[3:]
         pin.computeJointKinematicHessians(model, data)
         H = pin.getJointKinematicHessian(model, data, self._last_joint, pin.LOCAL_WORLD_ALIGNED)
-        # Pinocchio 4.1 returns column-major memory flagged C-contiguous.
-        H = H.ravel(order="C").reshape(H.shape, order="F")
-        dJ = H.transpose(2, 0, 1).copy()  # dJ[k][:, j] = d Jj[:, j] / dq_k, (n, 6, n)
         r = data.oMf[self._tip].translation - data.oMi[self._last_joint].translation
-        skew_r = pin.skew(r)
-        dJ[:, :3, :] -= skew_r @ dJ[:, 3:, :]  # dw x r = -[r]x dw
-        dr = w.T @ skew_r  # row k: w_k x r
-        skew_dr = np.zeros((self.n, 3, 3))
-        skew_dr[:, 0, 1], skew_dr[:, 0, 2], skew_dr[:, 1, 2] = -dr[:, 2], dr[:, 1], -dr[:, 0]
-        skew_dr -= skew_dr.transpose(0, 2, 1)
-        dJ[:, :3, :] -= skew_dr @ w  # w_j x dr_k = -[dr_k]x w_j
-        rows = self._rows
-        return (self._rotate @ J)[rows], (self._rotate @ dJ)[:, rows, :]
+        return _task_jacobians(J, w, H.ravel(order="C"), r, self._rotate, self.m)
 
     def scale_task(self, A: np.ndarray) -> np.ndarray:
         """Multiply the angular task rows of A (..., m, k) by the characteristic length.
