@@ -13,7 +13,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import convert, qos
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -22,12 +22,14 @@ _contexts = itertools.count(1)
 
 
 @contextmanager
-def ros_context(shared: bool = False) -> Iterator[tuple[Context, SingleThreadedExecutor]]:
+def ros_context(shared: bool = False, executor_type: type[Executor] = SingleThreadedExecutor,
+                ) -> Iterator[tuple[Context, Executor]]:
     """A fresh rclpy context with its own executor, shut down afterwards.
 
     Each context gets a DDS domain of its own, so a latched message of a node from
     an earlier test cannot reach this one; `shared` uses the session's
-    ROS_DOMAIN_ID instead, to talk with nodes in subprocesses.
+    ROS_DOMAIN_ID instead, to talk with nodes in subprocesses. `executor_type` is
+    rclpy's SingleThreadedExecutor or the EventsExecutor the executables spin.
     """
     session = int(os.environ["ROS_DOMAIN_ID"])
     domain = session
@@ -35,7 +37,7 @@ def ros_context(shared: bool = False) -> Iterator[tuple[Context, SingleThreadedE
         domain = (session + next(_contexts)) % 100 + 1
     context = Context()
     rclpy.init(context=context, domain_id=domain)
-    executor = SingleThreadedExecutor(context=context)
+    executor = executor_type(context=context)
     try:
         yield context, executor
     finally:
@@ -43,7 +45,7 @@ def ros_context(shared: bool = False) -> Iterator[tuple[Context, SingleThreadedE
         rclpy.shutdown(context=context)
 
 
-def spin_until(executor: SingleThreadedExecutor, condition: Callable[[], bool],
+def spin_until(executor: Executor, condition: Callable[[], bool],
                timeout: float = 10.0) -> bool:
     """Spin the executor until `condition()` is true or `timeout` seconds pass."""
     deadline = time.monotonic() + timeout
@@ -63,7 +65,7 @@ class FakePlant:
     records the commands, metrics and diagnostics it sees.
     """
 
-    def __init__(self, context: Context, executor: SingleThreadedExecutor,
+    def __init__(self, context: Context, executor: Executor,
                  joints: list[str], q0, dt: float = 0.01, command_topic: str = "ft/command_raw"):
         self.node = rclpy.create_node("fake_plant", context=context)
         self.executor = executor

@@ -18,6 +18,8 @@ from ft_core import robots
 from ft_msgs_py import convert, diagnostics, metrics, qos
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import INSTALL, PACKAGES
+from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter
 from rosutil import FakePlant, ros_context, spin_until
 from sensor_msgs.msg import JointState
@@ -29,11 +31,12 @@ TWIST = np.array([0.05, 0.0, -0.02, 0.0, 0.0, 0.1])
 
 
 @contextmanager
-def controller(**parameters) -> Iterator[tuple[ControllerNode, FakePlant]]:
+def controller(executor_type: type[Executor] = SingleThreadedExecutor,
+               **parameters) -> Iterator[tuple[ControllerNode, FakePlant]]:
     """A controller (sim time, 100 Hz) and a fake Panda plant at Q0, in one executor."""
     values = {"robot_model": "panda", "use_sim_time": True, "control_rate": 100.0,
               "resolution": "least_norm", **parameters}
-    with ros_context() as (context, executor):
+    with ros_context(executor_type=executor_type) as (context, executor):
         node = ControllerNode(context=context, parameter_overrides=[
             Parameter(name, value=value) for name, value in values.items()])
         executor.add_node(node)
@@ -68,8 +71,10 @@ def all_finite(plant: FakePlant) -> bool:
             and all(np.all(np.isfinite(m.data)) for m in plant.metrics))
 
 
-def test_twist_is_tracked_exactly_and_within_limits() -> None:
-    with controller(velocity_scale=0.5) as (node, plant):
+@pytest.mark.parametrize("executor_type", [SingleThreadedExecutor, EventsExecutor])
+def test_twist_is_tracked_exactly_and_within_limits(executor_type: type[Executor]) -> None:
+    """Also with the EventsExecutor the executables spin: its timers run on sim time."""
+    with controller(executor_type, velocity_scale=0.5) as (node, plant):
         plant.frozen = True
         plant.run(30, twist_sender(plant))
         qd = plant.velocity()
@@ -203,8 +208,10 @@ def test_errors_show_in_diagnostics() -> None:
         assert len(joints) == 7 or not joints
 
 
-def test_locked_joints_get_exactly_zero_and_the_task_is_still_tracked() -> None:
-    with controller(task_space="position") as (_, plant):
+@pytest.mark.parametrize("executor_type", [SingleThreadedExecutor, EventsExecutor])
+def test_locked_joints_get_exactly_zero_and_the_task_is_still_tracked(
+        executor_type: type[Executor]) -> None:
+    with controller(executor_type, task_space="position") as (_, plant):
         plant.frozen = True
         publisher = plant.node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
         publisher.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))

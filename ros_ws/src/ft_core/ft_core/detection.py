@@ -25,6 +25,7 @@ examined. Times are seconds on one clock shared by commands and measurements.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -97,7 +98,11 @@ class LockDetector:
 
     def reset(self) -> None:
         """Forget every lock and all history (after a repair)."""
-        self._commands: deque[tuple[float, np.ndarray]] = deque()
+        # Piecewise-constant commands: start times, values and the running integral of
+        # the command up to each start (rad), so a window's mean is one difference.
+        self._command_times: deque[float] = deque()
+        self._command_values: deque[np.ndarray] = deque()
+        self._command_integrals: deque[np.ndarray] = deque()
         self._times: deque[float] = deque()
         self._positions: deque[np.ndarray] = deque()
         self.joints = [JointEvidence() for _ in range(self.n)]
@@ -120,12 +125,19 @@ class LockDetector:
 
     def command(self, time: float, velocity: np.ndarray) -> None:
         """The velocity commanded to the plant from `time` on (rad/s)."""
-        if self._commands and time < self._commands[-1][0]:
+        times, values, integrals = (self._command_times, self._command_values,
+                                    self._command_integrals)
+        if times and time < times[-1]:
             return  # out of order: ignored
-        self._commands.append((time, np.asarray(velocity, dtype=float).copy()))
+        integrals.append(integrals[-1] + (time - times[-1]) * values[-1] if times
+                         else np.zeros(self.n))
+        times.append(time)
+        values.append(np.asarray(velocity, dtype=float).copy())
         horizon = time - 2 * self.config.window - self.config.latency
-        while len(self._commands) > 1 and self._commands[1][0] <= horizon:
-            self._commands.popleft()
+        while len(times) > 1 and times[1] <= horizon:
+            times.popleft()
+            values.popleft()
+            integrals.popleft()
 
     def measure(self, time: float, position: np.ndarray) -> list[int]:
         """A measured configuration; returns the joints newly declared locked."""
@@ -138,17 +150,17 @@ class LockDetector:
             self._positions.popleft()
         return self._update(time)
 
+    def _integral(self, time: float) -> np.ndarray:
+        """Integral of the command up to `time` (rad), from the newest start at or before it."""
+        k = bisect.bisect_right(self._command_times, time) - 1
+        start, value = self._command_times[k], self._command_values[k]
+        return self._command_integrals[k] + (time - start) * value
+
     def _mean_command(self, start: float, end: float) -> np.ndarray | None:
         """Time average of the piecewise-constant command over [start, end]."""
-        if not self._commands or self._commands[0][0] > start:
+        if not self._command_times or self._command_times[0] > start:
             return None
-        total = np.zeros(self.n)
-        commands = list(self._commands)
-        for (t0, value), nxt in zip(commands, [*commands[1:], (math.inf, None)], strict=True):
-            lo, hi = max(t0, start), min(nxt[0], end)
-            if hi > lo:
-                total += (hi - lo) * value
-        return total / (end - start)
+        return (self._integral(end) - self._integral(start)) / (end - start)
 
     def _update(self, now: float) -> list[int]:
         cfg = self.config

@@ -175,7 +175,9 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     damping threshold, max_damping). Returns, for the healthy joints: the scaled
     Jacobian, the scaled task velocity, z, lo, hi, the damped inverse, post-failure
     sigmas, sigma_min, the reduced velocities (0 x 0 without a next failure), and
-    qd = J# x + (I - J# J) z with whether it is within [lo, hi].
+    qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1] that keeps it within
+    [lo, hi] (`limits.preference_scale`), and whether it is; if not, the caller runs
+    the rest of `limits.saturate_in_null_space`, which starts the same way.
     """
     m, nh = task_scale.size, healthy.size
     kfm_gain, jump_gain, limit_gain, temperature, buffer, dt, threshold, max_damping = gains
@@ -204,9 +206,14 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
     pinv = postfailure.damped_inverse(Js, L, V, threshold, max_damping)
     task = pinv @ x
-    qd = task + z - pinv @ (Js @ z)
+    null_motion = z - pinv @ (Js @ z)
+    qd = task + null_motion
+    fits = limits.within(qd, lo, hi)
+    if not fits:  # SNS's first step, the common case: shrink the preference beside the task
+        qd = task + limits.preference_scale(task, null_motion, lo, hi) * null_motion
+        fits = limits.within(qd, lo, hi)
     return (Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L), reduced,
-            qd, limits.within(qd, lo, hi))
+            qd, fits)
 
 
 @njit(cache=True)

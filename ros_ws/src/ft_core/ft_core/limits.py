@@ -70,6 +70,7 @@ def within(qd: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
     return True
 
 
+@njit(cache=True)
 def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                   free: np.ndarray) -> tuple[float, int, bool]:
     """Largest s in [0, 1] with lo <= s a + b <= hi on the free joints.
@@ -77,17 +78,34 @@ def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     Returns (s, critical joint: the first to hit a bound as s grows, feasible).
     When no s works, feasible is False and the critical joint is the worst violator.
     """
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        up = np.where(a > 0, (hi - b) / a, np.where(a < 0, (lo - b) / a, np.inf))
-        down = np.where(a > 0, (lo - b) / a, np.where(a < 0, (hi - b) / a, -np.inf))
-    stuck = (a == 0) & ((b > hi + TOLERANCE) | (b < lo - TOLERANCE))
-    up = np.where(stuck, -np.inf, up)
-    up = np.where(free, up, np.inf)
-    down = np.where(free, down, -np.inf)
-    critical = int(np.argmin(up))
-    s_max, s_min = min(1.0, float(up[critical])), max(0.0, float(down.max()))
+    critical, s_max, s_min = 0, np.inf, 0.0
+    for j in range(a.size):
+        if not free[j]:
+            up = np.inf
+        elif a[j] > 0:
+            up = (hi[j] - b[j]) / a[j]
+            s_min = max(s_min, (lo[j] - b[j]) / a[j])
+        elif a[j] < 0:
+            up = (lo[j] - b[j]) / a[j]
+            s_min = max(s_min, (hi[j] - b[j]) / a[j])
+        else:  # never moves with s: fine, or stuck outside its bounds
+            up = -np.inf if (b[j] > hi[j] + TOLERANCE or b[j] < lo[j] - TOLERANCE) else np.inf
+        if up < s_max or j == 0:
+            critical, s_max = j, up
+    s_max = min(1.0, s_max)
     feasible = s_max >= 0 and s_min <= s_max + TOLERANCE
     return (max(s_max, 0.0) if feasible else 0.0), critical, feasible
+
+
+@njit(cache=True)
+def preference_scale(task: np.ndarray, null_motion: np.ndarray, lo: np.ndarray,
+                     hi: np.ndarray) -> float:
+    """Largest alpha in [0, 1] keeping task + alpha null_motion in [lo, hi]; 0 if none does.
+
+    The task has priority over the null-space preference: SNS's first step.
+    """
+    alpha, _, feasible = largest_scale(null_motion, task, lo, hi, np.ones(task.size, np.bool_))
+    return alpha if feasible else 0.0
 
 
 @dataclass(frozen=True)
@@ -137,8 +155,7 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
         return Saturated(qd, 1.0, np.zeros(n, dtype=bool))
     svd = np.linalg.svd(J, full_matrices=False)
     # The task has priority: shrink the preference until it fits beside the task.
-    alpha, _, feasible = largest_scale(null_motion, a, lo, hi, everything)
-    z = z * (alpha if feasible else 0.0)
+    z = z * preference_scale(a, null_motion, lo, hi)
     # Flacco's "rank(J W) < m", numerically: the free joints have lost a task direction.
     rank_lost = min(damping.threshold, svd[1][-1] / 2 if m <= n else 0.0)
     for preference in (z, np.zeros(n)):
