@@ -8,6 +8,8 @@ BIN := $(VENV)/bin
 PACKAGES := ft_core ft_msgs_py ft_controller ft_monitor ft_sim
 SETUPS := $(foreach p,$(PACKAGES),ros_ws/src/$(p)/setup.py ros_ws/src/$(p)/setup.cfg)
 STAMP := $(VENV)/.installed
+WARM_UP := from ft_core import engine, robots; engine.ResolutionEngine(robots.load('panda')); \
+	engine.ResolutionEngine(robots.load('panda'), engine.EngineConfig(resolution='least_norm'))
 
 .PHONY: all venv build lint test demo bench clean
 
@@ -27,6 +29,10 @@ venv: $(STAMP)
 build: $(STAMP)
 	cd ros_ws && ../$(BIN)/colcon --log-base log build --base-paths src \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
+	# Compile the engine's cycle (numba, cached next to each copy of the sources: the
+	# install space's and the editable one) now, not in the first node to start.
+	for path in ros_ws/install/ft_core/lib/python*/site-packages ""; do \
+		PYTHONPATH=$$path $(BIN)/python -c "$(WARM_UP)" || exit 1; done
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -6,7 +6,8 @@ velocities. pink (pin-pink, DAQP) solves a frame task on `panda_hand_tcp` plus a
 posture task, with its default configuration and velocity limits; its timed
 cycle includes building `pink.Configuration` (forward kinematics and Jacobians),
 as ours includes computing J (and dJ). Each figure is the median and 99th
-percentile over repeated passes after a warm-up pass.
+percentile over repeated passes after a warm-up pass, the candidates' passes
+interleaved.
 
 Writes `<out>/engine_cycle.md` (a Markdown table) and `<out>/engine_cycle.json`
 (every figure with the machine's description).
@@ -42,21 +43,25 @@ def workload(count: int, seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]
     return qs, xds
 
 
-def time_calls(call: Callable[[int], object], count: int, repeats: int) -> np.ndarray:
-    """Seconds per call, for `repeats` passes over the workload after one warm-up pass."""
-    for i in range(count):
-        call(i)
-    samples = []
-    for _ in range(repeats):
-        for i in range(count):
-            start = time.perf_counter()
-            call(i)
-            samples.append(time.perf_counter() - start)
-    return np.array(samples)
+def time_calls(calls: dict[str, Callable[[int], object]], count: int,
+               repeats: int) -> dict[str, np.ndarray]:
+    """Seconds per call of each candidate, over `repeats` passes after a warm-up pass.
+
+    The passes are interleaved (every candidate once per pass, in turn), so a slow
+    spell of a noisy machine falls on all of them alike.
+    """
+    samples: dict[str, list[float]] = {name: [] for name in calls}
+    for repeat in range(repeats + 1):
+        for name, call in calls.items():
+            for i in range(count):
+                start = time.perf_counter()
+                call(i)
+                if repeat:
+                    samples[name].append(time.perf_counter() - start)
+    return {name: np.array(values) for name, values in samples.items()}
 
 
 def engine_call(mode: str, qs: list, xds: list) -> Callable[[int], object]:
-    """One engine cycle per workload entry."""
     """One engine cycle per workload entry."""
     engine = ResolutionEngine(robots.load("panda"), EngineConfig(resolution=mode))
     return lambda i: engine.step(qs[i], xds[i])
@@ -109,8 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     calls = {f"ft engine {mode}": engine_call(mode, qs, xds) for mode in RESOLUTIONS}
     calls["pink (frame + posture, DAQP)"] = pink_call(qs, xds)
     results = {}
-    for name, call in calls.items():
-        seconds = time_calls(call, args.configurations, args.repeats)
+    for name, seconds in time_calls(calls, args.configurations, args.repeats).items():
         results[name] = {"median_us": float(np.median(seconds) * 1e6),
                          "p99_us": float(np.percentile(seconds, 99) * 1e6),
                          "samples": int(seconds.size)}

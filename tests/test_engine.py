@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import limits, resolution, robots
+from ft_core import limits, measures, resolution, robots
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
 from ft_core.pseudoinverse import Damping, damped_pinv
 from hypothesis import given, settings
@@ -270,3 +270,41 @@ def test_panda_trajectory_max_kfm_and_min_jump_beat_least_norm() -> None:
     assert runs["max_kfm"]["kfm"] > 1.5 * runs["least_norm"]["kfm"]
     assert runs["min_jump"]["excess"] <= 1e-12
     assert runs["min_jump"]["jump"] < runs["least_norm"]["jump"]
+
+
+@pytest.mark.parametrize(("robot", "locked"), [(ROBOTS["panda"], ()), (PANDA_POSITION, (2,))])
+def test_compiled_cycle_equals_the_svd_reference_composition(robot: robots.Robot,
+                                                           locked: tuple[int, ...]) -> None:
+    """The blend cycle's qd, sigmas and jump index against `measures` and `resolution` (SVD based).
+
+    Configurations 0.3 rad inside the limits (no avoidance) and a modest gain, so no
+    bound is active and the cycle is the plain formula: qd = J# x + (I - J# J) z with
+    z = kfm_gain grad K + jump_gain sum_i w_i iqd'.
+    """
+    config = EngineConfig(resolution="blend", kfm_gain=2.0)
+    engine, rng, checked = ResolutionEngine(robot, config), np.random.default_rng(11), 0
+    healthy = np.setdiff1d(np.arange(robot.n), locked)
+    for _ in range(30):
+        q = robot.random_configuration(rng, margin=0.3)
+        xd = rng.normal(scale=0.05, size=robot.m)
+        result = engine.step(q, xd, locked)
+        J, dJ = robot.jacobian_and_derivatives(q)
+        J = robot.scale_task(J)[:, healthy]
+        dJ = robot.scale_task(dJ)[np.ix_(healthy, np.arange(robot.m), healthy)]
+        x = robot.task_scale * xd
+        weights = np.full(healthy.size, 1.0 / healthy.size)
+        reduced = resolution.reduced_velocities(J, x, config.damping)
+        z = (config.kfm_gain * measures.kfm_gradient(J, dJ, temperature=config.kfm_temperature)
+             + config.jump_gain * weights @ reduced)
+        pinv = damped_pinv(J, config.damping)
+        qd = pinv @ x + z - pinv @ (J @ z)
+        if result.status != "ok":
+            continue  # a bound or the damping is active: not the plain formula
+        checked += 1
+        np.testing.assert_allclose(result.qd[healthy], qd, atol=1e-7)
+        assert np.all(result.qd[list(locked)] == 0.0)
+        np.testing.assert_allclose(result.post_failure_sigmas[healthy],
+                                   measures.post_failure_sigmas(J), atol=1e-7)
+        assert result.jump_index == pytest.approx(
+            resolution.jump_index(J, qd, x, damping=config.damping), rel=1e-6)
+    assert checked >= 20

@@ -356,7 +356,9 @@ class Robot:
         q = self._check(q)
         J = pin.computeFrameJacobian(self._model, self._data, q, self._tip,
                                      pin.LOCAL_WORLD_ALIGNED)
-        return J[self._rows] if self._base_aligned else (self._rotate @ J)[self._rows]
+        if not self._base_aligned:
+            J = self._rotate @ J
+        return np.ascontiguousarray(J[self._rows])  # one memory layout for the compiled cycle
 
     def jacobian_derivatives(self, q: np.ndarray) -> np.ndarray:
         """dJ/dq_k for every joint k, shape (n, m, n) (see `jacobian_and_derivatives`)."""
