@@ -25,6 +25,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +89,7 @@ def percentiles(samples: list[float] | np.ndarray, scale: float = 1e3) -> dict[s
             "samples": int(values.size)} if values.size else {"samples": 0}
 
 
-EXECUTORS = {"SingleThreadedExecutor": SingleThreadedExecutor, "EventsExecutor": EventsExecutor}
+EXECUTORS = {"EventsExecutor": EventsExecutor, "SingleThreadedExecutor": SingleThreadedExecutor}
 
 
 def one_process(seconds: float, executor_name: str) -> dict:
@@ -220,21 +221,21 @@ def main(argv: list[str] | None = None) -> int:
     b = separate_processes(min(args.seconds, 30.0), max(args.memory_seconds, args.seconds))
     c = detection()
     info = machine()
-    single, events = a["SingleThreadedExecutor"], a["EventsExecutor"]
+    runs = list(a.values())
+
+    def row(label: str, figure: Callable[[dict], str]) -> str:
+        return f"| {label} | " + " | ".join(figure(run) for run in runs) + " |"
+
     lines = [
-        f"| nodes at {RATE:.0f} Hz, one process, {single['seconds']:.0f} s | "
-        "SingleThreadedExecutor | EventsExecutor |", "|---|---:|---:|",
-        f"| achieved controller rate (Hz) | {single['achieved_rate_hz']:.1f} | "
-        f"{events['achieved_rate_hz']:.1f} |",
-        f"| missed cycles (the loop's own accounting) | {single['missed_cycles']} | "
-        f"{events['missed_cycles']} |",
-        f"| cycle compute p50 / p99 (ms) | {single['cycle_compute_ms']['p50']:.3f} / "
-        f"{single['cycle_compute_ms']['p99']:.3f} | {events['cycle_compute_ms']['p50']:.3f} / "
-        f"{events['cycle_compute_ms']['p99']:.3f} |",
-        f"| joint_states to ft/command p50 / p99 (ms) | "
-        f"{single['state_to_command_ms']['p50']:.2f} / {single['state_to_command_ms']['p99']:.2f}"
-        f" | {events['state_to_command_ms']['p50']:.2f} / "
-        f"{events['state_to_command_ms']['p99']:.2f} |",
+        f"| nodes at {RATE:.0f} Hz, one process, {runs[0]['seconds']:.0f} s | "
+        + " | ".join(a) + " |", "|---|" + "---:|" * len(a),
+        row("achieved controller rate (Hz)", lambda r: f"{r['achieved_rate_hz']:.1f}"),
+        row("missed cycles (the loop's own accounting)", lambda r: f"{r['missed_cycles']}"),
+        row("cycle compute p50 / p99 (ms)", lambda r: f"{r['cycle_compute_ms']['p50']:.3f} / "
+            f"{r['cycle_compute_ms']['p99']:.3f}"),
+        row("joint_states to ft/command p50 / p99 (ms)",
+            lambda r: f"{r['state_to_command_ms']['p50']:.2f} / "
+            f"{r['state_to_command_ms']['p99']:.2f}"),
         "",
         "| separate processes, detection | value |", "|---|---:|",
         f"| joint_states to ft/command, separate processes, p50 / p99 | "
