@@ -6,10 +6,11 @@ Modules:
     design: optimally fault tolerant null vectors and isotropic Jacobians.
     parallel: failure-tolerance measures of parallel manipulators (seed 003).
     pseudoinverse: damped pseudo-inverse acting only near singularities.
-    postfailure: post-failure quantities from J J^T and its rank-one downdates (fast path).
+    postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
     resolution: minimum joint-velocity jump (seed 004).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
-    engine: one control cycle of fault-tolerant redundancy resolution.
+    engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
+    checks: input checks of the per-cycle path (compiled).
     targets: task velocities from pose goals and twists.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
     bounds: the `ft-bounds` command line.
