@@ -136,10 +136,7 @@ class ControllerNode(SuiteNode):
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
-            robot = robots.load(spec, self.param("base_link") or None,
-                                self.param("tip_link") or None,
-                                self.param("task_space") or None,
-                                self.param("characteristic_length") or None)
+            robot = robots.load(spec, *parameters.chain_arguments(self))
             order = self._command_order(robot, list(self.param("joints") or []))
             engine = ResolutionEngine(robot, self._engine_config(robot, order, {}))
         except (RobotModelError, ValueError) as error:

@@ -121,10 +121,7 @@ class MonitorNode(SuiteNode):
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
-            robot = robots.load(spec, self.param("base_link") or None,
-                                self.param("tip_link") or None,
-                                self.param("task_space") or None,
-                                self.param("characteristic_length") or None)
+            robot = robots.load(spec, *parameters.chain_arguments(self))
             joints = [str(j) for j in self.param("joints") or robot.joint_names]
             if sorted(joints) != sorted(robot.joint_names):
                 raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")

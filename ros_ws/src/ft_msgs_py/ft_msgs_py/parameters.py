@@ -62,3 +62,12 @@ def request_model(node: Node, use: Callable[[str, str], None]) -> None:
         node.create_subscription(String, names.ROBOT_DESCRIPTION,
                                  lambda msg: use(msg.data, "the robot_description topic"),
                                  qos.LATCHED)
+
+
+def chain_arguments(node: Node) -> tuple[str | None, str | None, str | None, float | None]:
+    """(base_link, tip_link, task_space, characteristic_length) for `ft_core.robots.load`.
+
+    Each is None where the parameter holds its "use the model's own" value.
+    """
+    return tuple(node.get_parameter(name).value or None for name in
+                 ("base_link", "tip_link", "task_space", "characteristic_length"))
