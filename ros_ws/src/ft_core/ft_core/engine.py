@@ -152,7 +152,7 @@ class _LockedSet:
 @njit(cache=True)
 def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
                 weights: np.ndarray) -> float:
-    """N sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2): the weighted jump index (seed 004 eq 9)."""
+    """The weighted jump index n sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2, seed 004 eq 9)."""
     n = qd.size
     total = 0.0
     for i in range(n):

@@ -59,7 +59,7 @@ _SUPPORTED = _MOVABLE | {"fixed"}
 
 @njit(cache=True)
 def _cross(a: np.ndarray | tuple, b: np.ndarray | tuple) -> tuple[float, float, float]:
-    """A x b of two 3-vectors, as a tuple (no allocation in compiled code)."""
+    """The cross product a x b of two 3-vectors, as a tuple (no allocation when compiled)."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
