@@ -23,16 +23,16 @@ def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
     J, dJ = robot.jacobian_and_derivatives(q)
     J, dJ = robot.scale_task(J), robot.scale_task(dJ)
     xd = rng.normal(size=robot.m)
-    L, V, sigmas, vectors = postfailure.analyse(J)
+    L, V, columns, sigmas, vectors = postfailure.analyse(J)
     # Squaring J costs precision near zero: about sqrt(eps) * sigma_max (module docstring).
     np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), atol=1e-7)
     assert postfailure.smallest_singular_value(L) == pytest.approx(
         np.linalg.svd(J, compute_uv=False)[-1], abs=1e-7)
-    np.testing.assert_allclose(postfailure.damped_inverse(J, L, V, *DAMPING_ARGS),
+    np.testing.assert_allclose(postfailure.damped_inverse(columns, L, V, *DAMPING_ARGS),
                                damped_pinv(J, DAMPING), atol=1e-8)
     scale = 1 + np.abs(reduced_velocities(J, xd, DAMPING)).max()
     np.testing.assert_allclose(
-        postfailure.reduced_velocities(J, xd, L, V, sigmas, *DAMPING_ARGS),
+        postfailure.reduced_velocities(columns, xd, L, V, sigmas, *DAMPING_ARGS),
         reduced_velocities(J, xd, DAMPING), atol=1e-9 * scale)
     reference, grads = measures.post_failure_sigma_gradients(J, dJ)
     clear = reference > 1e-5  # gradients of singular values near 0 are ill-conditioned
@@ -42,10 +42,10 @@ def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
 
 def test_exactly_singular_post_failure_jacobians_stay_finite() -> None:
     J = np.array([[1.0, 0, 0, 0], [0, 1, 0, 1], [0, 0, 1, 1]])  # joint 0 carries a task row
-    L, V, sigmas, vectors = postfailure.analyse(J)
+    L, V, columns, sigmas, vectors = postfailure.analyse(J)
     assert sigmas[0] == pytest.approx(0.0, abs=1e-8)
     np.testing.assert_allclose(sigmas[1:], measures.post_failure_sigmas(J)[1:], atol=1e-12)
-    reduced = postfailure.reduced_velocities(J, np.array([1.0, 0.5, 0.2]), L, V, sigmas,
+    reduced = postfailure.reduced_velocities(columns, np.array([1.0, 0.5, 0.2]), L, V, sigmas,
                                              *DAMPING_ARGS)
     assert np.all(np.isfinite(reduced))
     gradients = postfailure.sigma_gradients(J, np.zeros((4, 3, 4)), sigmas, vectors)
@@ -57,7 +57,7 @@ def test_repeated_eigenvalues_and_zero_columns_need_no_special_case() -> None:
     plain = np.hstack([np.eye(3), np.zeros((3, 1))])
     mixed = np.hstack([np.eye(3), np.array([[0.0], [0.6], [0.8]]), np.zeros((3, 1))])
     for J in (plain, mixed):
-        _, _, sigmas, vectors = postfailure.analyse(J)
+        _, _, _, sigmas, vectors = postfailure.analyse(J)
         np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), atol=1e-12)
         for i in range(J.shape[1]):  # u_i is a unit left singular vector of iJ for s_i
             u = vectors[i]
@@ -71,8 +71,8 @@ def test_the_secular_equation_converges_within_its_step_budget() -> None:
     rng = np.random.default_rng(3)
     for _ in range(200):
         J = rng.normal(size=(6, 7)) * rng.uniform(0.01, 1.0, size=(6, 1))
-        eigenvalues, eigenvectors, _, _ = postfailure.analyse(J)
+        eigenvalues, _, columns, _, _ = postfailure.analyse(J)
         d = eigenvalues - eigenvalues[0]
-        for column in J.T @ eigenvectors:
+        for column in columns:
             _, steps = postfailure.downdate_root(column, d)
             assert steps < postfailure.MAX_NEWTON_STEPS // 2

@@ -187,11 +187,12 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
             Js[a, j] = task_scale[a] * J[a, healthy[j]]
     x = task_scale * xd
     qh = q[healthy]
-    L, V, sigmas, vectors = postfailure.analyse(Js)
+    L, V, columns, sigmas, vectors = postfailure.analyse(Js)
     z = limit_gain * limits.avoidance(qh, lower, upper, buffer)
     reduced = np.zeros((0, 0))
     if nh > m:
-        reduced = postfailure.reduced_velocities(Js, x, L, V, sigmas, threshold, max_damping)
+        reduced = postfailure.reduced_velocities(columns, x, L, V, sigmas, threshold,
+                                                     max_damping)
         if use_jump:
             z += jump_gain * (weights @ reduced)
         if use_kfm:
@@ -204,7 +205,7 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
             ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
             z += kfm_gain * (ascent @ grads)
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
-    pinv = postfailure.damped_inverse(Js, L, V, threshold, max_damping)
+    pinv = postfailure.damped_inverse(columns, L, V, threshold, max_damping)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
     qd = task + null_motion

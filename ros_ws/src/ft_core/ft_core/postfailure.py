@@ -73,12 +73,14 @@ def downdate_root(c: np.ndarray, d: np.ndarray) -> tuple[float, int]:
 
 
 @njit(cache=True)
-def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                    np.ndarray]:
     """Decompose A = J J^T and every downdate A - j_i j_i^T of an m x n J (m <= n).
 
-    Returns (L, V, sigmas, vectors): eigenvalues (m,) ascending and eigenvectors
-    (m, m) of A; s_i = sigma_m(iJ) (n,); u_i, the left singular vector of s_i, as
-    row i of vectors (n, m).
+    Returns (L, V, columns, sigmas, vectors): eigenvalues (m,) ascending and
+    eigenvectors (m, m) of A; J's columns in that eigenbasis, J^T V (n, m), which
+    `damped_inverse` and `reduced_velocities` reuse; s_i = sigma_m(iJ) (n,); u_i, the
+    left singular vector of s_i, as row i of vectors (n, m).
     """
     m, n = J.shape
     L, V = np.linalg.eigh(gram(J))
@@ -103,7 +105,7 @@ def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
         for a in range(m):
             for k in range(m):
                 vectors[i, a] += V[a, k] * y[k] * scale
-    return L, V, sigmas, vectors
+    return L, V, columns, sigmas, vectors
 
 
 @njit(cache=True)
@@ -171,12 +173,11 @@ def sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
 
 
 @njit(cache=True)
-def damped_inverse(J: np.ndarray, L: np.ndarray, V: np.ndarray, threshold: float,
+def damped_inverse(columns: np.ndarray, L: np.ndarray, V: np.ndarray, threshold: float,
                    max_damping: float) -> np.ndarray:
-    """Damped pseudo-inverse of J itself (n, m): J^T (J J^T + lambda^2 I)^-1."""
-    m, n = J.shape
+    """Damped pseudo-inverse of J itself (n, m): J^T (J J^T + lambda^2 I)^-1 (`analyse`'s parts)."""
+    n, m = columns.shape
     lam2 = squared_damping(smallest_singular_value(L), threshold, max_damping)
-    columns = in_eigenbasis(J, V)
     inverse = np.zeros((n, m))
     for i in range(n):
         for k in range(m):
@@ -187,11 +188,13 @@ def damped_inverse(J: np.ndarray, L: np.ndarray, V: np.ndarray, threshold: float
 
 
 @njit(cache=True)
-def reduced_velocities(J: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
+def reduced_velocities(columns: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
                        sigmas: np.ndarray, threshold: float, max_damping: float) -> np.ndarray:
-    """Row i: iqd' = (iJ)# xd with the damped inverse of iJ, 0 at joint i (n, n)."""
-    m, n = J.shape
-    columns = in_eigenbasis(J, V)
+    """Row i: iqd' = (iJ)# xd with the damped inverse of iJ, 0 at joint i (n, n).
+
+    columns, L, V and sigmas are `analyse`'s.
+    """
+    n, m = columns.shape
     xv = np.zeros(m)
     for k in range(m):
         for a in range(m):
