@@ -37,6 +37,7 @@ from ft_core.detection import LockDetector
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import qos
 from ft_msgs_py.loop import LoopAccounting
+from ft_msgs_py.spin import settle_heap
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
 from rclpy.context import Context
@@ -105,6 +106,7 @@ def one_process(seconds: float, executor_name: str) -> dict:
     probe = Probe(context)
     for node in (sim, controller, monitor, probe.node):
         executor.add_node(node)
+    settle_heap()  # as `run_node` does for the executables
     warm_up = time.monotonic() + 2.0
     while time.monotonic() < warm_up:
         executor.spin_once(timeout_sec=0.01)
