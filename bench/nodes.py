@@ -4,9 +4,13 @@ A. One process (one executor): sim at 500 Hz, controller at 500 Hz (`blend`,
    Panda position task) and monitor, with a probe streaming a twist target. The
    controller's own loop accounting gives the achieved rate, the compute time per
    cycle and missed cycles; the probe measures the latency from receiving a
-   `joint_states` message to receiving the next `ft/command`. Run twice: with
-   rclpy's EventsExecutor (`rclpy.experimental`, what the executables use) and with
-   its SingleThreadedExecutor.
+   `joint_states` message to receiving the next `ft/command`. With rclpy's
+   EventsExecutor (`rclpy.experimental`, what the executables use) and with its
+   SingleThreadedExecutor. The reference, in turn with each run: a process holding
+   only a timer at the same rate with the same accounting and an empty cycle, i.e.
+   the missed cycles this machine, rclpy and the executor cause on their own.
+   `--repeats` runs of each (default 3); medians over the runs, percentiles over
+   all their cycles.
 B. Separate processes (`ft-sim`, `ft-controller`, `ft-monitor`): the same latency,
    and each process's resident set size after a warm-up and at the end of the run.
 C. The monitor's detector alone: detection latency of locks while the joint is
@@ -25,7 +29,6 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -91,29 +94,87 @@ def percentiles(samples: list[float] | np.ndarray, scale: float = 1e3) -> dict[s
 
 
 EXECUTORS = {"EventsExecutor": EventsExecutor, "SingleThreadedExecutor": SingleThreadedExecutor}
+#: Part A's kinds of run: (executor, the whole stack?); no executor is the plain sleep loop.
+KINDS = {
+    "sim + controller + monitor, EventsExecutor": ("EventsExecutor", True),
+    "sim + controller + monitor, SingleThreadedExecutor": ("SingleThreadedExecutor", True),
+    "reference: an empty rclpy timer alone, EventsExecutor": ("EventsExecutor", False),
+    "reference: a Python loop sleeping to each deadline, no ROS": (None, False),
+}
 
 
-def one_process(seconds: float, executor_name: str) -> dict:
-    """Part A with the named executor."""
+class EmptyLoop:
+    """A node whose timer at the control rate only does the loop's accounting."""
+
+    def __init__(self, context: Context):
+        self.node = rclpy.create_node("empty_loop", context=context)
+        self.accounting = LoopAccounting(1.0 / RATE)
+        self.node.create_timer(1.0 / RATE, self._cycle)
+
+    def _cycle(self) -> None:
+        self.accounting.start()
+        self.accounting.end()
+
+
+def sleep_loop(seconds: float) -> dict:
+    """The machine alone: sleep to each deadline of the schedule, then account the cycle.
+
+    Like rcl's timer, a deadline already passed by a whole period is skipped.
+    """
+    period = 1.0 / RATE
+    accounting = LoopAccounting(period, window=int(RATE * seconds * 1.2) + 1)
+    start = time.perf_counter()
+    due = start + period
+    while due - start <= seconds:
+        now = time.perf_counter()
+        if due > now:
+            time.sleep(due - now)
+        else:
+            due += (now - due) // period * period
+        accounting.start()
+        accounting.end()
+        due += period
+    return {"seconds": time.perf_counter() - start,
+            "achieved_rate_hz": accounting.cycles / (time.perf_counter() - start),
+            "missed_cycles": accounting.missed, "compute_s": accounting.samples().tolist(),
+            "state_to_command_s": []}
+
+
+def one_process(seconds: float, executor_name: str | None, stack: bool) -> dict:
+    """One run of part A, timed by the loop's own accounting.
+
+    The whole stack, the empty timer alone, or (no executor) the sleep loop.
+    """
+    if executor_name is None:
+        return sleep_loop(seconds)
     context = Context()
     rclpy.init(context=context, domain_id=int(os.environ.get("FT_BENCH_DOMAIN", "61")))
     executor = EXECUTORS[executor_name](context=context)
-    params = [Parameter(k, value=v) for k, v in MODEL.items()]
-    sim = SimNode(context=context, parameter_overrides=[*params, Parameter("rate", value=RATE)])
-    controller = ControllerNode(context=context, parameter_overrides=[
-        *params, Parameter("control_rate", value=RATE), Parameter("resolution", value="blend")])
-    monitor = MonitorNode(context=context, parameter_overrides=params)
-    probe = Probe(context)
-    for node in (sim, controller, monitor, probe.node):
+    probe = None
+    if stack:
+        params = [Parameter(k, value=v) for k, v in MODEL.items()]
+        sim = SimNode(context=context,
+                      parameter_overrides=[*params, Parameter("rate", value=RATE)])
+        loop = ControllerNode(context=context, parameter_overrides=[
+            *params, Parameter("control_rate", value=RATE),
+            Parameter("resolution", value="blend")])
+        monitor = MonitorNode(context=context, parameter_overrides=params)
+        probe = Probe(context)
+        nodes = [sim, loop, monitor, probe.node]
+    else:
+        loop = EmptyLoop(context)
+        nodes = [loop.node]
+    for node in nodes:
         executor.add_node(node)
     settle_heap()  # as `run_node` does for the executables
     warm_up = time.monotonic() + 2.0
     while time.monotonic() < warm_up:
         executor.spin_once(timeout_sec=0.01)
     # Fresh accounting for the timed run, holding every cycle's compute time.
-    accounting = controller.accounting = LoopAccounting(1.0 / RATE,
-                                                        window=int(RATE * seconds * 1.2) + 1)
-    probe.latencies.clear()
+    accounting = loop.accounting = LoopAccounting(1.0 / RATE,
+                                                  window=int(RATE * seconds * 1.2) + 1)
+    if probe is not None:
+        probe.latencies.clear()
     start = time.monotonic()
     while time.monotonic() - start < seconds:
         executor.spin_once(timeout_sec=0.01)
@@ -122,12 +183,40 @@ def one_process(seconds: float, executor_name: str) -> dict:
         "seconds": elapsed,
         "achieved_rate_hz": accounting.cycles / elapsed,
         "missed_cycles": accounting.missed,
-        "cycle_compute_ms": percentiles(accounting.samples()),
-        "state_to_command_ms": percentiles(probe.latencies),
+        "compute_s": accounting.samples().tolist(),
+        "state_to_command_s": list(probe.latencies) if probe is not None else [],
     }
     executor.shutdown()
     rclpy.shutdown(context=context)
     return result
+
+
+def summary(runs: list[dict]) -> dict:
+    """Repeated runs of one kind.
+
+    Medians of the rate and of the missed cycles (with their range); percentiles over
+    the cycles of all runs.
+    """
+    missed = [run["missed_cycles"] for run in runs]
+    return {
+        "runs": len(runs),
+        "seconds": float(np.median([run["seconds"] for run in runs])),
+        "achieved_rate_hz": float(np.median([run["achieved_rate_hz"] for run in runs])),
+        "missed_cycles": float(np.median(missed)),
+        "missed_cycles_per_run": missed,
+        "cycle_compute_ms": percentiles([t for run in runs for t in run["compute_s"]]),
+        "state_to_command_ms": percentiles([t for run in runs
+                                            for t in run["state_to_command_s"]]),
+    }
+
+
+def part_a(seconds: float, repeats: int) -> dict:
+    """Part A: every kind in turn, repeated (interleaved, so all see the same machine)."""
+    runs: dict[str, list[dict]] = {kind: [] for kind in KINDS}
+    for _ in range(repeats):
+        for kind, (executor_name, stack) in KINDS.items():
+            runs[kind].append(one_process(seconds, executor_name, stack))
+    return {kind: summary(kind_runs) for kind, kind_runs in runs.items()}
 
 
 def rss_kib(pid: int) -> int:
@@ -218,26 +307,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=60.0, help="part A and B's timing run")
     parser.add_argument("--memory-seconds", type=float, default=600.0,
                         help="part B's run before the final memory reading")
+    parser.add_argument("--repeats", type=int, default=3, help="part A's runs of each kind")
     args = parser.parse_args(argv)
-    a = {name: one_process(args.seconds, name) for name in EXECUTORS}
+    a = part_a(args.seconds, args.repeats)
     b = separate_processes(min(args.seconds, 30.0), max(args.memory_seconds, args.seconds))
     c = detection()
     info = machine()
-    runs = list(a.values())
+    def pair(figures: dict, digits: int) -> str:
+        return (f"{figures['p50']:.{digits}f} / {figures['p99']:.{digits}f}"
+                if figures["samples"] else "-")
 
-    def row(label: str, figure: Callable[[dict], str]) -> str:
-        return f"| {label} | " + " | ".join(figure(run) for run in runs) + " |"
-
+    seconds = next(iter(a.values()))["seconds"]
     lines = [
-        f"| nodes at {RATE:.0f} Hz, one process, {runs[0]['seconds']:.0f} s | "
-        + " | ".join(a) + " |", "|---|" + "---:|" * len(a),
-        row("achieved controller rate (Hz)", lambda r: f"{r['achieved_rate_hz']:.1f}"),
-        row("missed cycles (the loop's own accounting)", lambda r: f"{r['missed_cycles']}"),
-        row("cycle compute p50 / p99 (ms)", lambda r: f"{r['cycle_compute_ms']['p50']:.3f} / "
-            f"{r['cycle_compute_ms']['p99']:.3f}"),
-        row("joint_states to ft/command p50 / p99 (ms)",
-            lambda r: f"{r['state_to_command_ms']['p50']:.2f} / "
-            f"{r['state_to_command_ms']['p99']:.2f}"),
+        f"| one process at {RATE:.0f} Hz, {args.repeats} x {seconds:.0f} s | rate (Hz) | "
+        "missed cycles per run: median (range) | cycle compute p50 / p99 (ms) | "
+        "joint_states to ft/command p50 / p99 (ms) |", "|---|---:|---:|---:|---:|",
+        *(f"| {kind} | {r['achieved_rate_hz']:.1f} | {r['missed_cycles']:.0f} "
+          f"({min(r['missed_cycles_per_run'])}-{max(r['missed_cycles_per_run'])}) | "
+          f"{pair(r['cycle_compute_ms'], 3)} | {pair(r['state_to_command_ms'], 2)} |"
+          for kind, r in a.items()),
         "",
         "| separate processes, detection | value |", "|---|---:|",
         f"| joint_states to ft/command, separate processes, p50 / p99 | "

@@ -40,11 +40,14 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN": session, "FT_BENCH_DOMAIN_PROCESSES": session}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "nodes.py"), "--out", str(tmp_path),
-         "--seconds", "2", "--memory-seconds", "2"],
+         "--seconds", "2", "--memory-seconds", "2", "--repeats", "1"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads((tmp_path / "nodes.json").read_text())
-    assert all(run["achieved_rate_hz"] > 0 for run in figures["one_process"].values())
+    runs = figures["one_process"]
+    assert len(runs) == 4 and all(r["achieved_rate_hz"] > 0 and r["runs"] == 1
+                                  for r in runs.values())
+    assert runs["sim + controller + monitor, EventsExecutor"]["state_to_command_ms"]["samples"]
     assert set(figures["separate_processes"]["rss_kib_at_end"]) == {"sim", "controller",
                                                                     "monitor"}
     assert figures["detection"]["0.2 rad/s"]["detected"] > 0
