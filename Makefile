@@ -43,7 +43,7 @@ test: build lint
 demo: $(STAMP)
 	$(BIN)/ft-demo
 
-# Speed figures (not asserted in tests): writes bench_out/*.md and *.json; about 25 minutes
+# Speed figures (not asserted in tests): writes bench_out/*.md and *.json; about 30 minutes
 # (the fault campaign, and the nodes' 10-minute memory run).
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
