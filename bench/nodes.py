@@ -6,9 +6,10 @@ A. One process (one executor): sim at 500 Hz, controller at 500 Hz (`blend`,
    cycle and missed cycles; the probe measures the latency from receiving a
    `joint_states` message to receiving the next `ft/command`. With rclpy's
    EventsExecutor (`rclpy.experimental`, what the executables use) and with its
-   SingleThreadedExecutor. The reference, in turn with each run: a process holding
-   only a timer at the same rate with the same accounting and an empty cycle, i.e.
-   the missed cycles this machine, rclpy and the executor cause on their own.
+   SingleThreadedExecutor. Two references run in turn with them, timed by the same
+   accounting: an rclpy timer at the same rate with an empty callback, alone in its
+   process (what rclpy and the machine miss on their own), and a plain Python loop
+   sleeping to each deadline, no ROS (what the machine misses on its own).
    `--repeats` runs of each (default 3); medians over the runs, percentiles over
    all their cycles.
 B. Separate processes (`ft-sim`, `ft-controller`, `ft-monitor`): the same latency,
@@ -134,8 +135,8 @@ def sleep_loop(seconds: float) -> dict:
         accounting.start()
         accounting.end()
         due += period
-    return {"seconds": time.perf_counter() - start,
-            "achieved_rate_hz": accounting.cycles / (time.perf_counter() - start),
+    elapsed = time.perf_counter() - start
+    return {"seconds": elapsed, "achieved_rate_hz": accounting.cycles / elapsed,
             "missed_cycles": accounting.missed, "compute_s": accounting.samples().tolist(),
             "state_to_command_s": []}
 
