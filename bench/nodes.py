@@ -45,7 +45,7 @@ from ft_msgs_py.spin import settle_heap
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -92,6 +92,14 @@ def percentiles(samples: list[float] | np.ndarray, scale: float = 1e3) -> dict[s
     values = np.asarray(samples) * scale
     return {"p50": float(np.percentile(values, 50)), "p99": float(np.percentile(values, 99)),
             "samples": int(values.size)} if values.size else {"samples": 0}
+
+
+def spin_for(executor: Executor, seconds: float) -> float:
+    """Spin `executor` for `seconds` of wall clock; returns the time actually spun (s)."""
+    start = time.monotonic()
+    while time.monotonic() - start < seconds:
+        executor.spin_once(timeout_sec=0.01)
+    return time.monotonic() - start
 
 
 EXECUTORS = {"EventsExecutor": EventsExecutor, "SingleThreadedExecutor": SingleThreadedExecutor}
@@ -168,18 +176,13 @@ def one_process(seconds: float, executor_name: str | None, stack: bool) -> dict:
     for node in nodes:
         executor.add_node(node)
     settle_heap()  # as `run_node` does for the executables
-    warm_up = time.monotonic() + 2.0
-    while time.monotonic() < warm_up:
-        executor.spin_once(timeout_sec=0.01)
+    spin_for(executor, 2.0)  # warm-up
     # Fresh accounting for the timed run, holding every cycle's compute time.
     accounting = loop.accounting = LoopAccounting(1.0 / RATE,
                                                   window=int(RATE * seconds * 1.2) + 1)
     if probe is not None:
         probe.latencies.clear()
-    start = time.monotonic()
-    while time.monotonic() - start < seconds:
-        executor.spin_once(timeout_sec=0.01)
-    elapsed = time.monotonic() - start
+    elapsed = spin_for(executor, seconds)
     result = {
         "seconds": elapsed,
         "achieved_rate_hz": accounting.cycles / elapsed,
@@ -249,16 +252,12 @@ def separate_processes(seconds: float, memory_seconds: float) -> dict:
     probe = Probe(context)
     executor.add_node(probe.node)
     try:
-        start = time.monotonic()
-        while time.monotonic() - start < 10.0:  # discovery and warm-up
-            executor.spin_once(timeout_sec=0.01)
+        spin_for(executor, 10.0)  # discovery and warm-up
         rss_start = {name: rss_kib(p.pid) for name, p in processes.items()}
         probe.latencies.clear()
-        while time.monotonic() - start < 10.0 + seconds:
-            executor.spin_once(timeout_sec=0.01)
+        spin_for(executor, seconds)
         latencies = list(probe.latencies)
-        while time.monotonic() - start < 10.0 + memory_seconds:
-            executor.spin_once(timeout_sec=0.05)
+        spin_for(executor, memory_seconds - seconds)
         rss_end = {name: rss_kib(p.pid) for name, p in processes.items()}
     finally:
         for p in processes.values():
