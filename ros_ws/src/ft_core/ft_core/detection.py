@@ -1,36 +1,72 @@
-"""Locked-joint detection: commanded against measured motion (shared/MATH.md, Detection).
+"""Locked-joint detection against an identified model of the plant (shared/MATH.md, Detection).
 
-A locked joint does not move while commanded to. Measured velocities are noisy
-or missing on many drivers, so the detector compares displacements: over a
-sliding window of `window` seconds it fits a straight line to each joint's
-measured positions (least squares), whose slope v is the measured mean velocity,
-and compares it with the mean command c over the same window shifted back by the
-plant's `latency`. The slope's standard error s comes from the fit's residuals, so
-position noise is measured, not assumed.
+**Plant model.** A velocity command u(t) takes effect after a latency L and is
+followed through a first-order lag of time constant T (the driver's velocity loop):
+T v' = u(t - L) - v, from rest before the first command. Integrating,
+the predicted position is P(t) = U(t - L) - T y_T(t - L), with U the integral of the
+command and y_T the command filtered by the lag. Chosen over an acceleration limit
+because it is linear in the command: one pass over the commands serves every
+candidate model exactly, and a lag with the right T also bounds the transient of an
+acceleration-limited driver on the small command changes of closed-loop control.
 
-Per joint and update:
-- no decision when fewer than `min_samples` positions lie in the window, when the
-  data has a gap longer than half the window, or when the joint is unobservable:
-  |c| < `min_command`, or |c| < 2 `confidence` s (at that noise, moving as
-  commanded and not moving cannot be told apart);
-- lock evidence when v / c < `ratio` and |v - c| > `confidence` s;
-- evidence at a physical limit, with the command pushing into it, is a stall at the
-  limit (reported, never a lock);
-- a lock is declared once the evidence has held for `persistence` seconds, and
-  stays declared until `reset`.
+**Identification.** A bank of candidate models on a grid (L in 0..150 ms by 10 ms,
+T in {0, 10, 20, 35, 50, 75, 100, 150} ms; a `latency` or `response_time` given in
+the config replaces its grid by that one value). At every update in which the
+plant is seen following and the candidates disagree (a changing command), each
+model's squared error between the measured and predicted slopes of every moving
+joint is added to its score, with exponential forgetting (`memory` s): least
+squares over recent windows, shared by all joints. Until `min_excitation` s of
+such data have been seen (the prior), every model on the grid is plausible;
+afterwards the plausible set is every model whose score is at most twice the
+best's, widened by 10 ms of latency below and 20 ms above (transport jitter) and by
+one grid step of response time.
 
-A joint that is already locked (declared, or given with `lock`) is no longer
-examined. Times are seconds on one clock shared by commands and measurements.
+**Decision** (per joint, over a sliding `window` of measured positions): the
+measured velocity v is the least-squares slope of the positions; each plausible
+model's predicted velocity is the slope of its predicted positions at the same
+instants. The weakest prediction c (smallest magnitude; 0 when plausible models
+disagree in sign) is what the joint must at least have done. The slope's standard
+error s comes from the residuals of measured minus best-model positions, so noise
+and model error are measured, not assumed. A joint is
+- observable when |c| >= `min_command` and |c| >= 2 `confidence` s;
+- stalled when observable, v / c < `ratio` and |v - c| > `confidence` s;
+- following when observable and v / c >= `following_ratio`;
+- stalled at a physical limit, with the command pushing into it: reported, never a lock.
+
+**No decision without evidence.** Nothing is decided (and the reason is kept in
+`not_observing`) while the command stream has a gap longer than half a window,
+for a settling time after it resumes (window + the plausible set's largest latency
++ 3 x its largest response time), while measured positions are too few or have a
+gap longer than half a window, until the plant has been seen following commands
+for `follow_time` s (at start-up, after a command gap and after a plant fault), or
+while the caller says so (`measure(..., blind=reason)`).
+
+**A lock, not a plant fault.** A stalled joint's evidence counts only while at
+least one other commanded joint follows the model. When two or more joints stall
+and they outnumber those following, the plant as a whole is not following (a
+stopped driver, an emergency stop, a lost command path): `plant_fault` says so with
+the evidence and no lock is declared. Two genuine simultaneous locks on a 7-joint
+arm are both declared (two stalled, the others following); locks of more joints at
+once than keep following are reported as a plant fault, never as locks. A joint
+whose lock evidence holds for `persistence` s is declared locked and stays so
+until `reset`; a locked joint is no longer examined. Times are seconds on one clock
+shared by commands and measurements.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+
+#: Candidate latencies (s) and response times (s) of the identified plant model.
+LATENCY_GRID = np.round(np.arange(0.0, 0.1501, 0.01), 3)
+RESPONSE_TIME_GRID = np.array([0.0, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15])
+#: Widening of the plausible set: latency below and above (s), response-time grid steps.
+LATENCY_MARGIN = (0.01, 0.02)
+RESPONSE_STEPS = 1
 
 
 @dataclass(frozen=True)
@@ -39,33 +75,54 @@ class DetectorConfig:
 
     Attributes:
         window: sliding window (s), > 0.
-        min_command: smallest observable command (rad/s or m/s), >= 0.
-        latency: delay from a command to its effect on the measurements (s), >= 0.
+        min_command: smallest observable predicted velocity (rad/s or m/s), >= 0.
+        latency: plant latency (s) if known (fixes the model); None: identified.
+        response_time: plant response time (s) if known; None: identified.
         persistence: how long lock evidence must hold before a lock is declared (s).
-        ratio: measured over commanded velocity below which a joint looks locked, in (0, 1).
+        ratio: measured over predicted velocity below which a joint looks stalled, in (0, 1).
+        following_ratio: measured over predicted velocity from which a joint follows.
         confidence: separation in standard errors (z), > 0.
         min_samples: fewest positions in the window for a decision, >= 3.
         limit_margin: distance to a physical limit counting as "at the limit" (rad).
+        follow_time: s the plant must be seen following before decisions.
+        memory: s, forgetting time of the identification.
+        min_excitation: s of informative data before the identified set replaces the prior.
     """
 
     window: float = 0.08
     min_command: float = 0.05
-    latency: float = 0.0
-    persistence: float = 0.02
+    latency: float | None = None
+    response_time: float | None = None
+    persistence: float = 0.03
     ratio: float = 0.3
+    following_ratio: float = 0.7
     confidence: float = 5.0
     min_samples: int = 5
     limit_margin: float = 0.01
+    follow_time: float = 0.2
+    memory: float = 10.0
+    min_excitation: float = 0.5
 
     def __post_init__(self) -> None:
         checks = {"window": self.window > 0, "min_command": self.min_command >= 0,
-                  "latency": self.latency >= 0, "persistence": self.persistence >= 0,
-                  "ratio": 0 < self.ratio < 1, "confidence": self.confidence > 0,
-                  "min_samples": self.min_samples >= 3, "limit_margin": self.limit_margin >= 0}
+                  "persistence": self.persistence >= 0, "ratio": 0 < self.ratio < 1,
+                  "following_ratio": self.ratio <= self.following_ratio <= 1,
+                  "confidence": self.confidence > 0, "min_samples": self.min_samples >= 3,
+                  "limit_margin": self.limit_margin >= 0, "follow_time": self.follow_time >= 0,
+                  "memory": self.memory > 0, "min_excitation": self.min_excitation >= 0}
+        for name in ("latency", "response_time"):
+            value = getattr(self, name)
+            checks[name] = value is None or 0 <= value <= 1.0
         for name, ok in checks.items():
             value = getattr(self, name)
-            if not (ok and math.isfinite(value)):
+            if not ok or (value is not None and not math.isfinite(value)):
                 raise ValueError(f"detection {name} = {value} is out of range")
+
+    def grids(self) -> tuple[np.ndarray, np.ndarray]:
+        """(latencies, response times) of the candidate models (s)."""
+        return (LATENCY_GRID if self.latency is None else np.array([self.latency]),
+                RESPONSE_TIME_GRID if self.response_time is None
+                else np.array([self.response_time]))
 
 
 @dataclass
@@ -73,13 +130,105 @@ class JointEvidence:
     """What the detector saw of one joint at its last update."""
 
     observable: bool = False
-    measured: float = math.nan  #: slope of the measured positions (rad/s)
-    commanded: float = math.nan  #: mean command over the window (rad/s)
-    standard_error: float = math.nan  #: of the slope (rad/s)
+    following: bool = False
+    measured: float = 0.0  #: slope of the measured positions (rad/s)
+    commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
+    standard_error: float = 0.0  #: of the slope (rad/s)
     evidence_since: float | None = None  #: when the current lock evidence started (s)
     at_limit: bool = False  #: stalled at a physical limit
     locked_at: float | None = None  #: time the lock was declared (s)
-    position: float = math.nan  #: position when locked (rad)
+    position: float = 0.0  #: position when locked (rad)
+
+
+@dataclass(frozen=True)
+class PlantEstimate:
+    """The identified plant model: best values and the plausible ranges (s)."""
+
+    latency: float
+    response_time: float
+    latency_range: tuple[float, float]
+    response_time_range: tuple[float, float]
+    identified: bool  #: False: still the prior (every model on the grid)
+    excitation: float  #: s of informative data behind the estimate (with forgetting)
+
+
+class CommandHistory:
+    """Piecewise-constant commands, their running integral and their lagged versions.
+
+    Entry k holds the command u_k in force from time s_k, the integral U(s_k) (rad)
+    and, for each response time T, the lag's state y_T(s_k) (rad/s).
+    """
+
+    def __init__(self, n: int, response_times: np.ndarray, capacity: int = 256):
+        self.n, self.response_times = n, np.asarray(response_times, float)
+        self._rate = np.where(self.response_times > 0,
+                              1.0 / np.maximum(self.response_times, 1e-12), 1e12)
+        self.times = np.zeros(capacity)
+        self.values = np.zeros((capacity, n))
+        self.integrals = np.zeros((capacity, n))
+        self.lagged = np.zeros((capacity, self.response_times.size, n))
+        self.start = self.end = 0
+
+    def __len__(self) -> int:
+        return self.end - self.start
+
+    @property
+    def last_time(self) -> float:
+        """Start time (s) of the newest command; -inf before any."""
+        return float(self.times[self.end - 1]) if len(self) else -math.inf
+
+    def append(self, time: float, velocity: np.ndarray) -> None:
+        """The command in force from `time` on; earlier than the newest: ignored."""
+        if len(self) and time < self.last_time:
+            return
+        if self.end == self.times.size:
+            self._make_room()
+        k = self.end
+        if len(self):
+            h, u = time - self.times[k - 1], self.values[k - 1]
+            decay = np.exp(-h * self._rate)[:, None]
+            self.integrals[k] = self.integrals[k - 1] + h * u
+            self.lagged[k] = u + (self.lagged[k - 1] - u) * decay
+        else:
+            self.integrals[k] = 0.0
+            self.lagged[k] = 0.0
+        self.times[k], self.values[k] = time, velocity
+        self.end += 1
+
+    def _make_room(self) -> None:
+        size = len(self)
+        if size > self.times.size // 2:  # more than half in use: grow
+            for name in ("times", "values", "integrals", "lagged"):
+                old = getattr(self, name)
+                grown = np.zeros((2 * old.shape[0], *old.shape[1:]))
+                grown[:size] = old[self.start:self.end]
+                setattr(self, name, grown)
+        else:
+            for name in ("times", "values", "integrals", "lagged"):
+                array = getattr(self, name)
+                array[:size] = array[self.start:self.end].copy()
+        self.start, self.end = 0, size
+
+    def forget_before(self, time: float) -> None:
+        """Drop entries no longer needed for times >= `time` (the one in force stays)."""
+        times = self.times[self.start:self.end]
+        keep = int(np.searchsorted(times, time, side="right")) - 1
+        self.start += max(keep, 0)
+
+    def positions(self, times: np.ndarray) -> np.ndarray:
+        """Predicted displacement since the first command, (len(times), nT, n) (rad).
+
+        Row i is U(t_i) - T y_T(t_i) for each response time T: the plant at rest
+        before the first command. Each t_i is already shifted by its latency.
+        """
+        k = np.searchsorted(self.times[self.start:self.end], times, side="right") - 1
+        k = np.maximum(k, 0) + self.start
+        h = np.maximum(times - self.times[k], 0.0)
+        u = self.values[k]
+        integral = self.integrals[k] + h[:, None] * u
+        decay = np.exp(-np.outer(h, self._rate))[:, :, None]
+        lagged = u[:, None, :] + (self.lagged[k] - u[:, None, :]) * decay
+        return integral[:, None, :] - self.response_times[None, :, None] * lagged
 
 
 @dataclass
@@ -97,16 +246,39 @@ class LockDetector:
         self.reset()
 
     def reset(self) -> None:
-        """Forget every lock and all history (after a repair)."""
-        # Piecewise-constant commands: start times, values and the running integral of
-        # the command up to each start (rad), so a window's mean is one difference.
-        self._command_times: deque[float] = deque()
-        self._command_values: deque[np.ndarray] = deque()
-        self._command_integrals: deque[np.ndarray] = deque()
+        """Forget every lock and all history (after a repair or a new configuration)."""
+        self._latencies, self._response_times = self.config.grids()
+        models = np.array([(lat, rt) for lat in self._latencies for rt in self._response_times])
+        self._model_latency, self._model_response = models[:, 0], models[:, 1]
+        self.history = CommandHistory(self.n, self._response_times)
         self._times: deque[float] = deque()
         self._positions: deque[np.ndarray] = deque()
+        self._predicted: deque[np.ndarray] = deque()
+        self._scores = np.zeros(len(models))
+        self._weight = 0.0  # forgetting count of identification updates
+        self._excitation = 0.0  # s of informative data, with forgetting
+        self._last_identification = -math.inf
+        self._resumed_at = -math.inf  # when commands last resumed after a gap (or began)
+        self._seen_following = 0.0
+        self._last_update = -math.inf
+        self._plausible = np.ones(len(models), dtype=bool)
+        self.not_observing: str | None = "no command yet"
+        self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
 
+    def configure(self, config: DetectorConfig) -> None:
+        """New parameters; a change of the model grid restarts identification (locks kept)."""
+        old = self.config
+        self.config = config
+        if config.grids()[0].tolist() != old.grids()[0].tolist() or (
+                config.grids()[1].tolist() != old.grids()[1].tolist()):
+            locked = [(j, e.position, e.locked_at) for j, e in enumerate(self.joints)
+                      if e.locked_at is not None]
+            self.reset()
+            for j, position, time in locked:
+                self.lock(j, position, time)
+
+    # ----------------------------------------------------------------- state
     @property
     def latest_time(self) -> float:
         """Time (s) of the newest measurement; -inf before any."""
@@ -118,81 +290,146 @@ class LockDetector:
         return {i: e.position for i, e in enumerate(self.joints) if e.locked_at is not None}
 
     def lock(self, joint: int, position: float, time: float) -> None:
-        """Mark a joint locked now (a failure declared on purpose)."""
+        """Mark a joint locked (a failure declared on purpose, or restored from storage)."""
         evidence = self.joints[joint]
         if evidence.locked_at is None:
             evidence.locked_at, evidence.position = time, position
 
-    def command(self, time: float, velocity: np.ndarray) -> None:
-        """The velocity commanded to the plant from `time` on (rad/s)."""
-        times, values, integrals = (self._command_times, self._command_values,
-                                    self._command_integrals)
-        if times and time < times[-1]:
-            return  # out of order: ignored
-        integrals.append(integrals[-1] + (time - times[-1]) * values[-1] if times
-                         else np.zeros(self.n))
-        times.append(time)
-        values.append(np.asarray(velocity, dtype=float).copy())
-        horizon = time - 2 * self.config.window - self.config.latency
-        while len(times) > 1 and times[1] <= horizon:
-            times.popleft()
-            values.popleft()
-            integrals.popleft()
+    def fill_unknown_positions(self, position: np.ndarray) -> bool:
+        """Give locked joints of unknown position (nan) this measured one; True if any."""
+        filled = False
+        for j, evidence in enumerate(self.joints):
+            if evidence.locked_at is not None and not math.isfinite(evidence.position):
+                evidence.position, filled = float(position[j]), True
+        return filled
 
-    def measure(self, time: float, position: np.ndarray) -> list[int]:
-        """A measured configuration; returns the joints newly declared locked."""
+    def estimate(self) -> PlantEstimate:
+        """The identified plant model (the prior's ranges until identified)."""
+        best = int(np.argmin(self._scores)) if self._weight > 0 else 0
+        lat, rt = self._model_latency[self._plausible], self._model_response[self._plausible]
+        identified = self._excitation >= self.config.min_excitation and self._weight > 0
+        return PlantEstimate(
+            latency=float(self._model_latency[best]) if identified else math.nan,
+            response_time=float(self._model_response[best]) if identified else math.nan,
+            latency_range=(float(lat.min()), float(lat.max())),
+            response_time_range=(float(rt.min()), float(rt.max())),
+            identified=identified, excitation=self._excitation)
+
+    # ---------------------------------------------------------------- inputs
+    def command(self, time: float, velocity: np.ndarray) -> None:
+        """The velocity sent to the plant from `time` on (rad/s)."""
+        if len(self.history) and time < self.history.last_time:
+            return  # out of order: ignored
+        if time - self.history.last_time > self.config.window / 2:
+            self._resumed_at = time  # the first command, or the first after a gap
+            self._seen_following = 0.0
+        self.history.append(time, np.asarray(velocity, dtype=float))
+        self.history.forget_before(time - 2 * self.config.window - self._latencies.max())
+
+    def measure(self, time: float, position: np.ndarray, blind: str | None = None) -> list[int]:
+        """A measured configuration; returns the joints newly declared locked.
+
+        `blind` (a reason) forbids decisions and identification at this update.
+        """
         if self._times and time <= self._times[-1]:
             return []  # out of order or repeated: ignored
+        position = np.asarray(position, dtype=float)
         self._times.append(time)
-        self._positions.append(np.asarray(position, dtype=float).copy())
+        self._positions.append(position.copy())
+        self._predicted.append(self.history.positions(time - self._latencies).reshape(
+            -1, self.n))
         while self._times and self._times[0] < time - self.config.window:
             self._times.popleft()
             self._positions.popleft()
-        return self._update(time)
+            self._predicted.popleft()
+        dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
+        self._last_update = time
+        reason = blind or self._gap_reason(time)
+        self.not_observing = reason
+        if reason is not None:
+            self._clear_evidence()
+            return []
+        return self._update(time, dt)
 
-    def _integral(self, time: float) -> np.ndarray:
-        """Integral of the command up to `time` (rad), from the newest start at or before it."""
-        k = bisect.bisect_right(self._command_times, time) - 1
-        start, value = self._command_times[k], self._command_values[k]
-        return self._command_integrals[k] + (time - start) * value
+    # -------------------------------------------------------------- decisions
+    def _settling_time(self) -> float:
+        plausible = self._plausible
+        return (self.config.window + self._model_latency[plausible].max()
+                + 3 * self._model_response[plausible].max())
 
-    def _mean_command(self, start: float, end: float) -> np.ndarray | None:
-        """Time average of the piecewise-constant command over [start, end]."""
-        if not self._command_times or self._command_times[0] > start:
-            return None
-        return (self._integral(end) - self._integral(start)) / (end - start)
-
-    def _update(self, now: float) -> list[int]:
+    def _gap_reason(self, now: float) -> str | None:
         cfg = self.config
-        times = np.array(self._times)
-        if times.size < cfg.min_samples or np.max(np.diff(times), initial=0) > cfg.window / 2:
-            return []
-        if times[-1] - times[0] < cfg.window / 2:
-            return []
-        commanded = self._mean_command(times[0] - cfg.latency, times[-1] - cfg.latency)
-        if commanded is None:
-            return []
+        if not len(self.history):
+            return "no command yet"
+        gap = now - self.history.last_time
+        if gap > cfg.window / 2:
+            return f"command stream paused for {gap:.3f} s"
+        if now < self._resumed_at + self._settling_time():
+            return "settling after the command stream (re)started"
+        times = np.fromiter(self._times, float, len(self._times))
+        if times.size < cfg.min_samples or times[-1] - times[0] < cfg.window / 2:
+            return "too few joint states in the window"
+        if np.max(np.diff(times)) > cfg.window / 2:
+            return "joint states arrive with gaps"
+        return None
+
+    def _clear_evidence(self) -> None:
+        for evidence in self.joints:
+            evidence.evidence_since = None
+
+    def _update(self, now: float, dt: float) -> list[int]:
+        cfg = self.config
+        times = np.fromiter(self._times, float, len(self._times))
         positions = np.array(self._positions)
+        predicted = np.array(self._predicted)  # (samples, models, joints)
         centred = times - times.mean()
         spread = centred @ centred
-        slope = centred @ (positions - positions.mean(axis=0)) / spread
-        fitted = positions.mean(axis=0) + np.outer(centred, slope)
-        residual = np.sum((positions - fitted) ** 2, axis=0) / (times.size - 2)
-        error = np.sqrt(residual / spread)
+        measured = centred @ positions / spread
+        slopes = np.tensordot(centred, predicted, axes=(0, 0)) / spread  # (models, joints)
+        best = int(np.argmin(self._scores))
+        residual = positions - predicted[:, best, :]
+        fitted = residual.mean(axis=0) + np.outer(centred, measured - slopes[best])
+        error = np.sqrt(np.sum((residual - fitted) ** 2, axis=0) / (times.size - 2) / spread)
+        plausible = slopes[self._plausible]
+        weakest = np.where(np.all(plausible > 0, axis=0), plausible.min(axis=0),
+                           np.where(np.all(plausible < 0, axis=0), plausible.max(axis=0), 0.0))
+        unlocked = np.array([e.locked_at is None for e in self.joints])
+        observable = (unlocked & (np.abs(weakest) >= cfg.min_command)
+                      & (np.abs(weakest) >= 2 * cfg.confidence * error))
+        ratio = np.divide(measured, weakest, out=np.zeros(self.n), where=observable)
+        stalled = observable & (ratio < cfg.ratio) & (
+            np.abs(measured - weakest) > cfg.confidence * error)
         latest = positions[-1]
+        pushing = (((weakest > 0) & (latest >= self.upper - cfg.limit_margin))
+                   | ((weakest < 0) & (latest <= self.lower + cfg.limit_margin)))
+        candidates = stalled & ~pushing
+        following = observable & (ratio >= cfg.following_ratio)
+        for j, evidence in enumerate(self.joints):
+            evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
+            evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])
+            evidence.standard_error = float(error[j])
+            evidence.at_limit = bool(stalled[j] and pushing[j])
+        n_stalled, n_following = int(candidates.sum()), int(following.sum())
+        if n_stalled == 0:
+            self._identify(now, measured, slopes, error, unlocked & ~pushing)
+        if n_stalled >= 2 and n_stalled > n_following:
+            self.plant_fault = "plant not following commands: " + ", ".join(
+                f"joint {j} measured {measured[j]:.3f} rad/s, expected {weakest[j]:.3f}"
+                for j in np.flatnonzero(candidates))
+            self._seen_following = 0.0
+            self._clear_evidence()
+            return []
+        self.plant_fault = None
+        if self._seen_following < cfg.follow_time:
+            if n_following and not n_stalled:
+                self._seen_following += dt
+            self.not_observing = "plant not yet seen following commands"
+            self._clear_evidence()
+            return []
         newly = []
         for j, evidence in enumerate(self.joints):
-            if evidence.locked_at is not None:
-                continue
-            c, v, s = commanded[j], slope[j], error[j]
-            evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
-            evidence.observable = abs(c) >= cfg.min_command and abs(c) >= 2 * cfg.confidence * s
-            stalled = (evidence.observable and v / c < cfg.ratio
-                       and abs(v - c) > cfg.confidence * s)
-            pushing_limit = ((c > 0 and latest[j] >= self.upper[j] - cfg.limit_margin)
-                             or (c < 0 and latest[j] <= self.lower[j] + cfg.limit_margin))
-            evidence.at_limit = stalled and pushing_limit
-            if not stalled or pushing_limit:
+            supported = candidates[j] and n_following - following[j] >= 1
+            if not supported:
                 evidence.evidence_since = None
                 continue
             if evidence.evidence_since is None:
@@ -201,3 +438,32 @@ class LockDetector:
                 evidence.locked_at, evidence.position = now, float(latest[j])
                 newly.append(j)
         return newly
+
+    def _identify(self, now: float, measured: np.ndarray, slopes: np.ndarray,
+                  error: np.ndarray, usable: np.ndarray) -> None:
+        """Least-squares scores of the candidate models from one informative window."""
+        cfg = self.config
+        moving = usable & (np.max(np.abs(slopes), axis=0) >= cfg.min_command)
+        disagreement = np.ptp(slopes, axis=0)
+        if not np.any(moving & (disagreement >= np.maximum(0.02, 3 * error))):
+            return
+        elapsed = now - self._last_identification
+        self._last_identification = now
+        forget = math.exp(-min(elapsed, 1e3) / cfg.memory)
+        step = min(elapsed, cfg.window)
+        squared = (measured[moving] - slopes[:, moving]) ** 2
+        self._scores = forget * self._scores + squared.sum(axis=1)
+        self._weight = forget * self._weight + 1.0
+        self._excitation = forget * self._excitation + step
+        if self._excitation < cfg.min_excitation:
+            return
+        best = self._scores.min()
+        floor = self._weight * 1e-6 * moving.sum()  # (1 mrad/s)^2 per joint and update
+        chosen = self._scores <= 2 * best + floor
+        lat, rt = self._model_latency[chosen], self._model_response[chosen]
+        grid = self._response_times
+        low = grid[max(int(np.searchsorted(grid, rt.min())) - RESPONSE_STEPS, 0)]
+        high = grid[min(int(np.searchsorted(grid, rt.max())) + RESPONSE_STEPS, grid.size - 1)]
+        self._plausible = ((self._model_latency >= lat.min() - LATENCY_MARGIN[0] - 1e-9)
+                           & (self._model_latency <= lat.max() + LATENCY_MARGIN[1] + 1e-9)
+                           & (self._model_response >= low) & (self._model_response <= high))

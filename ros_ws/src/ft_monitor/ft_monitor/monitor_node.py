@@ -9,10 +9,18 @@ is locked; with locks, the locked joints get exactly 0 and, with
 `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
 velocity J qd is kept (`ft_core.remap`). Every output is scaled, direction kept,
 into `velocity_scale` times the URDF velocity limits, so detection compares the
-measured motion with a command the plant can follow. Detection (`ft_core.detection`) compares
-what it sent to the plant with the measured motion; a lock is declared after the
-evidence persists and stays until `~/reset`. `ft/declare_failure` locks joints at
-once. The full locked set goes out on `ft/locked_joints` (transient local).
+measured motion with a command the plant can follow.
+
+Detection (`ft_core.detection`) compares the measured motion with what a model of
+the plant (latency plus first-order lag, identified online from healthy motion)
+predicts from the commands this node actually sent, stamped with this node's clock
+when sent. It decides nothing while it lacks evidence: a gap in its own command
+stream and the settling time after it, too few joint states, a plant not yet seen
+following, or nobody subscribed to `ft/command` and `ft/command_array`; the reason
+is in `/diagnostics`. Most joints stopping at once is a plant fault (ERROR), not
+locks. A lock stays until `~/reset`. `ft/declare_failure` locks joints at once.
+The full locked set goes out on `ft/locked_joints` (transient local) and is kept
+in a file under `state_directory` (`ft_core.locked_set`), restored at start-up.
 
 Safety: a malformed command (NaN, wrong lengths, unknown or missing names) is
 replaced by explicit zeros; with no fresh command for `command_timeout` the
@@ -26,7 +34,7 @@ import math
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_core import remap, robots
+from ft_core import locked_set, remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
@@ -43,26 +51,35 @@ def _floats(low: float, high: float) -> dict:
 
 
 _DETECTION = DetectorConfig()
+#: Detector parameters whose negative value means "identified online" (None in the config).
+_IDENTIFIED = ("detection.latency", "detection.response_time")
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     "detection.window": (_DETECTION.window, "s, sliding window of the comparison",
                          _floats(0.005, 10.0)),
-    "detection.min_command": (_DETECTION.min_command, "rad/s; smaller commands are "
+    "detection.min_command": (_DETECTION.min_command, "rad/s; smaller predicted motion is "
                               "unobservable (no decision)", _floats(0.0, 10.0)),
-    "detection.latency": (_DETECTION.latency, "s from a command to its effect on the "
-                          "measurements", _floats(0.0, 5.0)),
+    "detection.latency": (-1.0, "s from a command to its effect on the measurements; "
+                          "negative: identified online", _floats(-1.0, 1.0)),
+    "detection.response_time": (-1.0, "s, first-order time constant of the plant's "
+                                "velocity loop; negative: identified online",
+                                _floats(-1.0, 1.0)),
     "detection.persistence": (_DETECTION.persistence, "s the lock evidence must hold",
                               _floats(0.0, 10.0)),
-    "detection.ratio": (_DETECTION.ratio, "measured over commanded velocity below which a "
+    "detection.ratio": (_DETECTION.ratio, "measured over predicted velocity below which a "
                         "joint looks locked", _floats(0.01, 0.99)),
     "detection.confidence": (_DETECTION.confidence, "separation in standard errors",
                              _floats(0.5, 50.0)),
+    "detection.follow_time": (_DETECTION.follow_time, "s the plant must be seen following "
+                              "commands before any decision", _floats(0.0, 10.0)),
     "remap_commands": (True, "remap commands through the reduced Jacobian once joints lock",
                        {}),
     "command_timeout": (0.2, "s without a command before the watchdog publishes zeros",
                         _floats(0.001, 60.0)),
     "velocity_scale": (1.0, "fraction of the URDF velocity limits for remapped commands",
                        _floats(0.01, 1.0)),
+    "state_directory": ("", "directory of the persisted locked set (empty: "
+                        "$ROS_HOME/ft_arms, or ~/.ros/ft_arms)", {"read_only": True}),
 }
 
 
@@ -74,7 +91,7 @@ class MonitorNode(SuiteNode):
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
         self.detector: LockDetector | None = None
-        self.locked: dict[str, tuple[float, float]] = {}  # name -> (position, time)
+        self._store = None  # path of the persisted locked set, once the model is known
         self._order: list[int] = []
         self._q: np.ndarray | None = None
         self._last_command = -math.inf
@@ -103,10 +120,15 @@ class MonitorNode(SuiteNode):
     def _detector_config(self, changes: dict | None = None) -> DetectorConfig:
         value = {**{k: self.param(k) for k in PARAMETERS if k.startswith("detection.")},
                  **(changes or {})}
+        for name in _IDENTIFIED:
+            value[name] = None if value[name] < 0 else value[name]
         return DetectorConfig(
             window=value["detection.window"], min_command=value["detection.min_command"],
-            latency=value["detection.latency"], persistence=value["detection.persistence"],
-            ratio=value["detection.ratio"], confidence=value["detection.confidence"])
+            latency=value["detection.latency"],
+            response_time=value["detection.response_time"],
+            persistence=value["detection.persistence"], ratio=value["detection.ratio"],
+            confidence=value["detection.confidence"],
+            follow_time=value["detection.follow_time"])
 
     def _validate(self, params: list) -> SetParametersResult:
         try:
@@ -117,7 +139,7 @@ class MonitorNode(SuiteNode):
 
     def _configure_detector(self) -> None:
         if self.detector is not None:
-            self.detector.config = self._detector_config()
+            self.detector.configure(self._detector_config())
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
@@ -133,12 +155,36 @@ class MonitorNode(SuiteNode):
         self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
+        self._store = locked_set.path_for(self.param("state_directory"),
+                                          self.get_fully_qualified_name(), robot.name)
+        self._restore_locked()
         self._publish_locked(self.now())
+
+    def _restore_locked(self) -> None:
+        try:
+            stored = locked_set.load(self._store, self.robot.name, list(self.robot.joint_names))
+        except locked_set.LockedSetError as error:
+            self.problems.report("state_directory", f"{error}: starting with no locked joint",
+                                 warning=True)
+            return
+        now = self.now()
+        for name, position in stored.items():
+            self.detector.lock(self.robot.joint_names.index(name), position, now)
+        if stored:
+            self.get_logger().error(f"restored locked joints {sorted(stored)} from "
+                                    f"{self._store} (call ~/reset after a repair)")
 
     @property
     def command_joints(self) -> list[str]:
         """Joint names in command order."""
         return [self.robot.joint_names[i] for i in self._order]
+
+    @property
+    def locked(self) -> dict[str, float]:
+        """{joint name: position at lock (rad)} of every locked joint (the detector's)."""
+        if self.detector is None:
+            return {}
+        return {self.robot.joint_names[j]: p for j, p in self.detector.locked.items()}
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
@@ -148,39 +194,44 @@ class MonitorNode(SuiteNode):
         if q is None:
             return
         self._q, stamp = q, self.state_stamp
-        newly = self.detector.measure(stamp, q)
+        if self.detector.fill_unknown_positions(q):
+            self._locked_changed(stamp)
+        listeners = (self._command_pub.get_subscription_count()
+                     + self._array_pub.get_subscription_count())
+        newly = self.detector.measure(
+            stamp, q, None if listeners else "nobody subscribes to ft/command(_array)")
+        self.problems.report("plant", self.detector.plant_fault)
         if newly:
             for j in newly:
                 name = self.robot.joint_names[j]
                 evidence = self.detector.joints[j]
-                self.locked[name] = (evidence.position, stamp)
                 self.get_logger().error(
                     f"joint {name} locked at {evidence.position:.4f} rad (t = {stamp:.3f} s): "
-                    f"measured {evidence.measured:.4f} rad/s against {evidence.commanded:.4f}")
-            self._publish_locked(stamp)
+                    f"measured {evidence.measured:.4f} rad/s against at least "
+                    f"{evidence.commanded:.4f} expected")
+            self._locked_changed(stamp)
 
     def _on_declare(self, msg: JointState) -> None:
         if self.robot is None:
             return
         now = self.now()
-        for name in msg.name:
-            if name not in self.robot.joint_names:
-                self.get_logger().warning(f"declare_failure: unknown joint {name!r} ignored")
-                continue
+        unknown = [name for name in msg.name if name not in self.robot.joint_names]
+        if unknown:
+            self.get_logger().warning(f"declare_failure: unknown joints {unknown[:10]} ignored"
+                                      f"{' (and more)' if len(unknown) > 10 else ''}")
+        for name in dict.fromkeys(n for n in msg.name if n in self.robot.joint_names):
             j = self.robot.joint_names.index(name)
-            position = float(self._q[j]) if self._q is not None else math.nan
-            self.detector.lock(j, position, now)
-            if name not in self.locked:
-                self.locked[name] = (position, now)
+            if j not in self.detector.locked:
+                position = float(self._q[j]) if self._q is not None else math.nan
+                self.detector.lock(j, position, now)
                 self.get_logger().error(f"joint {name} declared locked")
-        self._publish_locked(now)
+        self._locked_changed(now)
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = sorted(self.locked)
-        self.locked.clear()
         if self.detector is not None:
             self.detector.reset()
-        self._publish_locked(self.now())
+            self._locked_changed(self.now())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
@@ -199,7 +250,7 @@ class MonitorNode(SuiteNode):
             return
         self.problems.report("ft/command_raw", None)
         self._last_command = self.now()
-        locked = [self.robot.joint_names.index(name) for name in self.locked]
+        locked = sorted(self.detector.locked)
         limits = self.robot.velocity_limits * self.param("velocity_scale")
         if locked and self.param("remap_commands") and self._q is not None:
             qd = remap.remap(self.robot, self._q, qd, locked, limits)
@@ -209,7 +260,7 @@ class MonitorNode(SuiteNode):
             qd = remap.within_limits(qd, limits)
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(self.robot.n)
-        self._publish_command(qd, msg.header.stamp, stamp)
+        self._publish_command(qd, msg.header.stamp)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output)."""
@@ -220,7 +271,8 @@ class MonitorNode(SuiteNode):
         self._on_command(command)
 
     # ----------------------------------------------------------------- outputs
-    def _publish_command(self, qd_chain: np.ndarray, stamp, seconds: float | None = None) -> None:
+    def _publish_command(self, qd_chain: np.ndarray, stamp) -> None:
+        """Publish a command and tell the detector it is in force from now (this clock)."""
         ordered = qd_chain[self._order]
         self._command_pub.publish(convert.joint_state(self.command_joints, stamp,
                                                       velocity=ordered))
@@ -228,15 +280,24 @@ class MonitorNode(SuiteNode):
         array.layout.dim = [MultiArrayDimension(label="joints", size=len(ordered),
                                                 stride=len(ordered))]
         self._array_pub.publish(array)
-        self.detector.command(self.now() if seconds is None else seconds, qd_chain)
+        self.detector.command(self.now(), qd_chain)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""
         if self.robot is not None:
             self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
 
+    def _locked_changed(self, time: float) -> None:
+        """Publish the locked set and keep it on disk."""
+        self._publish_locked(time)
+        try:
+            locked_set.save(self._store, self.robot.name, self.locked)
+            self.problems.report("state_directory", None)
+        except OSError as error:
+            self.problems.report("state_directory", f"cannot keep the locked set: {error}")
+
     def _publish_locked(self, time: float) -> None:
-        msg = convert.locked_message({n: p for n, (p, _) in self.locked.items()},
+        msg = convert.locked_message(self.locked,
                                      convert.stamp_from_nanoseconds(round(time * 1e9)))
         self._locked_pub.publish(msg)
 
@@ -247,36 +308,55 @@ class MonitorNode(SuiteNode):
         if age > self.param("command_timeout"):
             self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
 
+    def _plant_values(self) -> dict[str, object]:
+        """The detector's view of the plant, for /diagnostics."""
+        estimate = self.detector.estimate()
+        values: dict[str, object] = {
+            "observing": self.detector.not_observing or "yes",
+            "plant_model": "identified" if estimate.identified else "prior (not yet identified)",
+            "latency_range_s": list(estimate.latency_range),
+            "response_time_range_s": list(estimate.response_time_range),
+            "identification_data_s": estimate.excitation}
+        if estimate.identified:
+            values["latency_s"] = estimate.latency
+            values["response_time_s"] = estimate.response_time
+        return values
+
     def _publish_diagnostics(self) -> None:
         now = self.now()
         age = now - self._last_command
-        values = {"locked_joints": sorted(self.locked), "remap_commands":
+        locked = self.locked
+        values = {"locked_joints": sorted(locked), "remap_commands":
                   self.param("remap_commands"),
                   "command_age_s": age if math.isfinite(age) else "none"}
         stalls = []
         statuses = []
         if self.robot is not None:
+            values.update(self._plant_values())
             for name in self.command_joints:
                 evidence = self.detector.joints[self.robot.joint_names.index(name)]
                 level, message = diagnostics.OK, "ok"
-                if name in self.locked:
+                if name in locked:
                     level, message = diagnostics.ERROR, "locked"
                 elif evidence.at_limit:
                     level, message = diagnostics.WARN, "stalled at a joint limit"
                     stalls.append(name)
                 statuses.append(diagnostics.status(f"{self.get_name()}: joint {name}", level,
                                                    message, {
-                    "observable": evidence.observable, "measured_velocity": evidence.measured,
-                    "commanded_velocity": evidence.commanded,
+                    "observable": evidence.observable, "following": evidence.following,
+                    "measured_velocity": evidence.measured,
+                    "expected_velocity": evidence.commanded,
                     "standard_error": evidence.standard_error}))
         if self.problems.active:
             level, message = diagnostics.ERROR, self.problems.summary()
-        elif self.locked:
-            level, message = diagnostics.ERROR, f"locked: {sorted(self.locked)}"
+        elif locked:
+            level, message = diagnostics.ERROR, f"locked: {sorted(locked)}"
         elif stalls:
             level, message = diagnostics.WARN, f"stalled at a limit: {stalls}"
         elif age > self.param("command_timeout"):
             level, message = diagnostics.WARN, "no fresh command: publishing zeros"
+        elif self.detector is not None and self.detector.not_observing:
+            level, message = diagnostics.OK, f"not observing: {self.detector.not_observing}"
         else:
             level, message = diagnostics.OK, "no locked joint"
         statuses.insert(0, diagnostics.status(self.get_name(), level, message, values))

@@ -7,6 +7,7 @@ unknown-only or duplicate name, a length mismatch or a non-finite value raises
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -89,8 +90,14 @@ def locked_joints(msg: JointState, joints: Sequence[str]) -> tuple[dict[str, flo
 
 
 def locked_message(locked: Mapping[str, float], stamp: Time) -> JointState:
-    """The `ft/locked_joints` message: names, positions at lock, stamp of detection."""
-    return joint_state(list(locked), stamp, position=list(locked.values()))
+    """The `ft/locked_joints` message: names, positions at lock, stamp of detection.
+
+    While any position is unknown (nan: declared before any joint state) the
+    message carries names only: every published number is finite.
+    """
+    positions = list(locked.values())
+    known = all(math.isfinite(p) for p in positions)
+    return joint_state(list(locked), stamp, position=positions if known else None)
 
 
 def twist_vector(msg: Twist) -> np.ndarray:

@@ -1,10 +1,19 @@
 """sim_node: a kinematic plant for any model the suite loads, with failure injection.
 
-Every step (at `rate`) integrates the latest velocity command from `ft/command`,
-applied `command_latency` seconds after it arrived and dropped to zero once older
-than `command_timeout`, clipped to the URDF velocity limits and, for positions, to
-the URDF position limits. Locked joints do not move. It publishes `joint_states`
-(positions with optional Gaussian `position_noise`, and the integrated velocities).
+Every step (at `rate`) advances `ft_core.plant.Plant` under the velocity commands
+from `ft/command`, as real drivers execute them:
+- `command_latency` (s): transport and driver delay (5-50 ms on real arms);
+- `response_time` (s): the velocity loop as a first-order lag (a joint servo
+  tracking a velocity reference: 10-50 ms on Franka, KUKA and UR arms);
+- `acceleration_limit` (rad/s^2, one value or one per joint): what ros2_control's
+  joint limits interface and most drivers' trajectory smoothing enforce;
+- `command_timeout` (s): the driver's command watchdog stops the arm when commands
+  pause (Franka FCI, KUKA FRI, UR RTDE's `speedj` with its timeout), unless
+  `hold_last_command`: ros2_control's JointGroupVelocityController keeps the last
+  command forever.
+Velocities are clipped to the URDF limits and positions to the URDF limits; locked
+joints do not move. It publishes `joint_states` (positions with optional Gaussian
+`position_noise`, and the plant's velocities). Plant options may change at run time.
 
 With `publish_clock` the sim owns the time: it starts at 0, advances exactly one
 period per step and publishes `/clock` (run the other nodes with use_sim_time);
@@ -19,12 +28,12 @@ also be scheduled with `failure.joint` and `failure.time` (s of plant time).
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 from ft_core import robots
+from ft_core.plant import Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
-from rcl_interfaces.msg import FloatingPointRange
+from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -48,6 +57,12 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "command_latency": (0.0, "s from a command's arrival to its effect", _floats(0.0, 10.0)),
     "command_timeout": (0.1, "s; older commands are dropped (the arm stops)",
                         _floats(0.001, 60.0)),
+    "response_time": (0.0, "s, first-order time constant of the velocity loop (0: instant)",
+                      _floats(0.0, 10.0)),
+    "acceleration_limit": ([0.0], "rad/s^2, one for all joints or one per joint (0: none)",
+                           {}),
+    "hold_last_command": (False, "execute the last command forever (ros2_control) instead "
+                          "of stopping after command_timeout", {}),
     "publish_clock": (False, "own the time: start at 0 and publish /clock", {"read_only": True}),
     "seed": (0, "seed of the position noise", {"read_only": True}),
     "failure.joint": ("", "joint to lock at failure.time (empty: none)", {}),
@@ -62,20 +77,19 @@ class SimNode(Node):
         super().__init__("sim", **kwargs)
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
-        self.q = np.zeros(0)
-        self.qd = np.zeros(0)
-        self.locked: dict[str, float] = {}
-        self._commands: deque[tuple[float, np.ndarray]] = deque()
+        self.plant: Plant | None = None
         self._rng = np.random.default_rng(self.get_parameter("seed").value)
         self._own_clock = self.get_parameter("publish_clock").value
         self.period = 1.0 / self.get_parameter("rate").value
-        self.t = 0.0 if self._own_clock else self._node_time()
+        self._start = 0.0 if self._own_clock else self._node_time()
         self._state_pub = self.create_publisher(JointState, names.JOINT_STATES, qos.RELIABLE)
         self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
                            if self._own_clock else None)
         self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
+        self.add_on_set_parameters_callback(self._validate)
+        self.add_post_set_parameters_callback(lambda _: self._configure_plant())
         parameters.request_model(self, self._set_model)
         # Owning the clock, the sim must not wait for it: its timer runs on steady time.
         self.timer = self.create_timer(self.period, self.step,
@@ -84,6 +98,54 @@ class SimNode(Node):
 
     def _node_time(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def _plant_config(self, changes: dict | None = None) -> PlantConfig:
+        value = {k: self.get_parameter(k).value for k in
+                 ("command_latency", "response_time", "acceleration_limit", "command_timeout",
+                  "hold_last_command")}
+        value.update(changes or {})
+        return PlantConfig(latency=value["command_latency"],
+                           response_time=value["response_time"],
+                           acceleration_limit=tuple(float(a) for a in
+                                                    value["acceleration_limit"]),
+                           timeout=value["command_timeout"],
+                           hold_last_command=value["hold_last_command"])
+
+    def _validate(self, params: list) -> SetParametersResult:
+        try:
+            config = self._plant_config({p.name: p.value for p in params})
+            if self.plant is not None:
+                Plant(self.plant.lower, self.plant.upper, self.plant.velocity_limits,
+                      self.plant.q, config)
+        except (ValueError, TypeError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _configure_plant(self) -> None:
+        if self.plant is not None:
+            self.plant.configure(self._plant_config())
+
+    @property
+    def t(self) -> float:
+        """Plant time (s)."""
+        return self.plant.t if self.plant is not None else self._start
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint positions (rad), model order."""
+        return self.plant.q if self.plant is not None else np.zeros(0)
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Joint velocities (rad/s), model order."""
+        return self.plant.qd if self.plant is not None else np.zeros(0)
+
+    @property
+    def locked(self) -> dict[str, float]:
+        """{joint name: position where it locked} of the injected locks."""
+        if self.plant is None:
+            return {}
+        return {self.robot.joint_names[j]: p for j, p in self.plant.locked.items()}
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
@@ -100,10 +162,12 @@ class SimNode(Node):
                 q = np.array([float(by_name[j]) for j in robot.joint_names])
                 if not np.all(np.isfinite(q)):
                     raise ValueError("initial_positions must be finite")
+            plant = Plant(robot.lower, robot.upper, robot.velocity_limits, q,
+                          self._plant_config(), time=self.t)
         except (robots.RobotModelError, ValueError) as error:
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
-        self.robot, self.q, self.qd = robot, np.clip(q, robot.lower, robot.upper), np.zeros(robot.n)
+        self.robot, self.plant = robot, plant
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
 
     def _on_command(self, msg: JointState) -> None:
@@ -114,21 +178,21 @@ class SimNode(Node):
         except convert.MessageError as error:
             self.get_logger().warning(f"ft/command ignored: {error}", throttle_duration_sec=5.0)
             return
-        self._commands.append((self.t, velocity))
+        self.plant.command(self.t, velocity)
 
     @property
     def command_time(self) -> float:
         """Plant time (s) at which the newest command arrived; -inf before any."""
-        return self._commands[-1][0] if self._commands else -math.inf
+        return self.plant.command_time if self.plant is not None else -math.inf
 
     def lock(self, joint_names: list[str]) -> None:
         """Lock joints where they are (failure injection)."""
         unknown = [n for n in joint_names if n not in self.robot.joint_names]
         if unknown:
-            self.get_logger().warning(f"inject_failure: unknown joints {unknown} rejected")
+            self.get_logger().warning(f"inject_failure: unknown joints {unknown[:10]} rejected")
         for name in joint_names:
             if name in self.robot.joint_names and name not in self.locked:
-                self.locked[name] = float(self.q[self.robot.joint_names.index(name)])
+                self.plant.lock(self.robot.joint_names.index(name))
                 self.get_logger().warning(f"joint {name} locked at {self.locked[name]:.4f} rad "
                                           f"(t = {self.t:.3f} s)")
 
@@ -137,48 +201,28 @@ class SimNode(Node):
             self.lock(list(msg.name))
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
-        released = sorted(self.locked)
-        self.locked.clear()
+        released = ([self.robot.joint_names[j] for j in self.plant.release()]
+                    if self.plant is not None else [])
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
-
-    def _command(self) -> np.ndarray:
-        """The command in force now: the newest one whose latency has passed, if fresh."""
-        latency = self.get_parameter("command_latency").value
-        while len(self._commands) > 1 and self._commands[1][0] + latency <= self.t:
-            self._commands.popleft()
-        if not self._commands:
-            return np.zeros(self.robot.n)
-        arrived, velocity = self._commands[0]
-        if arrived + latency > self.t:
-            return np.zeros(self.robot.n)  # the first command has not taken effect yet
-        if self.t - arrived - latency > self.get_parameter("command_timeout").value:
-            return np.zeros(self.robot.n)
-        return velocity
 
     def step(self) -> None:
         """Advance the plant by one period (or to the node clock) and publish."""
         if self.robot is None:
             return
-        robot = self.robot
-        now = self.t + self.period if self._own_clock else self._node_time()
-        dt, self.t = max(now - self.t, 0.0), now
+        robot, plant = self.robot, self.plant
+        plant.step(self.t + self.period if self._own_clock else self._node_time())
         scheduled = self.get_parameter("failure.joint").value
         if scheduled and 0 <= self.get_parameter("failure.time").value <= self.t:
             self.lock([scheduled])
             self.set_parameters([Parameter("failure.joint", value="")])
-        velocity = np.clip(self._command(), -robot.velocity_limits, robot.velocity_limits)
-        for name in self.locked:
-            velocity[robot.joint_names.index(name)] = 0.0
-        q = np.clip(self.q + dt * velocity, robot.lower, robot.upper)
-        self.qd = (q - self.q) / dt if dt > 0 else np.zeros(robot.n)
-        self.q = q
         stamp = convert.stamp_from_nanoseconds(round(self.t * 1e9))
         if self._clock_pub is not None:
             self._clock_pub.publish(ClockMessage(clock=stamp))
         noise = self.get_parameter("position_noise").value
-        measured = self.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
-        self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured, self.qd))
+        measured = plant.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
+        self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured,
+                                                    plant.qd))
 
 
 def main(args: list[str] | None = None) -> None:

@@ -1,0 +1,85 @@
+"""The locked set on disk, so that it survives a restart of the monitor.
+
+One small JSON file per monitor and robot in a state directory (default
+`$ROS_HOME/ft_arms`, `~/.ros/ft_arms` without ROS_HOME, as ROS 2 keeps its own
+per-user state), named after the monitor's fully qualified node name and the robot
+(`arm1__monitor--panda.json` for `/arm1/monitor` on a Panda), so namespaced arms on
+one machine keep separate sets. It is written atomically (a temporary file in the
+same directory, flushed, then renamed over the old one): a crash mid-write leaves
+the previous set, never half a file. A file that cannot be read or does not match
+the robot is reported and ignored.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import tempfile
+from pathlib import Path
+
+#: Largest file read back (bytes): a locked set of a few joints is far smaller.
+MAX_BYTES = 65536
+
+
+class LockedSetError(ValueError):
+    """The stored file cannot be used (unreadable, malformed or for another robot)."""
+
+
+def default_directory() -> Path:
+    """`$ROS_HOME/ft_arms`, or `~/.ros/ft_arms`."""
+    home = os.environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros")
+    return Path(home) / "ft_arms"
+
+
+def path_for(directory: str | Path, node_name: str, robot: str) -> Path:
+    """The file of one monitor (fully qualified node name) and robot."""
+    def clean(text: str) -> str:
+        return re.sub(r"[^A-Za-z0-9_.-]", "_", text.strip("/").replace("/", "__")) or "_"
+
+    return Path(directory or default_directory()) / f"{clean(node_name)}--{clean(robot)}.json"
+
+
+def save(path: Path, robot: str, locked: dict[str, float]) -> None:
+    """Write {joint name: position at lock (rad)} atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps({"robot": robot, "locked": {
+        name: (position if math.isfinite(position) else None)
+        for name, position in sorted(locked.items())}}, indent=1)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as file:
+            file.write(text)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def load(path: Path, robot: str, joint_names: list[str]) -> dict[str, float]:
+    """{joint name: position (rad; nan if unknown)} stored for this robot; {} if no file."""
+    if not path.exists():
+        return {}
+    try:
+        if path.stat().st_size > MAX_BYTES:
+            raise LockedSetError(f"{path} is larger than {MAX_BYTES} bytes")
+        data = json.loads(path.read_text())
+        if not isinstance(data, dict) or data.get("robot") != robot:
+            raise LockedSetError(f"{path} is not a locked set of robot {robot!r}")
+        locked = data.get("locked")
+        if not isinstance(locked, dict):
+            raise LockedSetError(f"{path} has no 'locked' mapping")
+        result = {}
+        for name, position in locked.items():
+            if name not in joint_names:
+                raise LockedSetError(f"{path} names {name!r}, not a joint of {robot!r}")
+            value = float(position) if isinstance(position, int | float) else math.nan
+            result[name] = value if math.isfinite(value) else math.nan
+        return result
+    except (OSError, ValueError) as error:
+        if isinstance(error, LockedSetError):
+            raise
+        raise LockedSetError(f"cannot read {path}: {error}") from error

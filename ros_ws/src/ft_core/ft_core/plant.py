@@ -1,0 +1,138 @@
+"""A velocity-commanded arm as real drivers execute commands (shared/MATH.md, Detection).
+
+The command path of a real arm, step by step (`Plant.step`):
+1. transport and driver latency: a command takes effect `latency` s after it arrived;
+2. the command in force is the newest one whose latency has passed; once older than
+   `timeout` it is dropped to zero (a driver's command watchdog: Franka's FCI, KUKA's
+   FRI and UR's RTDE stop the arm when commands pause), unless `hold_last_command`
+   (ros2_control's velocity controllers keep the last command forever);
+3. clipped to the velocity limits;
+4. the velocity loop follows it as a first-order lag of time constant
+   `response_time` (v' = (u - v) / T, integrated exactly for a command held over the
+   step), then within `acceleration_limit` (rad/s^2, per joint);
+5. positions integrate the velocity (exactly for the lag, trapezoidal under an
+   acceleration limit) and stop at the position limits; locked joints do not move.
+
+Times are seconds on the plant's clock; velocities rad/s (m/s for prismatic joints).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    """How the plant executes commands (see the module docstring).
+
+    Attributes:
+        latency: s from a command's arrival to its effect, >= 0.
+        response_time: s, first-order time constant of the velocity loop (0: instant).
+        acceleration_limit: rad/s^2, one value for all joints or one per joint (0: none).
+        timeout: s; a command older than this is dropped to zero (not with hold).
+        hold_last_command: execute the last command forever (ros2_control).
+    """
+
+    latency: float = 0.0
+    response_time: float = 0.0
+    acceleration_limit: tuple[float, ...] = (0.0,)
+    timeout: float = 0.1
+    hold_last_command: bool = False
+
+    def __post_init__(self) -> None:
+        values = {"latency": self.latency, "response_time": self.response_time,
+                  "timeout": self.timeout}
+        for name, value in values.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"plant {name} = {value} must be finite and >= 0")
+        if not self.acceleration_limit or not all(
+                math.isfinite(a) and a >= 0 for a in self.acceleration_limit):
+            raise ValueError(f"plant acceleration_limit = {list(self.acceleration_limit)} "
+                             "must be one or more finite values >= 0")
+
+
+class Plant:
+    """Joint positions and velocities driven by velocity commands; see the module docstring."""
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity_limits: np.ndarray,
+                 q0: np.ndarray, config: PlantConfig | None = None, time: float = 0.0):
+        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+        self.velocity_limits = np.asarray(velocity_limits, float)
+        self.n = self.lower.size
+        self.configure(config or PlantConfig())
+        self.q = np.clip(np.asarray(q0, float), self.lower, self.upper)
+        self.qd = np.zeros(self.n)
+        self.t = time
+        self.locked: dict[int, float] = {}  #: joint index -> position where it locked
+        self._commands: deque[tuple[float, np.ndarray]] = deque()
+
+    def configure(self, config: PlantConfig) -> None:
+        """Use new plant options from the next step on."""
+        limits = np.asarray(config.acceleration_limit, float)
+        if limits.size not in (1, self.n):
+            raise ValueError(f"acceleration_limit has {limits.size} values for {self.n} joints")
+        self.config = config
+        self._acceleration = np.broadcast_to(limits, (self.n,)).copy()
+
+    @property
+    def command_time(self) -> float:
+        """Arrival time (s) of the newest command; -inf before any."""
+        return self._commands[-1][0] if self._commands else -math.inf
+
+    def command(self, time: float, velocity: np.ndarray) -> None:
+        """A command arrived at `time` (s)."""
+        self._commands.append((time, np.asarray(velocity, float).copy()))
+
+    def lock(self, joint: int) -> None:
+        """Lock a joint where it is (it stops at once)."""
+        self.locked.setdefault(joint, float(self.q[joint]))
+        self.qd[joint] = 0.0
+
+    def release(self) -> list[int]:
+        """Release every lock; returns the joints that were locked."""
+        released = sorted(self.locked)
+        self.locked.clear()
+        return released
+
+    def _in_force(self) -> np.ndarray:
+        """The command acting now: newest whose latency has passed, unless it timed out."""
+        latency = self.config.latency
+        while len(self._commands) > 1 and self._commands[1][0] + latency <= self.t:
+            self._commands.popleft()
+        if not self._commands or self._commands[0][0] + latency > self.t:
+            return np.zeros(self.n)
+        arrived, velocity = self._commands[0]
+        if not self.config.hold_last_command and (
+                self.t - arrived - latency > self.config.timeout):
+            return np.zeros(self.n)
+        return velocity
+
+    def step(self, time: float) -> None:
+        """Advance to `time` (s) under the command in force at the step's start."""
+        dt = max(time - self.t, 0.0)
+        self.t = max(time, self.t)
+        if dt == 0.0:
+            return
+        u = np.clip(self._in_force(), -self.velocity_limits, self.velocity_limits)
+        tau = self.config.response_time
+        if tau > 0:
+            decay = math.exp(-dt / tau)
+            v = u + (self.qd - u) * decay
+            moved = u * dt + (self.qd - u) * tau * (1 - decay)
+        else:
+            v, moved = u, u * dt
+        limited = self._acceleration > 0
+        if np.any(limited):
+            step = self._acceleration * dt
+            v = np.where(limited, np.clip(v, self.qd - step, self.qd + step), v)
+            moved = np.where(limited, 0.5 * (self.qd + v) * dt, moved)
+        for j in self.locked:
+            v[j], moved[j] = 0.0, 0.0
+        q = np.clip(self.q + moved, self.lower, self.upper)
+        stopped = (q != self.q + moved)  # at a position limit
+        v[stopped] = 0.0
+        self.q, self.qd = q, v
