@@ -15,6 +15,7 @@ step is recorded for the report.
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from dataclasses import dataclass, field, replace
 
@@ -122,8 +123,10 @@ class Scenario:
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
             critical_points=flat if config.soft_limits else []))
+        # A state directory of its own: a run never starts from an earlier run's locks.
+        self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
-            model, use_sim_time=True))
+            model, use_sim_time=True, state_directory=self._state.name))
         self.driver = rclpy.create_node("driver", context=self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
@@ -234,6 +237,7 @@ class Scenario:
         for node in (self.sim, self.controller, self.monitor, self.driver):
             node.destroy_node()
         rclpy.shutdown(context=self.context)
+        self._state.cleanup()
 
 
 def _params(model: dict, **values) -> list[Parameter]:

@@ -1,0 +1,194 @@
+"""The suite as users run it: installed executables as separate processes, and a probe.
+
+`Graph` starts `sim_node`, `controller_node` and `monitor_node` from the colcon
+install space (as `ros2 run` and `ros2 launch` do), each its own process on a DDS
+domain of the test's own, and a probe node in the test process that drives pose
+goals and records what the graph publishes. Processes can be killed (-9), paused
+(SIGSTOP/SIGCONT, a stalled process) and restarted. `cpu_hog` saturates every core.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from ft_msgs_py import convert, qos
+from geometry_msgs.msg import PoseStamped
+from paths import INSTALL, PACKAGES
+from rosutil import ros_context, spin_until
+from sensor_msgs.msg import JointState
+
+EXECUTABLES = {"sim": ("ft_sim", "sim_node"), "controller": ("ft_controller", "controller_node"),
+               "monitor": ("ft_monitor", "monitor_node")}
+#: Pose goals visited in turn (Panda position task, m): reachable from the home pose.
+GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
+MODEL = {"robot_model": "panda", "task_space": "position"}
+
+
+def _argument(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(_argument(v) for v in value) + "]"
+    return str(value)
+
+
+class Graph:
+    """Sim, controller and monitor processes plus an in-process probe; see the module."""
+
+    def __init__(self, context, executor, domain: int, parameters: dict[str, dict],
+                 log_dir: Path):
+        self.executor, self.domain, self.parameters = executor, domain, parameters
+        self.log_dir = log_dir
+        self.processes: dict[str, subprocess.Popen] = {}
+        self.node = rclpy.create_node("probe", context=context)
+        executor.add_node(self.node)
+        self.locked: list[JointState] = []
+        self.states: list[JointState] = []
+        self.commands: list[JointState] = []
+        self.diagnostics: dict[str, list] = {}  # status name -> [(wall time, status)]
+        self.node.create_subscription(JointState, "ft/locked_joints", self.locked.append,
+                                      qos.LATCHED)
+        self.node.create_subscription(JointState, "joint_states", self.states.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(JointState, "ft/command", self.commands.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics,
+                                      qos.SENSOR_INPUT)
+        self._goal = self.node.create_publisher(PoseStamped, "ft/target_pose", qos.RELIABLE)
+        self._inject = self.node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
+        self._goal_index = 0
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            self.diagnostics.setdefault(status.name, []).append((time.monotonic(), status))
+
+    def start(self, name: str) -> None:
+        """Start (or restart) one executable from the install space."""
+        package, executable = EXECUTABLES[name]
+        version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+        env = {**os.environ, "ROS_DOMAIN_ID": str(self.domain), "PYTHONPATH": os.pathsep.join(
+            str(INSTALL / p / "lib" / version / "site-packages") for p in PACKAGES)}
+        script = INSTALL / package / "lib" / package / executable
+        assert script.is_file(), "run `make build`"
+        arguments = [f"{k}:={_argument(v)}" for k, v in
+                     {**MODEL, **self.parameters.get(name, {})}.items()]
+        log = open(self.log_dir / f"{name}.log", "a")  # noqa: SIM115 (closed with the process)
+        self.processes[name] = subprocess.Popen(
+            [sys.executable, str(script), "--ros-args",
+             *[a for arg in arguments for a in ("-p", arg)]],
+            env=env, stdout=log, stderr=subprocess.STDOUT)
+        log.close()
+
+    def kill(self, name: str) -> None:
+        """kill -9, as a crash would."""
+        process = self.processes.pop(name)
+        process.kill()
+        process.wait(timeout=10)
+
+    def pause(self, name: str, seconds: float) -> None:
+        """Stop a process for `seconds` (SIGSTOP), spinning the probe meanwhile."""
+        self.processes[name].send_signal(signal.SIGSTOP)
+        try:
+            self.spin(seconds)
+        finally:
+            self.processes[name].send_signal(signal.SIGCONT)
+
+    def log(self, name: str) -> str:
+        """What a process printed so far."""
+        return (self.log_dir / f"{name}.log").read_text()
+
+    def spin(self, seconds: float, goal_period: float | None = None) -> None:
+        """Spin the probe for `seconds`, sending the next pose goal every `goal_period` s."""
+        end = time.monotonic() + seconds
+        next_goal = time.monotonic()
+        while time.monotonic() < end:
+            if goal_period is not None and time.monotonic() >= next_goal:
+                self.send_goal()
+                next_goal += goal_period
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def wait(self, condition, timeout: float, what: str) -> None:
+        """Spin until `condition()`; fail with `what` if it does not happen in `timeout` s."""
+        assert spin_until(self.executor, condition, timeout), f"timed out waiting for {what}"
+
+    def send_goal(self) -> None:
+        """The next of GOALS."""
+        msg = PoseStamped()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        x, y, z = GOALS[self._goal_index % len(GOALS)]
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
+        msg.pose.orientation.w = 1.0
+        self._goal.publish(msg)
+        self._goal_index += 1
+
+    def inject(self, joint: str) -> None:
+        """Lock a joint in the sim (the monitor is not told)."""
+        self._inject.publish(JointState(name=[joint]))
+
+    def locked_names(self) -> list[str]:
+        """The newest locked set seen (empty before any message)."""
+        return sorted(self.locked[-1].name) if self.locked else []
+
+    def ever_locked(self) -> set[str]:
+        """Every joint any locked set named."""
+        return {name for msg in self.locked for name in msg.name}
+
+    def values(self, status_name: str) -> list[dict[str, str]]:
+        """The key values of every status of that name received."""
+        return [{kv.key: kv.value for kv in s.values} | {"message": s.message}
+                for _, s in self.diagnostics.get(status_name, [])]
+
+    def travelled(self) -> float:
+        """Total joint-space path of the measured positions (rad)."""
+        q = np.array([convert.joint_vector(m, [f"panda_joint{i}" for i in range(1, 8)])
+                      for m in self.states])
+        return float(np.sum(np.abs(np.diff(q, axis=0)))) if len(q) > 1 else 0.0
+
+    def close(self) -> None:
+        """SIGINT every process (zeros on the way out), then make sure they are gone."""
+        for process in self.processes.values():
+            process.send_signal(signal.SIGCONT)
+            process.send_signal(signal.SIGINT)
+        for process in self.processes.values():
+            try:
+                process.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+
+@contextmanager
+def graph(tmp_path: Path, parameters: dict[str, dict]) -> Iterator[Graph]:
+    """A running graph on a DDS domain of its own; every process stopped afterwards."""
+    with ros_context() as (context, executor):
+        g = Graph(context, executor, context.get_domain_id(), parameters, tmp_path)
+        try:
+            for name in ("sim", "monitor", "controller"):
+                g.start(name)
+            g.wait(lambda: len(g.states) > 10, 60.0, "joint states from the sim")
+            yield g
+        finally:
+            g.close()
+
+
+@contextmanager
+def cpu_hog() -> Iterator[None]:
+    """One busy process per core for as long as the block runs."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
+            for _ in range(os.cpu_count() or 2)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
