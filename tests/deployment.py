@@ -82,7 +82,7 @@ class Graph:
         assert script.is_file(), "run `make build`"
         arguments = [f"{k}:={_argument(v)}" for k, v in
                      {**MODEL, **self.parameters.get(name, {})}.items()]
-        log = open(self.log_dir / f"{name}.log", "a")  # noqa: SIM115 (closed with the process)
+        log = open(self.log_dir / f"{name}.log", "a")
         self.processes[name] = subprocess.Popen(
             [sys.executable, str(script), "--ros-args",
              *[a for arg in arguments for a in ("-p", arg)]],
@@ -90,7 +90,7 @@ class Graph:
         log.close()
 
     def kill(self, name: str) -> None:
-        """kill -9, as a crash would."""
+        """Kill -9, as a crash would."""
         process = self.processes.pop(name)
         process.kill()
         process.wait(timeout=10)

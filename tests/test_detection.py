@@ -19,7 +19,7 @@ from ft_core.plant import Plant, PlantConfig
 from paths import REPO
 
 sys.path.insert(0, str(REPO / "bench"))
-import fixed_latency_detector  # noqa: E402  (the detector before issue 13)
+import fixed_latency_detector
 
 PANDA = robots.load("panda")
 START = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
@@ -129,6 +129,7 @@ def test_command_pauses_declare_nothing(pause: float, hold: bool) -> None:
     pauses = tuple((start, start + pause) for start in (3.0, 5.0, 7.0))
     detector, events = run(sweeping, 9.0, plant, pauses=pauses)
     assert events == []
+    assert detector.not_observing is None  # observing again after the last pause
 
 
 def test_pauses_lock_joints_without_the_gap_rule() -> None:

@@ -8,7 +8,9 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numpy as np
+import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, qos
@@ -42,6 +44,9 @@ class Loop:
                                       qos.SENSOR_INPUT)
         self.node.create_subscription(JointState, "ft/locked_joints", self.locked.append,
                                       qos.LATCHED)
+        self.diagnostics: list[DiagnosticArray] = []
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append,
+                                      qos.RELIABLE)
 
     def stamp(self):
         return convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
@@ -63,6 +68,27 @@ class Loop:
         self.sim.step()
         spin_until(self.executor,
                    lambda: self.monitor.detector.latest_time >= self.sim.t - 1e-9, 2.0)
+
+    def diagnostics_after(self, time: float, command: Callable[[Loop], None] | None = None,
+                          ) -> DiagnosticStatus:
+        """The monitor's own status from the first /diagnostics stamped after `time` (s).
+
+        The diagnostics timer runs on the sim's clock: the loop steps on meanwhile,
+        with `command` each step (none: no command).
+        """
+        def fresh() -> DiagnosticStatus | None:
+            for msg in self.diagnostics:
+                if convert.stamp_seconds(msg.header.stamp) > time:
+                    return next(s for s in msg.status if s.name == "monitor")
+            return None
+
+        for _ in range(round(0.6 * 250)):
+            if fresh() is not None:
+                break
+            self.step(command)
+        status = fresh()
+        assert status is not None, f"no /diagnostics after t = {time:.3f} s"
+        return status
 
     def locked_names(self) -> list[str]:
         return list(self.locked[-1].name) if self.locked else []
@@ -91,17 +117,130 @@ def constant(velocity) -> Callable[[Loop], None]:
     return lambda lp: lp.send(velocity)
 
 
-def test_healthy_motion_with_noise_declares_no_lock() -> None:
-    """60 s of simulated time at 250 Hz, 1e-3 rad noise, speeds 0.05 to 1 rad/s."""
-    with loop(noise=1e-3) as lp:
-        def sweep(lp: Loop) -> None:
-            t = lp.sim.t
-            speed = 0.05 + 0.95 * (0.5 + 0.5 * np.sin(2 * np.pi * t / 7 + np.arange(7)))
-            lp.send(speed * np.where(np.sin(2 * np.pi * t + np.arange(7)) >= 0, 1.0, -1.0))
+def sweep(lp: Loop) -> None:
+    """Speeds sweeping 0.05 .. 1 rad/s per joint, direction flipping every half second."""
+    t = lp.sim.t
+    speed = 0.05 + 0.95 * (0.5 + 0.5 * np.sin(2 * np.pi * t / 7 + np.arange(7)))
+    lp.send(speed * np.where(np.sin(2 * np.pi * t + np.arange(7)) >= 0, 1.0, -1.0))
 
-        for _ in range(60 * 250):
+
+#: The slowest plant of issue 13's grid.
+LAGGING = {"command_latency": 0.05, "response_time": 0.05}
+
+
+def test_healthy_motion_with_noise_declares_no_lock() -> None:
+    """30 s of simulated time at 250 Hz, 1e-3 rad noise, speeds 0.05 to 1 rad/s.
+
+    On the slowest plant of issue 13's grid (50 ms latency, 50 ms response time).
+    """
+    with loop(noise=1e-3, sim_parameters=LAGGING) as lp:
+        for _ in range(30 * 250):
             lp.step(sweep)
         assert lp.locked_names() == [] and lp.monitor.locked == {}
+        assert lp.monitor.detector.not_observing is None
+        estimate = lp.monitor.detector.estimate()
+        assert estimate.identified
+        assert estimate.latency + estimate.response_time == pytest.approx(0.1, abs=0.03)
+
+
+def test_a_lock_on_the_lagging_plant_is_found_within_300_ms() -> None:
+    with loop(noise=1e-3, sim_parameters=LAGGING) as lp:
+        for _ in range(5 * 250):
+            lp.step(sweep)
+        for _ in range(250):
+            lp.step(constant(np.full(7, 0.2)))
+        lp.inject.publish(JointState(name=["panda_joint6"]))
+        assert spin_until(lp.executor, lambda: "panda_joint6" in lp.sim.locked, 2.0)
+        injected = lp.sim.t
+        while not lp.locked_names() and lp.sim.t < injected + 1.0:
+            lp.step(constant(np.full(7, 0.2)))
+        assert lp.locked_names() == ["panda_joint6"]
+        assert convert.stamp_seconds(lp.locked[-1].header.stamp) - injected <= 0.3
+
+
+def test_a_plant_that_stops_is_a_plant_fault_in_diagnostics_not_locks() -> None:
+    with loop(noise=1e-3) as lp:
+        for _ in range(300):
+            lp.step(constant(np.full(7, 0.2)))
+        lp.inject.publish(JointState(name=list(PANDA.joint_names)))  # the whole arm stops
+        assert spin_until(lp.executor, lambda: len(lp.sim.locked) == 7, 2.0)
+        for _ in range(250):
+            lp.step(constant(np.full(7, 0.2)))
+        assert lp.locked_names() == [] and lp.monitor.locked == {}
+        assert "plant not following commands" in lp.monitor.problems.active["plant"]
+        diagnostics = lp.diagnostics_after(lp.sim.t, constant(np.full(7, 0.2)))
+        assert diagnostics.level == DiagnosticStatus.ERROR
+        assert "plant not following commands" in diagnostics.message
+
+
+def test_diagnostics_show_the_identified_plant_and_why_nothing_is_decided() -> None:
+    with loop(noise=1e-3, sim_parameters={"command_latency": 0.03, "response_time": 0.02}) as lp:
+        lp.step(sweep)
+        first = lp.diagnostics_after(lp.sim.t, sweep)
+        values = {kv.key: kv.value for kv in first.values}
+        assert first.message == f"not observing: {values['observing']}"
+        assert values["observing"].startswith("settling after the command stream")
+        assert values["plant_model"] == "prior (not yet identified)"
+        for _ in range(10 * 250):
+            lp.step(sweep)
+        values = {kv.key: kv.value for kv in lp.diagnostics_after(lp.sim.t, sweep).values}
+        assert values["plant_model"] == "identified" and values["observing"] == "yes"
+        assert float(values["latency_s"]) + float(values["response_time_s"]) == pytest.approx(
+            0.05, abs=0.02)
+
+
+def test_no_decision_while_nobody_subscribes_to_the_command_output() -> None:
+    with ros_context() as (context, executor):
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda"),
+            Parameter("state_directory", value=tempfile.mkdtemp())])
+        node = rclpy.create_node("lonely_plant", context=context)
+        for n in (monitor, node):
+            executor.add_node(n)
+        raw = node.create_publisher(JointState, "ft/command_raw", qos.RELIABLE)
+        states = node.create_publisher(JointState, "joint_states", qos.RELIABLE)
+
+        def exchange() -> bool:
+            stamp = node.get_clock().now().to_msg()
+            raw.publish(convert.joint_state(PANDA.joint_names, stamp, velocity=[0.2] * 7))
+            states.publish(convert.joint_state(PANDA.joint_names, stamp, position=START))
+            return monitor.detector.latest_time > -math.inf
+
+        assert spin_until(executor, exchange, 5.0)
+        assert monitor.detector.not_observing == "nobody subscribes to ft/command(_array)"
+        assert monitor.locked == {}
+
+
+def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:
+    state = {"state_directory": str(tmp_path)}
+    with loop(monitor_parameters=state) as lp:
+        lp.step(constant(np.full(7, 0.1)))
+        lp.declare.publish(JointState(name=["panda_joint5"]))
+        assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
+        lp.step(constant(np.full(7, 0.1)))
+        position = lp.monitor.locked["panda_joint5"]
+        assert math.isfinite(position)
+    assert [p.name for p in tmp_path.iterdir()] == ["monitor--panda.json"]
+    with loop(monitor_parameters=state) as lp:  # a new monitor process, the same directory
+        assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
+        assert lp.locked[-1].position[0] == pytest.approx(position)
+        lp.step(constant(np.full(7, 0.1)))
+        assert lp.commands[-1].velocity[4] == 0.0
+        client = lp.node.create_client(Trigger, "monitor/reset")
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(lp.executor, future.done, 5.0) and future.result().success
+    with loop(monitor_parameters=state) as lp:  # reset cleared the file too
+        spin_until(lp.executor, lambda: bool(lp.locked), 2.0)
+        assert lp.locked and lp.locked_names() == []
+
+
+def test_a_corrupt_state_file_is_reported_and_ignored(tmp_path) -> None:
+    (tmp_path / "monitor--panda.json").write_text("{not json")
+    with loop(monitor_parameters={"state_directory": str(tmp_path)}) as lp:
+        assert spin_until(lp.executor, lambda: bool(lp.locked), 2.0)
+        assert lp.locked_names() == []
+        assert "cannot read" in lp.monitor.problems.active["state_directory"]
 
 
 def test_each_injected_lock_is_detected_on_the_right_joint_quickly() -> None:
