@@ -413,3 +413,19 @@ def test_joint_states_going_back_in_time_are_rejected() -> None:
         lp.node.create_publisher(JointState, "joint_states", qos.RELIABLE).publish(old)
         assert spin_until(lp.executor, lambda: "joint_states" in lp.monitor.problems.active, 2.0)
         np.testing.assert_array_equal(lp.monitor._q, latest)  # the older state is not used
+
+
+def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
+    with loop(sim_parameters={"response_time": 0.05, "hold_last_command": True}) as lp:
+        lp.step(constant(np.full(7, 0.2)))
+        for _ in range(125):  # 0.5 s with no new command: held, and the lag has settled
+            lp.sim.step()
+        np.testing.assert_allclose(lp.sim.qd, 0.2, rtol=1e-3)
+        sim = lp.sim
+        refused = sim.set_parameters([Parameter("acceleration_limit", value=[1.0, 2.0])])[0]
+        assert not refused.successful and "2 values for 7 joints" in refused.reason
+        assert not sim.set_parameters([Parameter("response_time", value=-1.0)])[0].successful
+        assert sim.set_parameters([Parameter("acceleration_limit", value=[0.5])])[0].successful
+        before = lp.sim.qd.copy()
+        lp.step(constant(np.full(7, -0.2)))  # reversing at 0.5 rad/s^2
+        np.testing.assert_allclose(lp.sim.qd, before - 0.5 / 250, rtol=1e-9)
