@@ -43,11 +43,12 @@ test: build lint
 demo: $(STAMP)
 	$(BIN)/ft-demo
 
-# Speed figures (not asserted in tests): writes bench_out/*.md and *.json; about 30 minutes
-# (the fault campaign, and the nodes' 10-minute memory run).
+# Speed and detection-quality figures (not asserted in tests): writes bench_out/*.md and
+# *.json; about 35 minutes (the fault campaign, and the nodes' 10-minute memory run).
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
+	$(BIN)/python bench/detection.py --out bench_out
 	$(BIN)/ft-campaign --runs 20 --out bench_out
 	$(BIN)/python bench/nodes.py --out bench_out
 

@@ -14,9 +14,7 @@ A. One process (one executor): sim at 500 Hz, controller at 500 Hz (`blend`,
    all their cycles.
 B. Separate processes (`ft-sim`, `ft-controller`, `ft-monitor`): the same latency,
    and each process's resident set size after a warm-up and at the end of the run.
-C. The monitor's detector alone: detection latency of locks while the joint is
-   commanded at 0.1, 0.2 and 0.5 rad/s (250 Hz, 1e-3 rad noise, random joints and
-   lock times).
+Detection quality is `bench/detection.py`.
 
 Writes `<out>/nodes.md` and `<out>/nodes.json`. Parts A and B use the DDS domains
 `FT_BENCH_DOMAIN` (default 61) and `FT_BENCH_DOMAIN_PROCESSES` (default 62).
@@ -36,8 +34,6 @@ import numpy as np
 import rclpy
 from engine_cycle import machine
 from ft_controller.controller_node import ControllerNode
-from ft_core import robots
-from ft_core.detection import LockDetector
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import qos
 from ft_msgs_py.loop import LoopAccounting
@@ -271,37 +267,8 @@ def separate_processes(seconds: float, memory_seconds: float) -> dict:
             "memory_seconds": memory_seconds}
 
 
-def detection(trials: int = 30, seed: int = 0) -> dict:
-    """Part C."""
-    panda = robots.load("panda")
-    start = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
-    rng = np.random.default_rng(seed)
-    dt = 1 / 250
-    results = {}
-    for speed in (0.1, 0.2, 0.5):
-        latencies = []
-        for _ in range(trials):
-            joint, lock = int(rng.integers(7)), float(rng.uniform(0.5, 1.0))
-            detector, q = LockDetector(panda.lower, panda.upper), start.copy()
-            signs = rng.choice([-1.0, 1.0], size=7)
-            for k in range(int(2.0 / dt)):
-                t = k * dt
-                qd = speed * signs
-                detector.command(t, qd)
-                move = qd.copy()
-                if t >= lock:
-                    move[joint] = 0.0
-                q = q + move * dt
-                if detector.measure(t + dt, q + rng.normal(scale=1e-3, size=7)):
-                    latencies.append(t + dt - lock)
-                    break
-        results[f"{speed} rad/s"] = {**percentiles(latencies), "detected": len(latencies),
-                                     "trials": trials}
-    return results
-
-
 def main(argv: list[str] | None = None) -> int:
-    """Run A, B and C and write the table and JSON."""
+    """Run A and B and write the table and JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--seconds", type=float, default=60.0, help="part A and B's timing run")
@@ -311,7 +278,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     a = part_a(args.seconds, args.repeats)
     b = separate_processes(min(args.seconds, 30.0), max(args.memory_seconds, args.seconds))
-    c = detection()
     info = machine()
     def pair(figures: dict, digits: int) -> str:
         return (f"{figures['p50']:.{digits}f} / {figures['p99']:.{digits}f}"
@@ -327,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{pair(r['cycle_compute_ms'], 3)} | {pair(r['state_to_command_ms'], 2)} |"
           for kind, r in a.items()),
         "",
-        "| separate processes, detection | value |", "|---|---:|",
+        "| separate processes | value |", "|---|---:|",
         f"| joint_states to ft/command, separate processes, p50 / p99 | "
         f"{b['state_to_command_ms'].get('p50', float('nan')):.2f} / "
         f"{b['state_to_command_ms'].get('p99', float('nan')):.2f} ms |",
@@ -336,16 +302,12 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"| resident memory of {name}: after warm-up -> after "
                      f"{b['memory_seconds']:.0f} s | {b['rss_kib_after_warm_up'][name] / 1024:.1f}"
                      f" -> {b['rss_kib_at_end'][name] / 1024:.1f} MiB |")
-    for speed, figures in c.items():
-        lines.append(f"| detection latency at {speed}, p50 / p99 ({figures['detected']}/"
-                     f"{figures['trials']} detected) | {figures.get('p50', float('nan')):.0f} / "
-                     f"{figures.get('p99', float('nan')):.0f} ms |")
     lines += ["", f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, "
               f"{info['date']}."]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "nodes.md").write_text("\n".join(lines) + "\n")
     (args.out / "nodes.json").write_text(json.dumps(
-        {"machine": info, "one_process": a, "separate_processes": b, "detection": c},
+        {"machine": info, "one_process": a, "separate_processes": b},
         indent=2) + "\n")
     print("\n".join(lines))
     return 0

@@ -50,4 +50,17 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     assert runs["sim + controller + monitor, EventsExecutor"]["state_to_command_ms"]["samples"]
     assert set(figures["separate_processes"]["rss_kib_at_end"]) == {"sim", "controller",
                                                                     "monitor"}
-    assert figures["detection"]["0.2 rad/s"]["detected"] > 0
+
+
+def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "detection.py"), "--out", str(tmp_path),
+         "--healthy-seconds", "6", "--trials", "1"],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    figures = json.loads((tmp_path / "detection.json").read_text())
+    assert set(figures["false_locks"]) == {"new", "old (fixed latency)"}
+    new = figures["detection"]["new"]["0.2 rad/s"]
+    assert new["trials"] == 12 and new["detected"] + new["missed"] + new["wrong"] == 12
+    assert new["detected"] > 0 and new["p99_ms"] >= new["p50_ms"] > 0
+    assert "| new | 0.2 rad/s |" in (tmp_path / "detection.md").read_text()

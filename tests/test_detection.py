@@ -8,23 +8,17 @@ be found on the right joint within 300 ms; the fixed-latency detector of before
 
 from __future__ import annotations
 
-import itertools
 import sys
 
 import numpy as np
 import pytest
-from ft_core import robots
 from ft_core.detection import DetectorConfig, LockDetector
-from ft_core.plant import Plant, PlantConfig
+from ft_core.plant import PlantConfig
 from paths import REPO
 
 sys.path.insert(0, str(REPO / "bench"))
-import fixed_latency_detector
-
-PANDA = robots.load("panda")
-START = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
-DT = 1 / 250
-GRID = list(itertools.product((0.0, 0.01, 0.03, 0.05), (0.0, 0.02, 0.05)))
+import fixed_latency_detector  # the detector before issue 13
+from detection import DT, GRID, PANDA, START, record, replay  # the benchmark's recorder
 
 
 def old_detector() -> fixed_latency_detector.LockDetector:
@@ -36,31 +30,10 @@ def run(commands, seconds: float, plant: PlantConfig | None = None,
         lock: tuple[tuple[int, ...], float] | None = None, noise: float = 1e-3,
         detector=None, pauses: tuple[tuple[float, float], ...] = (),
         stop_at: float | None = None, seed: int = 0):
-    """Drive the plant with `commands(t)` for `seconds`; returns (detector, [(time, joints)]).
-
-    `lock` = (joints, time); `pauses` = ((start, end), ...) without commands;
-    `stop_at`: the whole plant stops then (an emergency stop).
-    """
-    rng = np.random.default_rng(seed)
+    """Record the plant under `commands(t)` and replay it: (detector, [(time, joints)])."""
     detector = detector or LockDetector(PANDA.lower, PANDA.upper)
-    arm = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, START, plant or PlantConfig())
-    events = []
-    for k in range(round(seconds / DT)):
-        t = k * DT
-        if not any(a <= t < b for a, b in pauses):
-            qd = commands(t)
-            detector.command(t, qd)
-            arm.command(t, qd)
-        if lock is not None and t >= lock[1]:
-            for joint in lock[0]:
-                arm.lock(joint)
-        if stop_at is not None and t >= stop_at:
-            arm.locked.update({j: arm.q[j] for j in range(7)})
-        arm.step(t + DT)
-        new = detector.measure(t + DT, arm.q + rng.normal(scale=noise, size=7))
-        if new:
-            events.append((t + DT, new))
-    return detector, events
+    data = record(commands, seconds, plant, lock, noise, pauses, stop_at, seed)
+    return detector, replay(data, detector)
 
 
 def sweeping(t: float) -> np.ndarray:
