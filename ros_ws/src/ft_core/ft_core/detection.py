@@ -26,8 +26,11 @@ measured velocity v is the least-squares slope of the positions; each plausible
 model's predicted velocity is the slope of its predicted positions at the same
 instants. The weakest prediction c (smallest magnitude; 0 when plausible models
 disagree in sign) is what the joint must at least have done. The slope's standard
-error s comes from the residuals of measured minus best-model positions, so noise
-and model error are measured, not assumed. A joint is
+error s comes from the fit's residuals, so noise is measured, not assumed: the
+smaller of two estimates that each include the noise, the residuals of a straight
+line through the measured positions (inflated by changes of speed) and those of the
+measured minus the best model's positions (inflated by model error; before
+identification the best model is only a guess). A joint is
 - observable when |c| >= `min_command` and |c| >= 2 `confidence` s;
 - stalled when observable, v / c < `ratio` and |v - c| > `confidence` s;
 - following when observable and v / c >= `following_ratio`;
@@ -150,6 +153,13 @@ class PlantEstimate:
     response_time_range: tuple[float, float]
     identified: bool  #: False: still the prior (every model on the grid)
     excitation: float  #: s of informative data behind the estimate (with forgetting)
+
+
+def _slope_error(values: np.ndarray, centred: np.ndarray, slope: np.ndarray,
+                 spread: float) -> np.ndarray:
+    """Standard error of least-squares slopes from the fit's residuals (per column)."""
+    fitted = values.mean(axis=0) + np.outer(centred, slope)
+    return np.sqrt(np.sum((values - fitted) ** 2, axis=0) / (values.shape[0] - 2) / spread)
 
 
 class CommandHistory:
@@ -387,9 +397,9 @@ class LockDetector:
         measured = centred @ positions / spread
         slopes = np.tensordot(centred, predicted, axes=(0, 0)) / spread  # (models, joints)
         best = int(np.argmin(self._scores))
-        residual = positions - predicted[:, best, :]
-        fitted = residual.mean(axis=0) + np.outer(centred, measured - slopes[best])
-        error = np.sqrt(np.sum((residual - fitted) ** 2, axis=0) / (times.size - 2) / spread)
+        error = np.minimum(_slope_error(positions, centred, measured, spread),
+                           _slope_error(positions - predicted[:, best, :], centred,
+                                        measured - slopes[best], spread))
         plausible = slopes[self._plausible]
         weakest = np.where(np.all(plausible > 0, axis=0), plausible.min(axis=0),
                            np.where(np.all(plausible < 0, axis=0), plausible.max(axis=0), 0.0))

@@ -6,7 +6,9 @@ r"""The closed loop as separate processes: sim (owning the clock), controller an
     ros2 topic pub --once /ft/inject_failure sensor_msgs/JointState "{name: [panda_joint2]}"
 
 Watch `ft/locked_joints`, `ft/metrics` and `/diagnostics`. (`ros2 run ft_sim demo`
-runs the scripted story with its report and figure in one process.)
+runs the scripted story with its report and figure in one process.) The sim behaves
+like a real driver: 20 ms command latency, a 30 ms velocity response time and a
+command watchdog (`tests/test_deployment.py` runs this graph as separate processes).
 """
 
 from launch import LaunchDescription
@@ -20,7 +22,8 @@ def generate_launch_description():
     return LaunchDescription([
         Node(package="ft_sim", executable="sim_node", name="sim",
              parameters=[{**MODEL, "publish_clock": True, "rate": 250.0,
-                          "position_noise": 0.001}]),
+                          "position_noise": 0.001, "command_latency": 0.02,
+                          "response_time": 0.03, "command_timeout": 0.1}]),
         Node(package="ft_controller", executable="controller_node", name="controller",
              parameters=[{**MODEL, "use_sim_time": True, "resolution": "blend",
                           "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}]),
