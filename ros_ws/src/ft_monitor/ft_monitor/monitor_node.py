@@ -38,7 +38,7 @@ from ft_core import locked_set, remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
-from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -110,8 +110,7 @@ class MonitorNode(SuiteNode):
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
-        self.add_on_set_parameters_callback(self._validate)
-        self.add_post_set_parameters_callback(lambda _: self._configure_detector())
+        parameters.on_change(self, self._detector_config, self._configure_detector)
         parameters.request_model(self, self._set_model)
         self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
@@ -129,13 +128,6 @@ class MonitorNode(SuiteNode):
             persistence=value["detection.persistence"], ratio=value["detection.ratio"],
             confidence=value["detection.confidence"],
             follow_time=value["detection.follow_time"])
-
-    def _validate(self, params: list) -> SetParametersResult:
-        try:
-            self._detector_config({p.name: p.value for p in params})
-        except (ValueError, TypeError) as error:
-            return SetParametersResult(successful=False, reason=str(error))
-        return SetParametersResult(successful=True)
 
     def _configure_detector(self) -> None:
         if self.detector is not None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -46,6 +46,23 @@ def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None
         except InvalidParameterValueException as error:
             node.get_logger().error(f"{error}; using the default {default!r}")
             node.declare_parameter(name, default, descriptor, ignore_override=True)
+
+
+def on_change(node: Node, check: Callable[[dict], object], apply: Callable[[], None]) -> None:
+    """Validate parameter changes with `check({name: value})`, then `apply()` them.
+
+    `check` raises ValueError or TypeError to refuse the whole change, with its
+    message as the reason; the node keeps its previous configuration.
+    """
+    def validate(params: list) -> SetParametersResult:
+        try:
+            check({p.name: p.value for p in params})
+        except (ValueError, TypeError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(validate)
+    node.add_post_set_parameters_callback(lambda _: apply())
 
 
 def request_model(node: Node, use: Callable[[str, str], None]) -> None:

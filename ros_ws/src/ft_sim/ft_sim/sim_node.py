@@ -33,7 +33,7 @@ import numpy as np
 from ft_core import robots
 from ft_core.plant import Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
-from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -88,8 +88,7 @@ class SimNode(Node):
         self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
-        self.add_on_set_parameters_callback(self._validate)
-        self.add_post_set_parameters_callback(lambda _: self._configure_plant())
+        parameters.on_change(self, self._check_plant, self._configure_plant)
         parameters.request_model(self, self._set_model)
         # Owning the clock, the sim must not wait for it: its timer runs on steady time.
         self.timer = self.create_timer(self.period, self.step,
@@ -111,15 +110,11 @@ class SimNode(Node):
                            timeout=value["command_timeout"],
                            hold_last_command=value["hold_last_command"])
 
-    def _validate(self, params: list) -> SetParametersResult:
-        try:
-            config = self._plant_config({p.name: p.value for p in params})
-            if self.plant is not None:
-                Plant(self.plant.lower, self.plant.upper, self.plant.velocity_limits,
-                      self.plant.q, config)
-        except (ValueError, TypeError) as error:
-            return SetParametersResult(successful=False, reason=str(error))
-        return SetParametersResult(successful=True)
+    def _check_plant(self, changes: dict) -> None:
+        config = self._plant_config(changes)
+        if self.plant is not None:  # per-joint values must match the model
+            Plant(self.plant.lower, self.plant.upper, self.plant.velocity_limits,
+                  self.plant.q, config)
 
     def _configure_plant(self) -> None:
         if self.plant is not None:
