@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -429,3 +430,27 @@ def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
         before = lp.sim.qd.copy()
         lp.step(constant(np.full(7, -0.2)))  # reversing at 0.5 rad/s^2
         np.testing.assert_allclose(lp.sim.qd, before - 0.5 / 250, rtol=1e-9)
+
+
+def test_stale_huge_and_duplicate_inputs_cost_little_and_change_nothing() -> None:
+    with loop() as lp:
+        for _ in range(100):
+            lp.step(constant(np.full(7, 0.1)))
+        old = convert.joint_state(PANDA.joint_names, convert.stamp_from_nanoseconds(1),
+                                  velocity=[0.1] * 7)  # stamped in 1970
+        lp.step(lambda lp: lp.raw.publish(old))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+        assert "stale" in lp.monitor.problems.active["ft/command_raw"]
+        duplicates = convert.joint_state(["panda_joint1"] * 20_000, lp.stamp(),
+                                         velocity=[0.1] * 20_000)
+        start = time.perf_counter()
+        lp.step(lambda lp: lp.raw.publish(duplicates))
+        assert time.perf_counter() - start < 1.0
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+        start = time.perf_counter()
+        lp.declare.publish(JointState(name=[f"no_joint_{i}" for i in range(100_000)]))
+        lp.declare.publish(JointState(name=[f"no_joint_{i % 500}" for i in range(1000)]))
+        lp.step(constant(np.full(7, 0.1)))
+        assert time.perf_counter() - start < 2.0
+        assert lp.monitor.locked == {}
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.1)  # recovered

@@ -22,8 +22,9 @@ locks. A lock stays until `~/reset`. `ft/declare_failure` locks joints at once.
 The full locked set goes out on `ft/locked_joints` (transient local) and is kept
 in a file under `state_directory` (`ft_core.locked_set`), restored at start-up.
 
-Safety: a malformed command (NaN, wrong lengths, unknown or missing names) is
-replaced by explicit zeros; with no fresh command for `command_timeout` the
+Safety: a malformed command (NaN, wrong lengths, unknown, missing or duplicate
+names, more than `convert.MAX_NAMES` names, a stamp ahead of the clock or older than
+`command_timeout`) is replaced by explicit zeros; with no fresh command for `command_timeout` the
 watchdog publishes zeros once per period until commands return (a velocity
 controller holds its last command). Problems are logged once per episode.
 """
@@ -207,12 +208,17 @@ class MonitorNode(SuiteNode):
         if self.robot is None:
             return
         now = self.now()
-        unknown = [name for name in msg.name if name not in self.robot.joint_names]
-        if unknown:
-            self.get_logger().warning(f"declare_failure: unknown joints {unknown[:10]} ignored"
-                                      f"{' (and more)' if len(unknown) > 10 else ''}")
-        for name in dict.fromkeys(n for n in msg.name if n in self.robot.joint_names):
-            j = self.robot.joint_names.index(name)
+        try:
+            known = convert.names_to_indices(list(msg.name), self.robot.joint_names)
+        except convert.MessageError as error:
+            self.get_logger().error(f"ft/declare_failure ignored: {error}",
+                                    throttle_duration_sec=5.0)
+            return
+        if len(known) < len(msg.name):
+            self.get_logger().warning(f"ft/declare_failure: {len(msg.name) - len(known)} unknown "
+                                      "joint names ignored", throttle_duration_sec=5.0)
+        for j in known.values():
+            name = self.robot.joint_names[j]
             if j not in self.detector.locked:
                 position = float(self._q[j]) if self._q is not None else math.nan
                 self.detector.lock(j, position, now)
@@ -235,6 +241,8 @@ class MonitorNode(SuiteNode):
         try:
             if stamp is None:
                 raise convert.MessageError("stamp ahead of the clock")
+            if self.now() - stamp > self.param("command_timeout"):
+                raise convert.MessageError(f"stale: stamped {self.now() - stamp:.3f} s ago")
             qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
         except convert.MessageError as error:
             self.problems.report("ft/command_raw", f"{error}: commanding zeros")

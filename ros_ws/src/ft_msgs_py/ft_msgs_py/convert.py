@@ -8,6 +8,7 @@ unknown-only or duplicate name, a length mismatch or a non-finite value raises
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -15,6 +16,10 @@ import pinocchio as pin
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, Twist
 from sensor_msgs.msg import JointState
+
+#: Most joint names a message may carry: a whole robot's joint_state_broadcaster has
+#: tens; more is an attack or a bug, refused before any per-name work.
+MAX_NAMES = 1024
 
 
 class MessageError(ValueError):
@@ -32,12 +37,23 @@ def stamp_from_nanoseconds(nanoseconds: int) -> Time:
 
 
 def names_to_indices(names: Sequence[str], joints: Sequence[str]) -> dict[str, int]:
-    """Index in `joints` of every name; raises MessageError for duplicates."""
+    """Index in `joints` of every name; raises MessageError for duplicates or too many names.
+
+    Linear in the number of names; more than `MAX_NAMES` are refused unread.
+    """
+    if len(names) > MAX_NAMES:
+        raise MessageError(f"{len(names)} joint names (more than {MAX_NAMES})")
     if len(set(names)) != len(names):
-        duplicates = sorted({n for n in names if list(names).count(n) > 1})
-        raise MessageError(f"duplicate joint names {duplicates}")
+        duplicates = sorted(name for name, count in Counter(names).items() if count > 1)
+        raise MessageError(f"duplicate joint names {_few(duplicates)}")
     index = {name: i for i, name in enumerate(joints)}
     return {name: index[name] for name in names if name in index}
+
+
+def _few(names: Sequence[str], most: int = 10) -> str:
+    """A list of names for a log line: at most `most`, then how many more."""
+    shown = ", ".join(repr(n[:64]) for n in names[:most])
+    return f"[{shown}{f', ... {len(names) - most} more' if len(names) > most else ''}]"
 
 
 def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position") -> np.ndarray:
@@ -54,7 +70,7 @@ def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position"
     missing = [j for j in joints if j not in found]
     if missing:
         unknown = [n for n in names if n not in found]
-        raise MessageError(f"joint state lacks {missing}" + (f" (it has {unknown})" if unknown
+        raise MessageError(f"joint state lacks {missing}" + (f" (it has {_few(unknown)})" if unknown
                                                             else ""))
     position = {name: i for i, name in enumerate(names)}
     vector = values[[position[j] for j in joints]]
