@@ -30,3 +30,22 @@ def planar_arm(links: Sequence[float], limit: float | None = None,
     parts.append(f'<joint name="tool" type="fixed"><parent link="l{len(links)}"/>'
                  f'<child link="l{len(links) + 1}"/><origin xyz="{offset} 0 0"/></joint></robot>')
     return robots.load("".join(parts), task_space="planar")
+
+
+def straight_chain(axes: Sequence[str], link: float = 0.2,
+                   task_space: str = "pose") -> robots.Robot:
+    """A chain of revolute joints with the given axes ("x", "y" or "z"), links along z.
+
+    At q = 0 it stands straight up: an exactly singular configuration.
+    """
+    vectors = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
+    parts = ['<robot name="straight">'] + [f'<link name="l{i}"/>' for i in range(len(axes) + 2)]
+    for i, axis in enumerate(axes):
+        parts.append(
+            f'<joint name="j{i + 1}" type="revolute"><parent link="l{i}"/>'
+            f'<child link="l{i + 1}"/><origin xyz="0 0 {link if i else 0}"/>'
+            f'<axis xyz="{vectors[axis]}"/>'
+            '<limit lower="-2.9" upper="2.9" velocity="2" effort="1"/></joint>')
+    parts.append(f'<joint name="tool" type="fixed"><parent link="l{len(axes)}"/>'
+                 f'<child link="l{len(axes) + 1}"/><origin xyz="0 0 {link}"/></joint></robot>')
+    return robots.load("".join(parts), task_space=task_space)

@@ -11,6 +11,7 @@ from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
 from ft_core.pseudoinverse import Damping, damped_pinv
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from models import straight_chain
 
 ROBOTS = {name: robots.load(name) for name in ("planar3r", "puma560", "panda")}
 PANDA_POSITION = robots.load("panda", task_space="position")
@@ -308,3 +309,18 @@ def test_compiled_cycle_equals_the_svd_reference_composition(robot: robots.Robot
         assert result.jump_index == pytest.approx(
             resolution.jump_index(J, qd, x, damping=config.damping), rel=1e-6)
     assert checked >= 20
+
+
+@pytest.mark.parametrize("axes", ["zyzyzyz", "yyyyyyy", "zzzyyyz", "xyzxyzx"])
+@pytest.mark.parametrize("mode", RESOLUTIONS)
+def test_engine_starts_from_exactly_singular_straight_chains(axes: str, mode: str) -> None:
+    """Axis-aligned chains at q = 0: repeated exact-zero eigenvalues of J J^T (issue 14)."""
+    robot = straight_chain(list(axes))
+    engine = ResolutionEngine(robot, EngineConfig(resolution=mode))
+    q = np.zeros(robot.n)
+    for xd in (np.zeros(robot.m), np.array([0.1, 0.0, 0.0, 0.0, 0.0, 0.2])):
+        result = engine.step(q, xd)
+        assert np.all(np.isfinite(result.qd))
+        assert np.all(np.abs(result.qd) <= robot.velocity_limits + 1e-12)
+        assert np.all(np.isfinite(result.post_failure_sigmas))
+        assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)

@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def all_finite(values: np.ndarray) -> bool:
     """Whether every entry of a 1-D float array is finite (no nan, no inf)."""
     for value in values:

@@ -149,7 +149,7 @@ class _LockedSet:
     use_jump: bool  #: whether the minimum-jump term is part of the preference
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
                 weights: np.ndarray) -> float:
     """The weighted jump index n sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2, seed 004 eq 9)."""
@@ -164,7 +164,7 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
     return n * total
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
            task_scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray,
            weights: np.ndarray, gains: np.ndarray, use_kfm: bool, use_jump: bool,
@@ -217,7 +217,7 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
             qd, fits)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _limit_report(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, soft_lower: np.ndarray,
                   soft_upper: np.ndarray, soft: bool) -> tuple[float, np.ndarray, np.ndarray]:
     """(soft-limit margin, at_soft_limit, at_hard_limit) of `CycleResult`."""
@@ -235,7 +235,10 @@ class ResolutionEngine:
 
     The cycle's arithmetic is compiled by numba on first use after installation
     (about 10 s on 2 cores) and cached on disk; the constructor runs one cycle so
-    that happens, or the cache is loaded, before the first control cycle.
+    that happens, or the cache is loaded, before the first control cycle. Every
+    compiled function of ft_core uses numba's numpy error model: a division by zero
+    at an exact singularity gives inf or nan as numpy would (the damping and the
+    clamps keep them out of the results), never an exception in the control loop.
     """
 
     def __init__(self, robot: Robot, config: EngineConfig | None = None):

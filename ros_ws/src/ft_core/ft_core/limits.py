@@ -25,7 +25,7 @@ from ft_core.pseudoinverse import Damping, damped_pinv, pseudo_inverse_from_svd
 TOLERANCE = 1e-10
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                     velocity_limits: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi.
@@ -37,7 +37,7 @@ def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float) -> np.ndarray:
     """Smooth push (dimensionless, <= 1 at an edge) away from the edges of [lower, upper].
 
@@ -61,7 +61,7 @@ def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float
     return push
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def within(qd: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
     """Whether lo <= qd <= hi for every joint, up to `TOLERANCE`."""
     for j in range(qd.size):
@@ -70,7 +70,7 @@ def within(qd: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                   free: np.ndarray) -> tuple[float, int, bool]:
     """Largest s in [0, 1] with lo <= s a + b <= hi on the free joints.
@@ -97,7 +97,7 @@ def largest_scale(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     return (max(s_max, 0.0) if feasible else 0.0), critical, feasible
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def preference_scale(task: np.ndarray, null_motion: np.ndarray, lo: np.ndarray,
                      hi: np.ndarray) -> float:
     """Largest alpha in [0, 1] keeping task + alpha null_motion in [lo, hi]; 0 if none does.

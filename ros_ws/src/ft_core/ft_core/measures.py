@@ -248,7 +248,7 @@ def soft_kfm(J: np.ndarray, locked: Iterable[int] = (), temperature: float = 0.0
     return float(low - temperature * np.log(np.sum(np.exp(-(healthy - low) / temperature))))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
     """Weights (n,) such that grad K = weights @ G; 0 for nan (locked) entries.
 

@@ -44,7 +44,7 @@ GRADIENT_FLOOR = 1e-12
 MAX_NEWTON_STEPS = 60
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def downdate_root(c: np.ndarray, d: np.ndarray) -> tuple[float, int]:
     """(tau, Newton steps taken): tau >= 0 with G(tau) = 0 (module docstring).
 
@@ -59,8 +59,10 @@ def downdate_root(c: np.ndarray, d: np.ndarray) -> tuple[float, int]:
         for k in range(1, c.size):
             denominator = d[k] + tau
             if denominator > 0.0:
-                g += c[k] * c[k] * tau / denominator
-                slope += c[k] * c[k] * d[k] / (denominator * denominator)
+                # Ratios first: denominator^2 underflows to 0 at exact singularities.
+                g += c[k] * c[k] * (tau / denominator)
+                if d[k] > 0.0:
+                    slope += c[k] * c[k] / denominator * (d[k] / denominator)
             else:
                 g += c[k] * c[k]
         if g >= 0.0 or slope >= 0.0:
@@ -72,7 +74,7 @@ def downdate_root(c: np.ndarray, d: np.ndarray) -> tuple[float, int]:
     return tau, steps
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                     np.ndarray]:
     """Decompose A = J J^T and every downdate A - j_i j_i^T of an m x n J (m <= n).
@@ -108,7 +110,7 @@ def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
     return L, V, columns, sigmas, vectors
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gram(J: np.ndarray) -> np.ndarray:
     """A = J J^T (m, m), in loops: cheaper than a BLAS call at this size."""
     m, n = J.shape
@@ -123,7 +125,7 @@ def gram(J: np.ndarray) -> np.ndarray:
     return A
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def in_eigenbasis(J: np.ndarray, V: np.ndarray) -> np.ndarray:
     """J^T V (n, m): row i is column j_i in the eigenbasis of A."""
     m, n = J.shape
@@ -135,13 +137,13 @@ def in_eigenbasis(J: np.ndarray, V: np.ndarray) -> np.ndarray:
     return columns
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def smallest_singular_value(L: np.ndarray) -> float:
     """sigma_m(J) from the eigenvalues of J J^T (ascending)."""
     return np.sqrt(max(L[0], 0.0))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
                     vectors: np.ndarray) -> np.ndarray:
     """G[i, k] = ds_i/dq_k = u_i^T dJ[k] v_i with v_i = iJ^T u_i / s_i (seed 002 eq 8).
@@ -172,7 +174,7 @@ def sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
     return G
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def damped_inverse(columns: np.ndarray, L: np.ndarray, V: np.ndarray, threshold: float,
                    max_damping: float) -> np.ndarray:
     """Damped pseudo-inverse of J itself (n, m): J^T (J J^T + lambda^2 I)^-1 (`analyse`'s parts)."""
@@ -187,7 +189,7 @@ def damped_inverse(columns: np.ndarray, L: np.ndarray, V: np.ndarray, threshold:
     return inverse
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reduced_velocities(columns: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
                        sigmas: np.ndarray, threshold: float, max_damping: float) -> np.ndarray:
     """Row i: iqd' = (iJ)# xd with the damped inverse of iJ, 0 at joint i (n, n).

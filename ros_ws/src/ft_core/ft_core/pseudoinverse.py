@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def squared_damping(sigma_min: float | np.ndarray, threshold: float,
                     max_damping: float) -> float | np.ndarray:
     """lambda^2 (m^2) for a smallest singular value, or elementwise for an array of them."""

@@ -57,13 +57,13 @@ _MOVABLE = {"revolute", "continuous", "prismatic"}
 _SUPPORTED = _MOVABLE | {"fixed"}
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cross(a: np.ndarray | tuple, b: np.ndarray | tuple) -> tuple[float, float, float]:
     """The cross product a x b of two 3-vectors, as a tuple (no allocation when compiled)."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _task_jacobians(J: np.ndarray, w: np.ndarray, hessian: np.ndarray, r: np.ndarray,
                     rotate: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """Task rows of the tool Jacobian and its derivatives (m, n), (n, m, n), in the base frame.
@@ -116,19 +116,31 @@ def builtin_urdf(name: str) -> str:
     return resources.files("ft_core").joinpath("urdf").joinpath(BUILTINS[name][0]).read_text()
 
 
+#: Largest URDF accepted (bytes): real arms' URDFs are tens of kilobytes.
+MAX_URDF_BYTES = 10_000_000
+
+
 def _resolve(spec: str) -> tuple[str, str | None]:
     """Turn a model spec into (URDF XML, default task space of a built-in or None)."""
     if not isinstance(spec, str) or not spec.strip():
         raise RobotModelError("robot model spec is empty: give a built-in name, a URDF path or XML")
     if spec in BUILTINS:
         return builtin_urdf(spec), BUILTINS[spec][1]
+    if len(spec) > MAX_URDF_BYTES:
+        raise RobotModelError(f"robot model spec of {len(spec)} characters is larger than "
+                              f"{MAX_URDF_BYTES}")
     if spec.lstrip().startswith("<"):
         return spec, None
-    path = Path(spec).expanduser()
-    if path.is_file():
-        return path.read_text(), None
+    try:  # a long or odd string is not a path: OSError (name too long), ValueError (NUL)
+        path = Path(spec).expanduser()
+        if path.is_file():
+            if path.stat().st_size > MAX_URDF_BYTES:
+                raise RobotModelError(f"URDF file {path} is larger than {MAX_URDF_BYTES} bytes")
+            return path.read_text(), None
+    except (OSError, ValueError):
+        pass
     raise RobotModelError(
-        f"unknown robot model {spec!r}: not a built-in ({', '.join(sorted(BUILTINS))}), "
+        f"unknown robot model {spec[:80]!r}: not a built-in ({', '.join(sorted(BUILTINS))}), "
         "not an existing file and not URDF XML"
     )
 

@@ -25,7 +25,11 @@ class Episodes:
                 self.logger.info(f"{kind}: recovered")
             return
         if kind not in self.active:
-            (self.logger.warning if warning else self.logger.error)(f"{kind}: {text}")
+            # One call site per severity: rclpy refuses a call site that changes severity.
+            if warning:
+                self.logger.warning(f"{kind}: {text}")
+            else:
+                self.logger.error(f"{kind}: {text}")
         self.active[kind] = text
 
     def summary(self) -> str:
