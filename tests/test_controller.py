@@ -354,3 +354,32 @@ def test_out_of_range_start_up_values_fall_back_to_the_defaults() -> None:
         plant.frozen = True
         plant.run(3, twist_sender(plant))
         assert len(plant.commands) >= 3
+
+
+def test_empty_arrays_from_a_parameters_file_and_a_dump_round_trip(tmp_path) -> None:
+    """`critical_points: []` (as `ros2 param dump` writes it) starts the node (issue 14)."""
+    import yaml
+    from rcl_interfaces.msg import ParameterType
+    from rclpy.context import Context
+
+    arrays = ("critical_points", "soft_limits.lower", "soft_limits.upper",
+              "failure_probabilities", "joints")
+    first = tmp_path / "first.yaml"
+    first.write_text(yaml.safe_dump({"controller": {"ros__parameters": {
+        "robot_model": "panda", **{name: [] for name in arrays}}}}))
+    dumped = tmp_path / "dumped.yaml"
+    for path in (first, dumped):
+        context = Context()
+        rclpy.init(context=context, args=["--ros-args", "--params-file", str(path)])
+        try:
+            node = ControllerNode(context=context)
+            assert node.robot is not None
+            assert all(node.param(name) == [] for name in arrays)
+            kinds = {name: node.describe_parameter(name).type for name in arrays}
+            assert kinds == {**dict.fromkeys(arrays[:4], ParameterType.PARAMETER_DOUBLE_ARRAY),
+                             "joints": ParameterType.PARAMETER_STRING_ARRAY}
+            dump = {name: node.param(name) for name in node._parameters if name != "use_sim_time"}
+            dumped.write_text(yaml.safe_dump({"controller": {"ros__parameters": dump}}))
+            node.destroy_node()
+        finally:
+            rclpy.shutdown(context=context)

@@ -55,13 +55,13 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                   {"floating_point_range": _floats(0.0, 100.0)}),
     "limit_gain": (1.0, "soft/hard limit avoidance, rad/s at a box edge",
                    {"floating_point_range": _floats(0.0, 100.0)}),
-    "failure_probabilities": ([], "one per joint in `joints` order (empty: equal)",
-                              {"dynamic_typing": True}),
-    "soft_limits.lower": ([], "rad, `joints` order (empty: none)", {"dynamic_typing": True}),
-    "soft_limits.upper": ([], "rad, `joints` order (empty: none)", {"dynamic_typing": True}),
-    "critical_points": ([], "task points concatenated (pose: x y z qx qy qz qw); their "
-                        "intersected self-motion boxes become soft limits",
-                        {"dynamic_typing": True}),
+    "failure_probabilities": (Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` order "
+                              "(empty: equal)", {}),
+    "soft_limits.lower": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
+    "soft_limits.upper": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
+    "critical_points": (Parameter.Type.DOUBLE_ARRAY, "task points concatenated (pose: x y z "
+                        "qx qy qz qw); their intersected self-motion boxes become soft limits",
+                        {}),
     "release_soft_limits_on_failure": (True, "drop the soft limits once a joint is locked", {}),
     "control_rate": (250.0, "Hz", {"floating_point_range": _floats(1.0, 2000.0)}),
     "target_timeout": (0.5, "s; an older twist decays to 0 over one more timeout",

@@ -9,7 +9,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py import convert
+from ft_msgs_py import convert, parameters
 from ft_msgs_py.episodes import Episodes
 
 
@@ -23,7 +23,7 @@ class SuiteNode(Node):
 
     def param(self, name: str):
         """The current value of a parameter."""
-        return self.get_parameter(name).value
+        return parameters.value(self, name)
 
     def now(self) -> float:
         """The node clock (wall or simulated) in seconds."""

@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
 from ft_msgs_py import names, qos
@@ -23,8 +24,8 @@ MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
                     "empty too: wait for the robot_description topic", {"read_only": True}),
     "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
     "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
-    "joints": ([], "command order of the chain's joints (empty: base to tip)",
-               {"read_only": True, "dynamic_typing": True}),
+    "joints": (Parameter.Type.STRING_ARRAY, "command order of the chain's joints (empty: "
+               "base to tip)", {"read_only": True}),
     "task_space": ("", "pose, position or planar (empty: the model's default)",
                    {"read_only": True}),
     "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
@@ -34,18 +35,29 @@ MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
 
 
 def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None:
-    """Declare parameters with descriptions and ranges.
+    """Declare parameters with descriptions, types and ranges.
 
-    An invalid start-up value is logged and replaced by the default, so a typo in a
-    launch file does not stop the node.
+    A default given as a `Parameter.Type` (the arrays) declares a typed parameter
+    whose value is empty until set: `ros2 param describe` shows its type and an
+    empty list (`[]`, which a parameters file and `ros2 param dump` carry as
+    "not set") loads back. Read values with `value`. An invalid start-up value is
+    logged and replaced by the default, so a typo in a launch file does not stop
+    the node.
     """
     for name, (default, description, extra) in parameters.items():
         descriptor = ParameterDescriptor(description=description, **extra)
         try:
             node.declare_parameter(name, default, descriptor)
-        except InvalidParameterValueException as error:
-            node.get_logger().error(f"{error}; using the default {default!r}")
+        except (InvalidParameterValueException, InvalidParameterTypeException) as error:
+            shown = "an empty list" if isinstance(default, Parameter.Type) else repr(default)
+            node.get_logger().error(f"{error}; using the default, {shown}")
             node.declare_parameter(name, default, descriptor, ignore_override=True)
+
+
+def value(node: Node, name: str):
+    """A parameter's value; a typed array that is not set reads as []."""
+    parameter = node.get_parameter_or(name)
+    return [] if parameter.type_ == Parameter.Type.NOT_SET else parameter.value
 
 
 def on_change(node: Node, check: Callable[[dict], object], apply: Callable[[], None]) -> None:
@@ -86,5 +98,5 @@ def chain_arguments(node: Node) -> tuple[str | None, str | None, str | None, flo
 
     Each is None where the parameter holds its "use the model's own" value.
     """
-    return tuple(node.get_parameter(name).value or None for name in
+    return tuple(value(node, name) or None for name in
                  ("base_link", "tip_link", "task_space", "characteristic_length"))

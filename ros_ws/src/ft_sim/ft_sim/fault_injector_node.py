@@ -11,9 +11,9 @@ warning; a malformed command is dropped (the plant's own timeout then stops it).
 from __future__ import annotations
 
 import numpy as np
-from ft_msgs_py import convert, names, qos, spin
-from rcl_interfaces.msg import ParameterDescriptor
+from ft_msgs_py import convert, names, parameters, qos, spin
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -27,10 +27,10 @@ class FaultInjectorNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("fault_injector", **kwargs)
-        self.declare_parameter("joints", [], ParameterDescriptor(
-            description="joint order of ft/command_array (needed only for the array)",
-            read_only=True, dynamic_typing=True))
-        self.joints = [str(j) for j in self.get_parameter("joints").value or []]
+        parameters.declare(self, {"joints": (
+            Parameter.Type.STRING_ARRAY, "joint order of ft/command_array (needed only for "
+            "the array)", {"read_only": True})})
+        self.joints = [str(j) for j in parameters.value(self, "joints")]
         self.locked: set[str] = set()
         self._out = self.create_publisher(JointState, OUTPUT_COMMAND, qos.RELIABLE)
         self._out_array = self.create_publisher(Float64MultiArray, OUTPUT_COMMAND_ARRAY,

@@ -122,7 +122,7 @@ class Scenario:
         self.sim.timer.cancel()  # stepped by hand
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
-            critical_points=flat if config.soft_limits else []))
+            **({"critical_points": flat} if config.soft_limits and flat else {})))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(

@@ -48,8 +48,8 @@ def _floats(low: float, high: float) -> dict:
 
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
-    "initial_positions": ([], "rad, `joints` order (empty: the model's home configuration)",
-                          {"read_only": True, "dynamic_typing": True}),
+    "initial_positions": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: the "
+                          "model's home configuration)", {"read_only": True}),
     "rate": (500.0, "Hz, integration and joint_states rate", {"read_only": True,
                                                              **_floats(1.0, 10000.0)}),
     "position_noise": (0.0, "rad, standard deviation of the published positions",
@@ -147,10 +147,10 @@ class SimNode(Node):
             robot = robots.load(spec, self.get_parameter("base_link").value or None,
                                 self.get_parameter("tip_link").value or None,
                                 self.get_parameter("task_space").value or None)
-            joints = list(self.get_parameter("joints").value or robot.joint_names)
+            joints = list(parameters.value(self, "joints") or robot.joint_names)
             if sorted(joints) != sorted(robot.joint_names):
                 raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
-            initial = list(self.get_parameter("initial_positions").value or [])
+            initial = list(parameters.value(self, "initial_positions"))
             q = robot.home()
             if initial:
                 by_name = dict(zip(joints, initial, strict=True))
