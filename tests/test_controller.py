@@ -233,6 +233,29 @@ def test_twist_in_another_frame_is_rejected() -> None:
         assert np.all(plant.velocity() == 0.0)
 
 
+def test_bad_frames_huge_twists_and_absurd_states_give_zeros_and_recover() -> None:
+    """Issue 14: mixed frames crashed the node; a twist of 1e306 hung it."""
+    with controller() as (node, plant):
+        plant.run(3, twist_sender(plant, frame="camera_link"))  # a warning episode
+        plant.run(3, twist_sender(plant))
+        plant.run(3, twist_sender(plant, np.full(6, math.nan)))  # an error from the same site
+        assert "non-finite" in node.problems.active["ft/target_twist"]
+        plant.run(3, twist_sender(plant, np.full(6, 1e306)))
+        assert "engine" in node.problems.active
+        assert "no arm can do that" in node.problems.active["engine"]
+        assert np.all(plant.velocity() == 0.0)
+        far = Q0.copy()
+        far[3] = 1e300
+        plant.q = far
+        plant.run(3)
+        assert "outside the joint limits" in node.problems.active["engine"]
+        assert np.all(plant.velocity() == 0.0)
+        plant.q = Q0.copy()
+        plant.run(5, twist_sender(plant))
+        assert "engine" not in node.problems.active
+        assert np.any(plant.velocity() != 0.0)  # recovered
+
+
 def test_without_a_target_the_arm_holds_still() -> None:
     with controller(resolution="blend") as (_, plant):
         plant.run(10)

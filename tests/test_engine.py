@@ -324,3 +324,39 @@ def test_engine_starts_from_exactly_singular_straight_chains(axes: str, mode: st
         assert np.all(np.abs(result.qd) <= robot.velocity_limits + 1e-12)
         assert np.all(np.isfinite(result.post_failure_sigmas))
         assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)
+
+
+@pytest.mark.parametrize("mode", RESOLUTIONS)
+def test_huge_inputs_are_refused_or_bounded_and_never_hang(mode: str) -> None:
+    """Issue 14: a twist of 1e306 or a position of 1e300 never ended the null-space loop."""
+    import threading
+
+    robot = robots.load("panda")
+    engine = ResolutionEngine(robot, EngineConfig(resolution=mode))
+    home = robot.home()
+    absurd = [(home, np.full(6, 1e306)), (np.full(7, 1e300), np.full(6, 0.1)),
+              (robot.upper + 1.5, np.zeros(6))]
+    largest = [(home, np.full(6, 1e3)), (home, np.array([1e3, 0, 0, 0, 0, 0])),
+               (robot.upper + 0.9, np.full(6, 1e3)), (robot.lower - 0.9, -np.full(6, 1e3))]
+    outcomes: list = []
+
+    def work() -> None:
+        for q, xd in absurd:
+            try:
+                engine.step(q, xd)
+                outcomes.append("accepted")
+            except ValueError as error:
+                outcomes.append(str(error))
+        outcomes.extend(engine.step(q, xd) for q, xd in largest)
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join(timeout=60)
+    assert not worker.is_alive(), "the engine did not return"
+    assert len(outcomes) == len(absurd) + len(largest)
+    assert "no arm can do that" in outcomes[0]
+    assert all("outside the joint limits" in text for text in outcomes[1:3])
+    for result in outcomes[3:]:
+        assert np.all(np.isfinite(result.qd))
+        assert np.all(np.abs(result.qd) <= robot.velocity_limits + 1e-9)
+        assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)

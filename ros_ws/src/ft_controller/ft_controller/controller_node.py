@@ -5,11 +5,12 @@ one `ft_core.engine` cycle per timer tick at `control_rate`. Topics, parameters 
 reactions are listed in the README; the contract is shared/INTERFACE.md.
 
 Safety: with no model, no joint state yet, a stale state (older than
-`state_timeout`), missing joints, non-finite values or stamps in the future or going
-backwards, the node publishes explicit zero commands (a velocity controller holds
-its last command) and an ERROR diagnostic, and resumes by itself when good data
-returns. Each kind of problem is logged once per episode. On shutdown it publishes
-zeros before leaving.
+`state_timeout`), missing joints, non-finite values, stamps in the future or going
+backwards, or a state or target the engine refuses as physically absurd (a joint
+far outside its limits, a task speed beyond 1000 m/s or rad/s), the node publishes
+explicit zero commands (a velocity controller holds its last command) and an ERROR
+diagnostic, and resumes by itself when good data returns. Each kind of problem is
+logged once per episode. On shutdown it publishes zeros before leaving.
 """
 
 from __future__ import annotations
@@ -349,7 +350,14 @@ class ControllerNode(SuiteNode):
             self._compute_boxes(q)
         xd, idle = self._task_velocity(q, now)
         locked = [robot.joint_names.index(name) for name in self._locked]
-        result = self.engine.step(q, xd, locked)
+        try:
+            result = self.engine.step(q, xd, locked)
+        except ValueError as error:  # physically absurd state or target
+            self.problems.report("engine", f"{error}: commanding zeros")
+            self._last = None
+            self._publish(np.zeros(robot.n))
+            return
+        self.problems.report("engine", None)
         qd = result.qd
         if idle and not self.param("idle_null_space_motion"):
             qd = np.zeros(robot.n)

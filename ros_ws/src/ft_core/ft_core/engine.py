@@ -44,6 +44,10 @@ from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
 
 RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
+#: Inputs beyond these are physically absurd and refused: a measured position further
+#: outside its joint limits (rad), a task velocity component (m/s or rad/s).
+ABSURD_POSITION = 1.0
+ABSURD_TASK_SPEED = 1e3
 
 #: Cycle status values, from best to worst.
 OK, NEAR_SINGULARITY, LIMITED, INFEASIBLE = "ok", "near_singularity", "limited", "infeasible"
@@ -299,7 +303,9 @@ class ResolutionEngine:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
-        xd, or locked indices that are not joints.
+        xd, physically absurd ones (q more than `ABSURD_POSITION` outside the joint
+        limits, a component of xd beyond `ABSURD_TASK_SPEED`), or locked indices that
+        are not joints.
         """
         cfg, robot = self.config, self.robot
         n, m = robot.n, robot.m
@@ -310,6 +316,10 @@ class ResolutionEngine:
             raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
         if not (all_finite(q) and all_finite(xd)):
             raise ValueError("q and xd must be finite")
+        if np.any(q < robot.lower - ABSURD_POSITION) or np.any(q > robot.upper + ABSURD_POSITION):
+            raise ValueError(f"q is more than {ABSURD_POSITION} rad outside the joint limits")
+        if np.max(np.abs(xd)) > ABSURD_TASK_SPEED:
+            raise ValueError(f"xd exceeds {ABSURD_TASK_SPEED:g} (m/s, rad/s): no arm can do that")
         view = self._locked_set(locked)
         index, nh = view.healthy, view.healthy.size
         if view.use_kfm:

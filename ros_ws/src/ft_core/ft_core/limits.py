@@ -143,6 +143,8 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     J# xd alone breaks them); then SNS saturates joints and, last, scales the task.
     `lo <= 0 <= hi` must hold (as `velocity_bounds` guarantees). If the task at
     scale 0 cannot be met with the remaining preference, the preference is dropped.
+    At most n saturation passes per preference; numbers that defeat them (inputs
+    near overflow) give zero velocity with task scale 0.
     """
     m, n = J.shape
     if pinv is None:
@@ -161,7 +163,7 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
     for preference in (z, np.zeros(n)):
         free, q_sat = everything.copy(), np.zeros(n)
         best: tuple[float, np.ndarray, np.ndarray] | None = None
-        while True:
+        for _ in range(n):  # each pass saturates one more joint: at most n passes
             a, b, sigma_free = _solve(J, xd, preference, free, q_sat, damping, svd)
             if not free.all() and (sigma_free < rank_lost or free.sum() < m):
                 break
@@ -171,6 +173,8 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
             scale, critical, feasible = largest_scale(a, b, lo, hi, free)
             if feasible and (best is None or scale > best[0]):
                 best = (scale, free.copy(), q_sat.copy())
+            if not free[critical]:
+                break  # no joint left to saturate (non-finite or degenerate numbers)
             free[critical] = False
             q_sat[critical] = np.clip(qd[critical], lo[critical], hi[critical])
         if best is not None:
@@ -179,4 +183,6 @@ def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.
             qd = np.clip(scale * a + b, lo, hi)
             at_bound = ((qd >= hi - TOLERANCE) & (hi > 0)) | ((qd <= lo + TOLERANCE) & (lo < 0))
             return Saturated(qd, scale, ~free | at_bound)
-    raise AssertionError("unreachable: the task at scale 0 with no preference is feasible")
+    # In exact arithmetic the task at scale 0 without preference is feasible; with
+    # overflowing inputs it may not be found: stop (explicit zeros), never raise.
+    return Saturated(np.zeros(n), 0.0, np.zeros(n, dtype=bool))
