@@ -271,14 +271,26 @@ def test_without_a_target_the_arm_holds_still() -> None:
 
 def test_critical_points_become_soft_limits() -> None:
     points = [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]
-    with controller(task_space="position", critical_points=points) as (_, plant):
+    with controller(task_space="position", critical_points=points) as (node, plant):
         plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+        plant.step()
+        assert node._soft_note.startswith("computing soft limits")  # in the background
+        computed = False
+        for _ in range(3000):  # the loop keeps commanding while the boxes are traced
+            assert plant.step(timeout=0.2), "no command within 0.2 s: the loop was blocked"
+            if metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX:
+                computed = True
+                break
+        assert computed, "the soft limits never arrived"
         plant.run(70)
-        margin = metrics.values(plant.metrics[-1])["soft_limit_margin"]
-        assert margin < metrics.NO_SOFT_BOX
         assert "2 critical points" in dict(
             (kv.key, kv.value) for kv in controller_status(plant).values)["soft_limits"]
-    with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (_, plant):
+    with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (node, plant):
+        plant.step()
+        for _ in range(3000):
+            if node._boxes_job is None:
+                break
+            plant.step()
         plant.run(70)
         status = controller_status(plant)
         assert status.level == diagnostics.ERROR and "critical points" in status.message
@@ -297,10 +309,10 @@ def test_critical_points_become_soft_limits() -> None:
 def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value, reason: str,
                                                                 ) -> None:
     with controller(task_space="position") as (node, _):
-        before = node.get_parameter(name).value
+        before = node.param(name)
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful and reason in result.reason
-        assert node.get_parameter(name).value == before
+        assert node.param(name) == before
 
 
 def test_parameters_change_at_run_time() -> None:
@@ -406,3 +418,26 @@ def test_empty_arrays_from_a_parameters_file_and_a_dump_round_trip(tmp_path) -> 
             node.destroy_node()
         finally:
             rclpy.shutdown(context=context)
+
+
+def test_with_sim_time_and_no_clock_the_watchdog_still_commands_zeros() -> None:
+    """Issue 14: with use_sim_time and no /clock nothing at all was published."""
+    with controller() as (node, plant):
+        plant.publish_state()  # a state, but never a /clock: the control timer cannot fire
+        assert spin_until(plant.executor, lambda: len(plant.commands) >= 3, 5.0)
+        assert all(np.all(np.array(c.velocity) == 0.0) for c in plant.commands)
+        assert "no control cycle" in node.problems.active["control loop"]
+
+
+def test_soft_limits_can_be_set_one_side_at_a_time() -> None:
+    """Issue 14: through SetParameters (one parameter at a time) a valid pair was refused."""
+    lower, upper = list(Q0 - 0.5), list(Q0 + 0.5)
+    with controller(task_space="position") as (node, plant):
+        (first,) = node.set_parameters([Parameter("soft_limits.lower", value=lower)])
+        assert first.successful
+        assert node.engine.config.soft_lower == ()  # one side alone: none yet
+        (second,) = node.set_parameters([Parameter("soft_limits.upper", value=upper)])
+        assert second.successful
+        np.testing.assert_allclose(node.engine.config.soft_upper, upper)
+        plant.run(3)
+        assert metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX

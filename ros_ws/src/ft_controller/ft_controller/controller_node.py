@@ -16,6 +16,8 @@ logged once per episode. On shutdown it publishes zeros before leaving.
 from __future__ import annotations
 
 import math
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,12 +37,15 @@ from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
+#: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
+WATCHDOG_PERIOD = 0.05
 
 def _floats(low: float, high: float) -> list[FloatingPointRange]:
     return [FloatingPointRange(from_value=low, to_value=high)]
@@ -108,6 +113,9 @@ class ControllerNode(SuiteNode):
         self._soft_note = "none"
         self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
         self._boxes_dirty = False
+        self._background = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ft_boxes")
+        self._boxes_job: tuple[int, Future] | None = None
+        self._boxes_generation = 0
         self._last = None
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
@@ -128,6 +136,11 @@ class ControllerNode(SuiteNode):
         self._load_model()
         self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
+        # The watchdog runs on steady time: with use_sim_time and no /clock the control
+        # timer never fires, and the plant must still get explicit zeros.
+        self._last_cycle = time.monotonic()
+        self.create_timer(WATCHDOG_PERIOD, self._check_watchdog,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------------- model
     def _load_model(self) -> None:
@@ -180,14 +193,10 @@ class ControllerNode(SuiteNode):
         probabilities = list(value["failure_probabilities"] or [])
         if probabilities:
             probabilities = list(self._chain(probabilities, order, "failure_probabilities"))
-        lower = list(value["soft_limits.lower"] or [])
-        upper = list(value["soft_limits.upper"] or [])
-        if bool(lower) != bool(upper):
-            raise ValueError("soft_limits.lower and soft_limits.upper must both be set or empty")
-        box = None
-        if lower:
-            box = (self._chain(lower, order, "soft_limits.lower"),
-                   self._chain(upper, order, "soft_limits.upper"))
+        sides = [self._chain(value[name], order, name) if value[name] else None
+                 for name in ("soft_limits.lower", "soft_limits.upper")]
+        # One side alone (set one at a time through SetParameters): no soft limits yet.
+        box = None if any(side is None for side in sides) else tuple(sides)
         if soft is not None:
             box = soft if box is None else (np.maximum(box[0], soft[0]),
                                             np.minimum(box[1], soft[1]))
@@ -239,8 +248,13 @@ class ControllerNode(SuiteNode):
         self.engine = ResolutionEngine(self.robot, self._engine_config(
             self.robot, self._order, {}, critical_box))
 
-    def _compute_boxes(self, q: np.ndarray) -> None:
-        """Critical points -> intersected self-motion boxes -> soft limits (seed 000 sec. III)."""
+    def _start_boxes(self, q: np.ndarray) -> None:
+        """Compute the critical points' soft limits in the background (never in the cycle).
+
+        The control loop goes on with the limits it has; `_take_boxes` switches to
+        the new ones, in the cycle, once they are ready. A change of the points while
+        a computation runs makes its result stale: it is dropped and computed again.
+        """
         self._boxes_dirty = False
         flat = list(self.param("critical_points") or [])
         if not flat:
@@ -248,32 +262,38 @@ class ControllerNode(SuiteNode):
             self.problems.report("critical points", None)
             self._rebuild_engine(None)
             return
-        robot = self.robot
+        self._boxes_generation += 1
+        self._soft_note = (f"computing soft limits from {len(flat)} values of critical points "
+                           "(the previous limits meanwhile)")
+        self._boxes_job = (self._boxes_generation, self._background.submit(
+            selfmotion.soft_limits, self.robot.for_another_thread(), flat, q.copy()))
+
+    def _take_boxes(self) -> None:
+        """Switch to soft limits computed in the background, if any are ready."""
+        generation, job = self._boxes_job
+        if not job.done():
+            return
+        self._boxes_job = None
+        if generation != self._boxes_generation:
+            return  # the points changed meanwhile: a newer computation follows
         try:
-            targets = selfmotion.targets_from_flat(robot, flat)
-            boxes = [selfmotion.trace(robot, t, selfmotion.find_seed(robot, t, q)).box
-                     for t in targets]
-            box = selfmotion.intersect(boxes)
-            empty = selfmotion.empty_joints(box)
-            if empty:
-                raise selfmotion.UnreachableError(
-                    f"the boxes do not intersect on {[robot.joint_names[j] for j in empty]}")
-            unreachable = [i + 1 for i, found in enumerate(
-                selfmotion.reachability(robot, targets, *box, q)) if found is None]
-            if unreachable:
-                raise selfmotion.UnreachableError(
-                    f"critical points {unreachable} cannot be reached inside the intersection")
+            box, count = job.result()
         except (selfmotion.UnreachableError, ValueError) as error:
             self._soft_note = "none (critical points failed)"
             self.problems.report("critical points", f"{error}; running without their soft limits")
             self._rebuild_engine(None)
             return
-        self._soft_note = f"{len(targets)} critical points"
+        self._soft_note = f"{count} critical points"
         self.problems.report("critical points", None)
-        self.get_logger().info(f"soft limits from {len(targets)} critical points: "
+        self.get_logger().info(f"soft limits from {count} critical points: "
                                f"lower {np.round(box[0], 3).tolist()}, "
                                f"upper {np.round(box[1], 3).tolist()}")
         self._rebuild_engine(box)
+
+    def destroy_node(self) -> None:
+        """Stop the background work too."""
+        self._background.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
@@ -325,7 +345,19 @@ class ControllerNode(SuiteNode):
         self._locked = locked
 
     # ------------------------------------------------------------------- cycle
+    def _check_watchdog(self) -> None:
+        """Zeros (and an ERROR) while no control cycle has run for `state_timeout` (steady)."""
+        silent = time.monotonic() - self._last_cycle
+        if silent <= max(self.param("state_timeout"), 2.0 / self.param("control_rate")):
+            self.problems.report("control loop", None)
+            return
+        self.problems.report("control loop", f"no control cycle for {silent:.2f} s (is /clock "
+                             "published with use_sim_time?): commanding zeros")
+        if self.robot is not None:
+            self._publish(np.zeros(self.robot.n))
+
     def _cycle(self) -> None:
+        self._last_cycle = time.monotonic()
         self.accounting.start()
         try:
             self._control()
@@ -346,8 +378,10 @@ class ControllerNode(SuiteNode):
             self._last = None
             self._publish(np.zeros(robot.n))
             return
+        if self._boxes_job is not None:
+            self._take_boxes()
         if self._boxes_dirty:
-            self._compute_boxes(q)
+            self._start_boxes(q)
         xd, idle = self._task_velocity(q, now)
         locked = [robot.joint_names.index(name) for name in self._locked]
         try:

@@ -531,3 +531,26 @@ def targets_from_flat(robot: Robot, values: Sequence[float]) -> list[np.ndarray]
         pose[:3, 3] = chunk[:3]
         targets.append(pose)
     return targets
+
+
+def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
+                            ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+    """Critical points -> intersected self-motion boxes -> (soft limits, number of points).
+
+    Seed 000 sec. III. Raises UnreachableError when the boxes do not intersect or a
+    point cannot be reached inside the intersection. Slow (0.1 to a few seconds):
+    run it off the control loop, with a Robot of its own (`Robot.for_another_thread`).
+    """
+    targets = targets_from_flat(robot, flat)
+    boxes = [trace(robot, t, find_seed(robot, t, q)).box for t in targets]
+    box = intersect(boxes)
+    empty = empty_joints(box)
+    if empty:
+        raise UnreachableError(
+            f"the boxes do not intersect on {[robot.joint_names[j] for j in empty]}")
+    unreachable = [i + 1 for i, found in enumerate(
+        reachability(robot, targets, *box, q)) if found is None]
+    if unreachable:
+        raise UnreachableError(
+            f"critical points {unreachable} cannot be reached inside the intersection")
+    return box, len(targets)

@@ -32,6 +32,7 @@ controller holds its last command). Problems are logged once per episode.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -40,6 +41,7 @@ from ft_core.detection import DetectorConfig, LockDetector
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rcl_interfaces.msg import FloatingPointRange
+from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -113,7 +115,10 @@ class MonitorNode(SuiteNode):
         self.create_service(Trigger, names.RESET, self._on_reset)
         parameters.on_change(self, self._detector_config, self._configure_detector)
         parameters.request_model(self, self._set_model)
-        self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog)
+        # On steady time: with use_sim_time and no /clock the watchdog must still run.
+        self._last_command_steady = time.monotonic()
+        self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog,
+                                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
 
     # ------------------------------------------------------------------ set-up
@@ -250,6 +255,7 @@ class MonitorNode(SuiteNode):
             return
         self.problems.report("ft/command_raw", None)
         self._last_command = self.now()
+        self._last_command_steady = time.monotonic()
         locked = sorted(self.detector.locked)
         limits = self.robot.velocity_limits * self.param("velocity_scale")
         if locked and self.param("remap_commands") and self._q is not None:
@@ -304,7 +310,7 @@ class MonitorNode(SuiteNode):
     def _check_watchdog(self) -> None:
         if self.robot is None:
             return
-        age = self.now() - self._last_command
+        age = time.monotonic() - self._last_command_steady
         if age > self.param("command_timeout"):
             self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
 
