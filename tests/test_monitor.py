@@ -394,6 +394,23 @@ def test_fault_injector_zeroes_the_locked_joints_on_the_command_path() -> None:
 
         assert spin_until(executor, zeroed, 5.0)
         assert commands[-1].velocity[0] == 0.3 and arrays[-1].data[0] == 0.3
+        # Malformed commands never reach the plant: explicit zeros instead (issue 14).
+        def zeros_arrive(publish) -> bool:
+            def condition() -> bool:
+                publish()
+                return (bool(commands) and all(v == 0.0 for v in commands[-1].velocity)
+                        and all(v == 0.0 for v in arrays[-1].data))
+            return spin_until(executor, condition, 5.0)
+
+        for bad in ([math.nan] * 7, [1e300] * 7, [math.inf] * 7):
+            assert zeros_arrive(lambda bad=bad: command.publish(convert.joint_state(
+                joints, convert.stamp_from_nanoseconds(1), velocity=bad)))
+        assert zeros_arrive(lambda: command.publish(JointState(  # a duplicate name
+            name=[*joints, joints[0]], velocity=[0.3] * 8)))
+        assert list(commands[-1].name) == joints
+        assert zeros_arrive(lambda: array.publish(Float64MultiArray(data=[math.nan] * 7)))
+        forwarded = [v for c in commands for v in c.velocity] + [v for a in arrays for v in a.data]
+        assert all(math.isfinite(v) and abs(v) <= 100.0 for v in forwarded)
 
 
 def test_velocity_arrays_in_joints_order_are_accepted_as_commands() -> None:

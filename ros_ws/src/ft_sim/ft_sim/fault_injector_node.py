@@ -5,7 +5,10 @@ A proxy on the command path: it forwards `ft/command` (JointState) to
 `faulty/command_array`, with the commands of locked joints forced to exactly 0.
 Remap the outputs to the plant's command topics. `ft/inject_failure` (names) locks
 joints from now on; `~/reset` releases them. Unknown names are rejected with a
-warning; a malformed command is dropped (the plant's own timeout then stops it).
+warning. A malformed command (non-finite or beyond `MAX_SPEED`, duplicate names,
+names outside `joints`, wrong lengths, more than `convert.MAX_NAMES` names) never
+reaches the plant: explicit zeros for `joints` go out instead (with `joints` unset,
+nothing: the plant's own timeout then stops it).
 """
 
 from __future__ import annotations
@@ -18,6 +21,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+#: Fastest joint velocity forwarded (rad/s or m/s): beyond it no arm joint moves.
+MAX_SPEED = 100.0
 OUTPUT_COMMAND = "faulty/command"
 OUTPUT_COMMAND_ARRAY = "faulty/command_array"
 
@@ -56,22 +61,47 @@ class FaultInjectorNode(Node):
         self.locked.clear()
         return response
 
+    def _check(self, names: list[str], velocity: np.ndarray) -> str | None:
+        """Why a command must not reach the plant, or None."""
+        try:
+            convert.names_to_indices(names, self.joints or names)
+        except convert.MessageError as error:
+            return str(error)
+        if self.joints and not set(names) <= set(self.joints):
+            return f"unknown joints {sorted(set(names) - set(self.joints))[:10]}"
+        if velocity.size != len(names):
+            return f"{len(names)} names but {velocity.size} velocities"
+        if not np.all(np.isfinite(velocity)) or np.any(np.abs(velocity) > MAX_SPEED):
+            return f"velocities not finite or beyond {MAX_SPEED:g} rad/s"
+        return None
+
+    def _refuse(self, topic: str, reason: str) -> None:
+        """Explicit zeros (for the known joints) instead of a malformed command."""
+        self.get_logger().error(f"{topic}: {reason}: forwarding zeros", throttle_duration_sec=5.0)
+        if self.joints:
+            zeros = np.zeros(len(self.joints))
+            self._out.publish(convert.joint_state(self.joints, self.get_clock().now().to_msg(),
+                                                  velocity=zeros))
+            self._out_array.publish(Float64MultiArray(data=zeros.tolist()))
+
     def _on_command(self, msg: JointState) -> None:
-        if len(msg.velocity) != len(msg.name):
-            self.get_logger().warning("ft/command without one velocity per name: dropped",
-                                      throttle_duration_sec=5.0)
+        names, velocity = list(msg.name), np.asarray(msg.velocity, dtype=float)
+        reason = self._check(names, velocity)
+        if reason is not None:
+            self._refuse("ft/command", reason)
             return
-        velocity = [0.0 if name in self.locked else float(v)
-                    for name, v in zip(msg.name, msg.velocity, strict=True)]
-        self._out.publish(convert.joint_state(list(msg.name), msg.header.stamp,
-                                              velocity=velocity))
+        velocity[[i for i, name in enumerate(names) if name in self.locked]] = 0.0
+        self._out.publish(convert.joint_state(names, msg.header.stamp, velocity=velocity))
 
     def _on_array(self, msg: Float64MultiArray) -> None:
-        if len(msg.data) != len(self.joints):
-            self.get_logger().warning(f"ft/command_array needs {len(self.joints)} values (the "
-                                      "`joints` parameter): dropped", throttle_duration_sec=5.0)
+        data = np.asarray(msg.data, dtype=float)
+        if len(data) != len(self.joints):
+            reason = f"needs {len(self.joints)} values (the `joints` parameter), got {len(data)}"
+        else:
+            reason = self._check(self.joints, data)
+        if reason is not None:
+            self._refuse("ft/command_array", reason)
             return
-        data = np.array(msg.data, dtype=float)
         data[[i for i, j in enumerate(self.joints) if j in self.locked]] = 0.0
         self._out_array.publish(Float64MultiArray(layout=msg.layout, data=data.tolist()))
 
