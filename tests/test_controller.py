@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -58,10 +59,17 @@ def twist_sender(plant: FakePlant, twist: np.ndarray = TWIST, frame: str = ""):
     return send
 
 
+def monitor_publisher(plant: FakePlant, name: str = "monitor"):
+    """A `ft/locked_joints` publisher on a node of that name, as the monitor's."""
+    node = rclpy.create_node(name, context=plant.node.context)
+    plant.executor.add_node(node)
+    return node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
+
+
 def controller_status(plant: FakePlant):
     for array in reversed(plant.diagnostics):
         for status in array.status:
-            if status.name == "controller":
+            if status.name == "/controller":
                 return status
     return None
 
@@ -213,7 +221,7 @@ def test_locked_joints_get_exactly_zero_and_the_task_is_still_tracked(
         executor_type: type[Executor]) -> None:
     with controller(executor_type, task_space="position") as (_, plant):
         plant.frozen = True
-        publisher = plant.node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
+        publisher = monitor_publisher(plant)
         publisher.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))
         twist = np.array([0.03, -0.02, 0.01, 0, 0, 0])
         plant.run(20, twist_sender(plant, twist))
@@ -225,6 +233,30 @@ def test_locked_joints_get_exactly_zero_and_the_task_is_still_tracked(
         publisher.publish(convert.locked_message({}, plant.stamp()))  # repaired
         plant.run(5, twist_sender(plant, twist))
         assert plant.velocity()[3] != 0.0
+
+
+def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
+    """Issue 14: a forged empty set made the controller command a locked joint."""
+    twist = np.array([0.03, -0.02, 0.01, 0, 0, 0])
+    with controller(task_space="position") as (node, plant):
+        plant.frozen = True
+        monitor = monitor_publisher(plant)
+        monitor.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))
+        plant.run(10, twist_sender(plant, twist))
+        assert plant.velocity()[3] == 0.0
+        forger = monitor_publisher(plant, "forger")
+        forger.publish(convert.locked_message({}, plant.stamp()))
+        plant.run(10, twist_sender(plant, twist))
+        assert plant.velocity()[3] == 0.0  # still locked: the forged set is refused
+        assert "2 publishers" in node.problems.active["ft/locked_joints"]
+        assert "/forger" in node.problems.active["ft/locked_joints"]
+    with controller(task_space="position") as (node, plant):
+        plant.frozen = True
+        monitor_publisher(plant, "impostor").publish(
+            convert.locked_message({"panda_joint2": Q0[1]}, plant.stamp()))
+        plant.run(10, twist_sender(plant, twist))
+        assert plant.velocity()[1] != 0.0  # a lone publisher that is not the monitor
+        assert "not by the monitor" in node.problems.active["ft/locked_joints"]
 
 
 def test_twist_in_another_frame_is_rejected() -> None:
@@ -275,21 +307,20 @@ def test_critical_points_become_soft_limits() -> None:
         plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
         plant.step()
         assert node._soft_note.startswith("computing soft limits")  # in the background
-        computed = False
-        for _ in range(3000):  # the loop keeps commanding while the boxes are traced
+        computed, deadline = False, time.monotonic() + 60.0
+        while not computed and time.monotonic() < deadline:
+            # The loop keeps commanding while the boxes are traced in the background.
             assert plant.step(timeout=0.2), "no command within 0.2 s: the loop was blocked"
-            if metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX:
-                computed = True
-                break
+            computed = (metrics.values(plant.metrics[-1])["soft_limit_margin"]
+                        < metrics.NO_SOFT_BOX)
         assert computed, "the soft limits never arrived"
         plant.run(70)
         assert "2 critical points" in dict(
             (kv.key, kv.value) for kv in controller_status(plant).values)["soft_limits"]
     with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (node, plant):
         plant.step()
-        for _ in range(3000):
-            if node._boxes_job is None:
-                break
+        deadline = time.monotonic() + 60.0
+        while node._boxes_job is not None and time.monotonic() < deadline:
             plant.step()
         plant.run(70)
         status = controller_status(plant)

@@ -30,7 +30,7 @@ def assert_observed_healthy_motion(g: Graph) -> None:
     """No lock ever, and evidence that the monitor watched a moving arm."""
     assert g.ever_locked() == set(), g.log("monitor")[-3000:]
     assert g.travelled() > 5.0, "the arm hardly moved"
-    monitor = g.values("monitor")
+    monitor = g.values("/monitor")
     assert monitor, "no diagnostics from the monitor"
     assert any(v["observing"] == "yes" for v in monitor), "the monitor never observed"
     assert monitor[-1]["plant_model"] == "identified", monitor[-1]
@@ -92,6 +92,6 @@ def test_a_lock_is_found_and_survives_monitor_and_controller_restarts(tmp_path: 
         g.kill("controller")
         g.start("controller")
         g.wait(lambda: any(v.get("locked_joints") == "[panda_joint4]"
-                           for v in g.values("controller")[-3:]), 30.0,
+                           for v in g.values("/controller")[-3:]), 30.0,
                "the restarted controller's locked joints")
         assert g.ever_locked() == {"panda_joint4"}

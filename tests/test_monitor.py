@@ -80,7 +80,7 @@ class Loop:
         def fresh() -> DiagnosticStatus | None:
             for msg in self.diagnostics:
                 if convert.stamp_seconds(msg.header.stamp) > time:
-                    return next(s for s in msg.status if s.name == "monitor")
+                    return next(s for s in msg.status if s.name == "/monitor")
             return None
 
         for _ in range(round(0.6 * 250)):

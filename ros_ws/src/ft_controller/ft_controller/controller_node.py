@@ -16,8 +16,10 @@ logged once per episode. On shutdown it publishes zeros before leaving.
 from __future__ import annotations
 
 import math
+import multiprocessing
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,6 +84,8 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                           {"floating_point_range": _floats(0.001, 10.0)}),
     "velocity_scale": (0.5, "fraction of the URDF velocity limits",
                        {"floating_point_range": _floats(0.01, 1.0)}),
+    "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
+                     "in this namespace (empty: any single publisher)", {"read_only": True}),
     "idle_null_space_motion": (False, "with no target, allow null-space motion (kfm ascent, "
                                "limit avoidance); otherwise hold still", {}),
 }
@@ -113,7 +117,8 @@ class ControllerNode(SuiteNode):
         self._soft_note = "none"
         self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
         self._boxes_dirty = False
-        self._background = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ft_boxes")
+        self._background: ProcessPoolExecutor | None = None  # started with the first boxes
+        self._model_source: tuple[str, tuple] | None = None
         self._boxes_job: tuple[int, Future] | None = None
         self._boxes_generation = 0
         self._last = None
@@ -157,6 +162,7 @@ class ControllerNode(SuiteNode):
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self.robot, self._order, self.engine = robot, order, engine
+        self._model_source = (spec, parameters.chain_arguments(self))
         self._labels = metrics.labels(self.command_joints)
         self._boxes_dirty = len(self.param("critical_points")) > 0
         self.problems.report("model", None)
@@ -249,7 +255,7 @@ class ControllerNode(SuiteNode):
             self.robot, self._order, {}, critical_box))
 
     def _start_boxes(self, q: np.ndarray) -> None:
-        """Compute the critical points' soft limits in the background (never in the cycle).
+        """Compute the critical points' soft limits in a worker process (never in the cycle).
 
         The control loop goes on with the limits it has; `_take_boxes` switches to
         the new ones, in the cycle, once they are ready. A change of the points while
@@ -265,8 +271,11 @@ class ControllerNode(SuiteNode):
         self._boxes_generation += 1
         self._soft_note = (f"computing soft limits from {len(flat)} values of critical points "
                            "(the previous limits meanwhile)")
+        if self._background is None:
+            self._background = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
         self._boxes_job = (self._boxes_generation, self._background.submit(
-            selfmotion.soft_limits, self.robot.for_another_thread(), flat, q.copy()))
+            selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
 
     def _take_boxes(self) -> None:
         """Switch to soft limits computed in the background, if any are ready."""
@@ -278,7 +287,8 @@ class ControllerNode(SuiteNode):
             return  # the points changed meanwhile: a newer computation follows
         try:
             box, count = job.result()
-        except (selfmotion.UnreachableError, ValueError) as error:
+        except (selfmotion.UnreachableError, RobotModelError, ValueError, BrokenProcessPool,
+                ) as error:
             self._soft_note = "none (critical points failed)"
             self.problems.report("critical points", f"{error}; running without their soft limits")
             self._rebuild_engine(None)
@@ -292,7 +302,8 @@ class ControllerNode(SuiteNode):
 
     def destroy_node(self) -> None:
         """Stop the background work too."""
-        self._background.shutdown(wait=False, cancel_futures=True)
+        if self._background is not None:
+            self._background.shutdown(wait=False, cancel_futures=True)
         super().destroy_node()
 
     # ------------------------------------------------------------------ inputs
@@ -330,8 +341,25 @@ class ControllerNode(SuiteNode):
             return
         self._target = _Target("pose", goal, self.now())
 
+    def _locked_publisher_problem(self) -> str | None:
+        """Why `ft/locked_joints` cannot be trusted now, or None (one publisher: the monitor)."""
+        publishers = self.get_publishers_info_by_topic(
+            self.resolve_topic_name(names.LOCKED_JOINTS))
+        expected = self.param("monitor_name")
+        named = sorted(f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in publishers)
+        if len(publishers) > 1:
+            return (f"{len(publishers)} publishers {named[:10]}: only the monitor may publish "
+                    "the locked set (see the README on SROS2); ignored")
+        if expected and publishers and publishers[0].node_name != expected:
+            return f"published by {named[0]}, not by the monitor '{expected}'; ignored"
+        return None
+
     def _on_locked(self, msg: JointState) -> None:
         if self.robot is None:
+            return
+        problem = self._locked_publisher_problem()
+        self.problems.report("ft/locked_joints", problem)
+        if problem is not None:
             return
         try:
             locked, unknown = convert.locked_joints(msg, self.robot.joint_names)
@@ -441,13 +469,13 @@ class ControllerNode(SuiteNode):
                 locked = joint in self._locked
                 level = (diagnostics.ERROR if locked else
                          diagnostics.WARN if self._last.at_hard_limit[i] else diagnostics.OK)
-                statuses.append(diagnostics.status(
-                    f"{self.get_name()}: joint {joint}", level,
+                statuses.append(self.status(
+                    level,
                     "locked" if locked else "ok", {
                         "locked": locked, "at_soft_limit": bool(self._last.at_soft_limit[i]),
                         "at_hard_limit": bool(self._last.at_hard_limit[i]),
                         "post_failure_sigma": float(self._last.post_failure_sigmas[i])
-                        if not locked else "n/a"}))
+                        if not locked else "n/a"}, joint=joint))
         self._diagnostics_pub.publish(diagnostics.array(statuses,
                                                         self.get_clock().now().to_msg()))
 
@@ -473,7 +501,7 @@ class ControllerNode(SuiteNode):
             level, message = diagnostics.WARN, "task infeasible with the remaining joints"
         else:
             level, message = diagnostics.OK, self._last.status
-        return diagnostics.status(self.get_name(), level, message, values)
+        return self.status(level, message, values)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""

@@ -20,7 +20,6 @@ Conventions (see shared/MATH.md, Notation):
 
 from __future__ import annotations
 
-import copy
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -322,16 +321,6 @@ class Robot:
         self._rows = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[
             self.task_space
         ]
-
-    def for_another_thread(self) -> Robot:
-        """A copy sharing the model with Pinocchio work data of its own.
-
-        Pinocchio writes every kinematic result into its data object, so one Robot
-        must not be used by two threads at once; each thread uses its own copy.
-        """
-        other = copy.copy(self)
-        other._data = self._model.createData()
-        return other
 
     def task_error(self, target: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Task error e (m,) from q to `target`, in the rows of `jacobian`.

@@ -539,7 +539,7 @@ def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
 
     Seed 000 sec. III. Raises UnreachableError when the boxes do not intersect or a
     point cannot be reached inside the intersection. Slow (0.1 to a few seconds):
-    run it off the control loop, with a Robot of its own (`Robot.for_another_thread`).
+    run it off the control loop: `soft_limits_for_model` in another process.
     """
     targets = targets_from_flat(robot, flat)
     boxes = [trace(robot, t, find_seed(robot, t, q)).box for t in targets]
@@ -554,3 +554,16 @@ def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
         raise UnreachableError(
             f"critical points {unreachable} cannot be reached inside the intersection")
     return box, len(targets)
+
+
+def soft_limits_for_model(spec: str, chain: Sequence, flat: list[float], q: np.ndarray,
+                          ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+    """`soft_limits` for a model given as `robots.load(spec, *chain)`: picklable arguments.
+
+    For a worker process. A thread would not do: the tracing makes thousands of
+    short calls that release the GIL, and a busy control loop in the same process
+    takes it back each time, so a 1 s computation took 15-25 s beside it.
+    """
+    from ft_core import robots
+
+    return soft_limits(robots.load(spec, *chain), flat, q)

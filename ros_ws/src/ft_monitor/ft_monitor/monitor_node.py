@@ -347,12 +347,11 @@ class MonitorNode(SuiteNode):
                 elif evidence.at_limit:
                     level, message = diagnostics.WARN, "stalled at a joint limit"
                     stalls.append(name)
-                statuses.append(diagnostics.status(f"{self.get_name()}: joint {name}", level,
-                                                   message, {
+                statuses.append(self.status(level, message, {
                     "observable": evidence.observable, "following": evidence.following,
                     "measured_velocity": evidence.measured,
                     "expected_velocity": evidence.commanded,
-                    "standard_error": evidence.standard_error}))
+                    "standard_error": evidence.standard_error}, joint=name))
         if self.problems.active:
             level, message = diagnostics.ERROR, self.problems.summary()
         elif locked:
@@ -365,7 +364,7 @@ class MonitorNode(SuiteNode):
             level, message = diagnostics.OK, f"not observing: {self.detector.not_observing}"
         else:
             level, message = diagnostics.OK, "no locked joint"
-        statuses.insert(0, diagnostics.status(self.get_name(), level, message, values))
+        statuses.insert(0, self.status(level, message, values))
         self._diagnostics_pub.publish(diagnostics.array(statuses, self.get_clock().now().to_msg()))
 
 

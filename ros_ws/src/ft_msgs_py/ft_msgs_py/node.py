@@ -9,7 +9,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py import convert, parameters
+from ft_msgs_py import convert, diagnostics, parameters
 from ft_msgs_py.episodes import Episodes
 
 
@@ -24,6 +24,18 @@ class SuiteNode(Node):
     def param(self, name: str):
         """The current value of a parameter."""
         return parameters.value(self, name)
+
+    def status(self, level: bytes, message: str, values: dict | None = None,
+               joint: str | None = None):
+        """A diagnostic status named after this node, or after one of its joints.
+
+        The name is the node's fully qualified name (so namespaced arms stay apart),
+        hardware_id the robot's name.
+        """
+        name = self.get_fully_qualified_name() + (f": joint {joint}" if joint else "")
+        robot = getattr(self, "robot", None)
+        return diagnostics.status(name, level, message, values,
+                                  hardware_id=robot.name if robot is not None else "")
 
     def now(self) -> float:
         """The node clock (wall or simulated) in seconds."""
