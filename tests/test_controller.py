@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -375,6 +376,18 @@ def test_model_from_the_robot_description_topic() -> None:
         assert spin_until(plant.executor, lambda: node.robot is not None, 10.0)
         plant.run(5, twist_sender(plant))
         assert len(plant.commands) >= 5
+        # Issue 14: a second description (another robot, or the same one with 50x
+        # velocity limits) is refused while running; the model and its limits stay.
+        robot, limits = node.robot, node.robot.velocity_limits.copy()
+        fast = re.sub(r'velocity="([0-9.]+)"', lambda m: f'velocity="{50 * float(m[1])}"',
+                      robots.builtin_urdf("panda"))
+        assert fast != robots.builtin_urdf("panda")
+        for other in (robots.builtin_urdf("iiwa14"), fast, "not a robot " * 100):
+            publisher.publish(String(data=other))
+            plant.run(3, twist_sender(plant))
+            assert node.robot is robot
+            np.testing.assert_array_equal(node.robot.velocity_limits, limits)
+        assert np.all(np.abs(plant.velocity()) <= limits)
 
 
 def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:

@@ -2,7 +2,10 @@
 
 `robot_description` (URDF XML) if set, else `robot_model` (a built-in name or a URDF
 path), else the `robot_description` topic (std_msgs/String, transient local, as
-robot_state_publisher provides it). They are read-only once the node runs.
+robot_state_publisher provides it): the first description the node can use is
+kept, and a different one arriving later is refused with an ERROR (a node never
+changes robots, limits included, while commands flow; restart it instead). They
+are read-only once the node runs.
 """
 
 from __future__ import annotations
@@ -88,9 +91,21 @@ def request_model(node: Node, use: Callable[[str, str], None]) -> None:
     else:
         node.get_logger().info("no robot_description or robot_model parameter: waiting for "
                                f"the '{names.ROBOT_DESCRIPTION}' topic")
-        node.create_subscription(String, names.ROBOT_DESCRIPTION,
-                                 lambda msg: use(msg.data, "the robot_description topic"),
-                                 qos.LATCHED)
+        accepted: list[str] = []  # the description in use, once one was
+
+        def on_description(msg: String) -> None:
+            if accepted:
+                if msg.data != accepted[0]:
+                    node.get_logger().error(
+                        "a different robot_description arrived while running: ignored (the "
+                        "model never changes under a running node; restart it to change "
+                        "robots)", throttle_duration_sec=10.0)
+                return
+            use(msg.data, "the robot_description topic")
+            if getattr(node, "robot", None) is not None:
+                accepted.append(msg.data)
+
+        node.create_subscription(String, names.ROBOT_DESCRIPTION, on_description, qos.LATCHED)
 
 
 def chain_arguments(node: Node) -> tuple[str | None, str | None, str | None, float | None]:
