@@ -46,6 +46,8 @@ from std_msgs.msg import Float64MultiArray
 
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
+#: Pose goals further than this (m) from the base are refused as physically absurd.
+ABSURD_DISTANCE = 1e3
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
 WATCHDOG_PERIOD = 0.05
 
@@ -335,10 +337,15 @@ class ControllerNode(SuiteNode):
         if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_pose"):
             return
         try:
-            goal = goal_from_transform(self.robot, convert.pose_matrix(msg.pose))
+            transform = convert.pose_matrix(msg.pose)
+            if np.max(np.abs(transform[:3, 3])) > ABSURD_DISTANCE:
+                raise convert.MessageError(f"goal further than {ABSURD_DISTANCE:g} m: no arm "
+                                           "reaches it")
+            goal = goal_from_transform(self.robot, transform)
         except convert.MessageError as error:
             self.problems.report("ft/target_pose", str(error))
             return
+        self.problems.report("ft/target_pose", None)
         self._target = _Target("pose", goal, self.now())
 
     def _locked_publisher_problem(self) -> str | None:

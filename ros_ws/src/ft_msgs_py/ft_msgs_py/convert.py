@@ -131,12 +131,13 @@ def pose_matrix(msg: Pose) -> np.ndarray:
     values = np.array([p.x, p.y, p.z, o.x, o.y, o.z, o.w])
     if not np.all(np.isfinite(values)):
         raise MessageError("pose has non-finite values")
-    norm = np.linalg.norm(values[3:])
-    if norm < 1e-9:
+    largest = np.max(np.abs(values[3:]))
+    if largest < 1e-9:
         raise MessageError("pose has a zero quaternion")
+    x, y, z, w = values[3:] / largest  # scaled first: squares of 1e200 overflow
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
     matrix = np.eye(4)
-    matrix[:3, :3] = pin.Quaternion(o.w / norm, o.x / norm, o.y / norm, o.z / norm
-                                    ).toRotationMatrix()
+    matrix[:3, :3] = pin.Quaternion(w / norm, x / norm, y / norm, z / norm).toRotationMatrix()
     matrix[:3, 3] = values[:3]
     return matrix
 

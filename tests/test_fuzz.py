@@ -1,0 +1,191 @@
+"""Hostile input on every topic the controller and the monitor read (issue 14).
+
+Property-based messages (NaN, infinities, 1e300 and 1e306, wrong lengths, unknown
+and duplicate names, huge arrays, stamps from 1970 or the future, odd frames) go
+straight into the nodes' callbacks, in-process. After each: no exception escaped,
+no callback took longer than 50 ms, every command published is finite and within
+the velocity limits, and commands are explicit zeros while the input is bad; then
+good input returns and the node commands motion again.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+from ft_controller.controller_node import ControllerNode
+from ft_core import robots
+from ft_monitor.monitor_node import MonitorNode
+from ft_msgs_py import convert
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from rclpy.parameter import Parameter
+from rosutil import ros_context
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+PANDA = robots.load("panda")
+NAMES = list(PANDA.joint_names)
+Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
+#: Longest a callback may take on hostile input (s).
+BOUND = 0.05
+
+numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                    st.sampled_from([math.nan, math.inf, -math.inf, 1e300, -1e306, 0.0, 0.1]))
+names = st.one_of(
+    st.just(NAMES), st.permutations(NAMES),
+    st.lists(st.sampled_from([*NAMES, "elbow", "", "x" * 300]), max_size=12),
+    st.builds(lambda n: [NAMES[0]] * n, st.sampled_from([2, 5000])),
+    st.builds(lambda n: [f"j{i}" for i in range(n)], st.sampled_from([3000, 20000])))
+stamps = st.sampled_from(["now", "zero", "1970", "future", "far future"])
+frames = st.sampled_from(["", "panda_link0", "base_link", "camera", "x" * 500])
+
+
+def stamp(kind: str, node) -> object:
+    now = node.get_clock().now().nanoseconds
+    return convert.stamp_from_nanoseconds({
+        "now": now, "zero": 0, "1970": 1_000_000_000, "future": now + 10**9,
+        "far future": 2**31 * 10**9 - 1}[kind])
+
+
+def joint_state(data, node, field: str) -> JointState:
+    joint_names = data.draw(names)
+    n = len(joint_names)
+    values = data.draw(st.one_of(
+        st.lists(numbers, min_size=n, max_size=n) if n <= 50
+        else st.builds(lambda v: [v] * n, numbers),  # huge: one value repeated
+        st.lists(numbers, max_size=20)))
+    msg = JointState(name=joint_names)
+    setattr(msg, field, values)
+    msg.header.stamp = stamp(data.draw(stamps), node)
+    return msg
+
+
+@contextmanager
+def recorded(node, publisher_attribute: str) -> Iterator[list]:
+    """Every message the node publishes through that publisher."""
+    publisher = getattr(node, publisher_attribute)
+    sent: list = []
+    original = publisher.publish
+    publisher.publish = lambda msg: (sent.append(msg), original(msg))
+    try:
+        yield sent
+    finally:
+        publisher.publish = original
+
+
+def timed(call, *args) -> None:
+    start = time.perf_counter()
+    call(*args)
+    elapsed = time.perf_counter() - start
+    assert elapsed < BOUND, f"{call.__name__} took {elapsed * 1e3:.0f} ms"
+
+
+def assert_safe(commands: list[JointState]) -> None:
+    for msg in commands:
+        velocity = np.array(msg.velocity)
+        assert np.all(np.isfinite(velocity))
+        assert np.all(np.abs(velocity) <= PANDA.velocity_limits + 1e-9)
+
+
+@pytest.fixture(scope="module")
+def controller():
+    with ros_context() as (context, _):
+        node = ControllerNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda"), Parameter("resolution", value="blend"),
+            Parameter("state_timeout", value=60.0)])
+        node._on_state(good_state(node))  # the first cycles load what they need
+        node._on_twist(good_twist(node))
+        for _ in range(3):
+            node._control()
+        yield node
+        node.destroy_node()
+
+
+@pytest.fixture(scope="module")
+def monitor():
+    with ros_context() as (context, _):
+        node = MonitorNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda"),
+            Parameter("state_directory", value=tempfile.mkdtemp())])
+        yield node
+        node.destroy_node()
+
+
+def good_state(node) -> JointState:
+    return convert.joint_state(NAMES, node.get_clock().now().to_msg(), position=Q0)
+
+
+def good_twist(node) -> TwistStamped:
+    msg = TwistStamped()
+    msg.header.stamp = node.get_clock().now().to_msg()
+    msg.twist.linear.x, msg.twist.angular.z = 0.05, 0.1
+    return msg
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_controller_survives_hostile_input(controller, data) -> None:
+    node = controller
+    with recorded(node, "_command_pub") as commands:
+        kind = data.draw(st.sampled_from(["state", "twist", "pose", "locked"]))
+        if kind == "state":
+            timed(node._on_state, joint_state(data, node, "position"))
+        elif kind == "locked":
+            timed(node._on_locked, joint_state(data, node, "position"))
+        elif kind == "twist":
+            msg = TwistStamped()
+            msg.header.stamp = stamp(data.draw(stamps), node)
+            msg.header.frame_id = data.draw(frames)
+            for field in ("x", "y", "z"):
+                setattr(msg.twist.linear, field, data.draw(numbers))
+                setattr(msg.twist.angular, field, data.draw(numbers))
+            timed(node._on_twist, msg)
+        else:
+            msg = PoseStamped()
+            msg.header.frame_id = data.draw(frames)
+            msg.pose.position.x, msg.pose.position.y = data.draw(numbers), data.draw(numbers)
+            msg.pose.orientation.w, msg.pose.orientation.x = data.draw(numbers), data.draw(numbers)
+            timed(node._on_pose, msg)
+        timed(node._control)
+        assert_safe(commands)
+        # Good input returns: the node commands motion again.
+        node._on_locked(convert.locked_message({}, node.get_clock().now().to_msg()))
+        node._on_state(good_state(node))
+        node._on_twist(good_twist(node))
+        timed(node._control)
+        assert_safe(commands)
+        assert np.any(np.array(commands[-1].velocity) != 0.0), node.problems.summary()
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_monitor_survives_hostile_input(monitor, data) -> None:
+    node = monitor
+    with recorded(node, "_command_pub") as commands:
+        kind = data.draw(st.sampled_from(["state", "command", "array", "declare"]))
+        if kind == "state":
+            timed(node._on_state, joint_state(data, node, "position"))
+        elif kind == "declare":
+            timed(node._on_declare, joint_state(data, node, "position"))
+            node._on_reset(None, type("Response", (), {})())
+        elif kind == "command":
+            timed(node._on_command, joint_state(data, node, "velocity"))
+            assert commands, "no command out"
+            if "ft/command_raw" in node.problems.active:  # refused: explicit zeros
+                assert np.all(np.array(commands[-1].velocity) == 0.0)
+        else:
+            timed(node._on_array, Float64MultiArray(data=data.draw(st.lists(numbers,
+                                                                             max_size=20))))
+        assert_safe(commands)
+        node._on_state(good_state(node))
+        node._on_command(convert.joint_state(NAMES, node.get_clock().now().to_msg(),
+                                             velocity=[0.1] * 7))
+        assert_safe(commands)
+        assert np.allclose(commands[-1].velocity, 0.1), node.problems.summary()
