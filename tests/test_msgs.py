@@ -83,3 +83,34 @@ def test_diagnostic_statuses_carry_key_values() -> None:
     assert status.level == diagnostics.WARN
     assert {kv.key: kv.value for kv in status.values} == {
         "kfm": "0.0123457", "locked": "[b]", "ok": "True"}
+
+
+def test_recurring_problems_are_counted_not_logged_again() -> None:
+    """Issue 14: a late state flapped "no joint state" / "recovered" 20-80 times a minute."""
+    from ft_msgs_py.episodes import Episodes
+
+    lines: list[tuple[str, str]] = []
+
+    class Logger:
+        def error(self, text: str) -> None:
+            lines.append(("error", text))
+
+        def warning(self, text: str) -> None:
+            lines.append(("warning", text))
+
+        def info(self, text: str) -> None:
+            lines.append(("info", text))
+
+    episodes = Episodes(Logger())
+    for _ in range(50):
+        episodes.report("joint_states", "no joint state for 0.101 s")
+        episodes.report("joint_states", None)
+    assert lines == [("error", "joint_states: no joint state for 0.101 s"),
+                     ("info", "joint_states: recovered")]
+    episodes.report("frame", "frame 'camera' is not the base frame", warning=True)
+    episodes.report("frame", None)
+    episodes.report("twist", "twist has non-finite values")  # another severity, no crash
+    assert lines[2:] == [("warning", "frame: frame 'camera' is not the base frame"),
+                         ("info", "frame: recovered"),
+                         ("error", "twist: twist has non-finite values")]
+    assert episodes.active == {"twist": "twist has non-finite values"}

@@ -10,7 +10,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from ft_msgs_py import convert, diagnostics, parameters
-from ft_msgs_py.episodes import Episodes
+from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
 
 
 class SuiteNode(Node):
@@ -18,7 +18,9 @@ class SuiteNode(Node):
 
     def __init__(self, name: str, **kwargs):
         super().__init__(name, **kwargs)
-        self.problems = Episodes(self.get_logger())
+        sim_time = self.get_parameter("use_sim_time").value
+        self.problems = Episodes(self.get_logger(), FUTURE_TOLERANCE_SIM_TIME if sim_time
+                                 else FUTURE_TOLERANCE)
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
 
     def param(self, name: str):
