@@ -110,10 +110,9 @@ def controller():
 
 @pytest.fixture(scope="module")
 def monitor():
-    with ros_context() as (context, _):
+    with ros_context() as (context, _), tempfile.TemporaryDirectory() as state:
         node = MonitorNode(context=context, parameter_overrides=[
-            Parameter("robot_model", value="panda"),
-            Parameter("state_directory", value=tempfile.mkdtemp())])
+            Parameter("robot_model", value="panda"), Parameter("state_directory", value=state)])
         yield node
         node.destroy_node()
 

@@ -98,7 +98,7 @@ class Loop:
 @contextmanager
 def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
          sim_parameters: dict | None = None) -> Iterator[Loop]:
-    with ros_context() as (context, executor):
+    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
         sim = SimNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {
                 "robot_model": "panda", "publish_clock": True, "rate": 250.0,
@@ -107,7 +107,7 @@ def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
         sim.timer.cancel()  # stepped by hand
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {"robot_model": "panda", "use_sim_time": True,
-                                               "state_directory": tempfile.mkdtemp(),
+                                               "state_directory": state,
                                                **(monitor_parameters or {})}.items()])
         executor.add_node(sim)
         executor.add_node(monitor)
@@ -190,11 +190,11 @@ def test_diagnostics_show_the_identified_plant_and_why_nothing_is_decided() -> N
             0.05, abs=0.02)
 
 
-def test_no_decision_while_nobody_subscribes_to_the_command_output() -> None:
+def test_no_decision_while_nobody_subscribes_to_the_command_output(tmp_path) -> None:
     with ros_context() as (context, executor):
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"),
-            Parameter("state_directory", value=tempfile.mkdtemp())])
+            Parameter("state_directory", value=str(tmp_path))])
         node = rclpy.create_node("lonely_plant", context=context)
         for n in (monitor, node):
             executor.add_node(n)

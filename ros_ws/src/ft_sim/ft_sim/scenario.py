@@ -126,7 +126,10 @@ class Scenario:
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
-            model, use_sim_time=True, state_directory=self._state.name))
+            model, use_sim_time=True, state_directory=self._state.name,
+            # Lock-step on simulated time: wall-clock gaps between steps are not pauses
+            # of the command stream, so the steady-time watchdog must not fire in them.
+            command_timeout=60.0))
         self.driver = rclpy.create_node("driver", context=self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
