@@ -210,3 +210,44 @@ def test_bad_configurations_raise_before_any_arithmetic() -> None:
         robot.jacobian(np.zeros(4))
     with pytest.raises(ValueError, match="non-finite"):
         robot.forward(np.array([0.0, np.nan, 0.0]))
+
+
+def _urdf(joints: list[tuple[str, str, str, str]]) -> str:
+    """A URDF from (name, type, parent, child) joints, links along z, axes about z."""
+    links = {link for _, _, parent, child in joints for link in (parent, child)}
+    parts = ['<robot name="t">', *(f'<link name="{link}"/>' for link in sorted(links))]
+    for name, kind, parent, child in joints:
+        limit = ('<limit lower="-2" upper="2" velocity="1" effort="1"/>'
+                 if kind in ("revolute", "prismatic") else "")
+        parts.append(f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
+                     f'<child link="{child}"/><origin xyz="0.1 0 0.2"/><axis xyz="0 1 0"/>'
+                     f'{limit}</joint>')
+    return "".join([*parts, "</robot>"])
+
+
+def test_default_chain_passes_fixed_side_branches_like_ur_urdfs() -> None:
+    """Issue 14: UR URDFs failed: "the chain from 'world' to 'base_link' has no movable joint".
+
+    Their base_link also carries a fixed `base` frame. The joint named like its child
+    link (`flange`) is Unitree Z1's pattern, which made Pinocchio raise ValueError.
+    """
+    arm = [(f"j{i}", "revolute", f"l{i - 1}" if i > 1 else "base_link_inertia", f"l{i}")
+           for i in range(1, 7)]
+    urdf = _urdf([("world_joint", "fixed", "world", "base_link"),
+                  ("base_fixed", "fixed", "base_link", "base"),
+                  ("inertia", "fixed", "base_link", "base_link_inertia"), *arm,
+                  ("flange", "fixed", "l6", "flange"), ("tool", "fixed", "flange", "tool0")])
+    robot = robots.load(urdf)
+    assert robot.joint_names == tuple(f"j{i}" for i in range(1, 7))
+    assert robot.tip_link == "tool0"
+
+
+def test_a_tree_that_branches_before_the_arm_names_the_branch_and_candidate_tips() -> None:
+    urdf = _urdf([("wheel_left", "revolute", "base_footprint", "wheel_l"),
+                  ("wheel_right", "revolute", "base_footprint", "wheel_r"),
+                  ("torso", "prismatic", "base_footprint", "torso_link"),
+                  ("a1", "revolute", "torso_link", "arm1"), ("a2", "revolute", "arm1", "hand")])
+    with pytest.raises(robots.RobotModelError, match="branches at 'base_footprint'") as error:
+        robots.load(urdf)
+    assert "candidate tip links: ['hand', 'wheel_l', 'wheel_r']" in str(error.value)
+    assert robots.load(urdf, tip_link="hand").joint_names == ("torso", "a1", "a2")

@@ -169,18 +169,58 @@ def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
     return root, by_child, links
 
 
-def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
-    """Walk down from `base` while the chain does not branch; return the last link.
-
-    A gripper makes the tree branch at the hand, so the default tip of a Panda with
-    fingers is `panda_hand`, the link that carries them.
-    """
-    children: dict[str, list[str]] = {}
+def _children(by_child: dict[str, _UrdfJoint]) -> dict[str, list[_UrdfJoint]]:
+    """Joints below each link."""
+    children: dict[str, list[_UrdfJoint]] = {}
     for joint in by_child.values():
-        children.setdefault(joint.parent, []).append(joint.child)
-    tip = base
-    while len(children.get(tip, [])) == 1:
-        tip = children[tip][0]
+        children.setdefault(joint.parent, []).append(joint)
+    return children
+
+
+def _moving_subtrees(link: str, children: dict[str, list[_UrdfJoint]]) -> list[_UrdfJoint]:
+    """The joints below `link` whose subtree holds at least one movable joint."""
+    def moves(joint: _UrdfJoint) -> bool:
+        return joint.kind in _MOVABLE or any(moves(j) for j in children.get(joint.child, []))
+
+    return [j for j in children.get(link, []) if moves(j)]
+
+
+def _leaves(link: str, children: dict[str, list[_UrdfJoint]]) -> list[str]:
+    """The links without children below `link` (candidate tool links)."""
+    below = children.get(link, [])
+    return [leaf for j in below for leaf in _leaves(j.child, children)] if below else [link]
+
+
+def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
+    """Walk down from `base` along the only subtree that moves; return where that ends.
+
+    Branches with fixed joints only (sensor frames, UR's `base` frame) are passed
+    by; past the last movable joint a lone chain of fixed joints (the tool frame) is
+    followed to its end. A gripper makes the tree branch into moving subtrees at the hand, so the
+    default tip of a Panda with fingers is `panda_hand`, the link that carries them.
+    Raises RobotModelError, naming the branch and candidate tips, when the tree
+    branches into moving subtrees before any movable joint (a mobile base, two arms).
+    """
+    children = _children(by_child)
+    tip, moved = base, False
+    while True:
+        moving = _moving_subtrees(tip, children)
+        below = children.get(tip, [])
+        if len(moving) == 1:
+            step = moving[0]
+        elif not moving and len(below) == 1:  # a fixed tool frame past the last joint
+            step = below[0]
+        else:
+            break
+        moved = moved or step.kind in _MOVABLE
+        tip = step.child
+    if len(moving) > 1 and not moved:
+        candidates = sorted({leaf for j in moving for leaf in _leaves(j.child, children)})
+        raise RobotModelError(
+            f"the URDF tree branches at {tip!r} into {len(moving)} moving subtrees "
+            f"({', '.join(j.child for j in moving)}) before any movable joint: set tip_link "
+            f"(and base_link if needed) to choose the arm; candidate tip links: "
+            f"{candidates[:12]}{' ...' if len(candidates) > 12 else ''}")
     return tip
 
 
@@ -225,11 +265,18 @@ def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray,
 def _as_revolute(root: ET.Element, names: list[str]) -> str:
     """Rewrite the named continuous joints as revolute ones, so that q has one entry each.
 
+    Joints off the chain named like a link are renamed (see below).
+
     Pinocchio models a continuous joint by (cos, sin); the suite works with angles.
     The wide placeholder limits written here are never used: `_limits` reports them
     as infinite.
     """
+    links = {link.get("name") for link in root.findall("link")}
     for joint in root.findall("joint"):
+        if joint.get("name") in links and joint.get("name") not in names:
+            # A joint named like a link (Unitree Z1) makes Pinocchio's frame lookups by
+            # name ambiguous; joints off the chain are never referred to by name.
+            joint.set("name", f"{joint.get('name')}__joint")
         if joint.get("name") in names and joint.get("type") == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
@@ -302,16 +349,21 @@ class Robot:
             raise RobotModelError(f"Pinocchio cannot build the URDF: {exc}") from exc
         keep = set(self.joint_names)
         locked = [full.getJointId(name) for name in full.names[1:] if name not in keep]
-        model = pin.buildReducedModel(full, locked, pin.neutral(full))
+        try:
+            model = pin.buildReducedModel(full, locked, pin.neutral(full))
+        except (RuntimeError, ValueError) as exc:
+            raise RobotModelError(f"Pinocchio cannot reduce the URDF to the chain: {exc} "
+                                  "(does a chain joint share its name with a link?)") from exc
         if tuple(model.names[1:]) != self.joint_names or model.nq != self.n or model.nv != self.n:
             raise RobotModelError(
                 f"chain joints {self.joint_names} do not form a serial chain in the model"
             )
         self._model, self._data = model, model.createData()
-        self._tip = model.getFrameId(self.tip_link)
+        # Links are BODY frames: a joint of the same name (Unitree Z1) is another frame.
+        self._tip = model.getFrameId(self.tip_link, pin.FrameType.BODY)
         self._last_joint = model.frames[self._tip].parentJoint
         pin.framesForwardKinematics(model, self._data, pin.neutral(model))
-        base_pose = self._data.oMf[model.getFrameId(self.base_link)]
+        base_pose = self._data.oMf[model.getFrameId(self.base_link, pin.FrameType.BODY)]
         # The base is above every chain joint, so its placement is constant.
         self._base_inverse = base_pose.inverse()
         rotation = base_pose.rotation.T
