@@ -35,6 +35,8 @@ MODEL = {"robot_model": "panda", "task_space": "position"}
 
 
 def _argument(value: object) -> str:
+    if value == "":
+        return "''"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, list | tuple):
@@ -80,11 +82,13 @@ class Graph:
             str(INSTALL / p / "lib" / version / "site-packages") for p in PACKAGES)}
         script = INSTALL / package / "lib" / package / executable
         assert script.is_file(), "run `make build`"
-        arguments = [f"{k}:={_argument(v)}" for k, v in
-                     {**MODEL, **self.parameters.get(name, {})}.items()]
+        values = {**MODEL, **self.parameters.get(name, {})}
+        files = values.pop("params_file", None)
+        arguments = [f"{k}:={_argument(v)}" for k, v in values.items()]
         log = open(self.log_dir / f"{name}.log", "a")
         self.processes[name] = subprocess.Popen(
             [sys.executable, str(script), "--ros-args",
+             *(["--params-file", str(files)] if files else []),
              *[a for arg in arguments for a in ("-p", arg)]],
             env=env, stdout=log, stderr=subprocess.STDOUT)
         log.close()
@@ -116,6 +120,10 @@ class Graph:
                 self.send_goal()
                 next_goal += goal_period
             self.executor.spin_once(timeout_sec=0.01)
+
+    def alive(self) -> dict[str, bool]:
+        """Which processes still run."""
+        return {name: process.poll() is None for name, process in self.processes.items()}
 
     def wait(self, condition, timeout: float, what: str) -> None:
         """Spin until `condition()`; fail with `what` if it does not happen in `timeout` s."""
@@ -176,11 +184,16 @@ class Graph:
 
 
 @contextmanager
-def graph(tmp_path: Path, parameters: dict[str, dict]) -> Iterator[Graph]:
-    """A running graph on a DDS domain of its own; every process stopped afterwards."""
+def graph(tmp_path: Path, parameters: dict[str, dict], before_start=None) -> Iterator[Graph]:
+    """A running graph on a DDS domain of its own; every process stopped afterwards.
+
+    `before_start(graph)` runs once the probe exists, before any process starts.
+    """
     with ros_context() as (context, executor):
         g = Graph(context, executor, context.get_domain_id(), parameters, tmp_path)
         try:
+            if before_start is not None:
+                before_start(g)
             for name in ("sim", "monitor", "controller"):
                 g.start(name)
             g.wait(lambda: len(g.states) > 10, 60.0, "joint states from the sim")

@@ -11,7 +11,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
 from deployment import Graph, cpu_hog, graph
+from ft_core import robots
+from ft_msgs_py import convert, qos
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 #: A driver with a command watchdog (Franka FCI, KUKA FRI, UR RTDE).
 WATCHDOG_PLANT = {"command_latency": 0.03, "response_time": 0.03, "command_timeout": 0.1,
@@ -95,3 +100,47 @@ def test_a_lock_is_found_and_survives_monitor_and_controller_restarts(tmp_path: 
                            for v in g.values("/controller")[-3:]), 30.0,
                "the restarted controller's locked joints")
         assert g.ever_locked() == {"panda_joint4"}
+
+
+def test_orders_the_nodes_must_not_take(tmp_path: Path) -> None:
+    """Issue 14 as separate processes.
+
+    Empty arrays from a parameters file (as `ros2 param dump` writes them), a second
+    robot description, a forged locked set, and kill -9 of the sim.
+    """
+    dumped = tmp_path / "controller.yaml"
+    dumped.write_text(yaml.safe_dump({"/**": {"ros__parameters": {
+        name: [] for name in ("critical_points", "soft_limits.lower", "soft_limits.upper",
+                              "failure_probabilities", "joints")}}}))
+    params = parameters(tmp_path, WATCHDOG_PLANT, robot_model="")
+    params["controller"]["params_file"] = dumped
+    descriptions: list = []
+
+    def publish_description(g: Graph) -> None:
+        publisher = g.node.create_publisher(String, "robot_description", qos.LATCHED)
+        publisher.publish(String(data=robots.builtin_urdf("panda")))
+        descriptions.append(publisher)
+
+    with graph(tmp_path, params, publish_description) as g:
+        g.spin(6.0, goal_period=1.5)
+        assert g.commands, "no command reached the plant"
+        descriptions[0].publish(String(data=robots.builtin_urdf("iiwa14")))  # another robot
+        forger = g.node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
+        forger.publish(convert.locked_message({"panda_joint1": 0.0}, g.node.get_clock().now()
+                                              .to_msg()))
+        g.spin(4.0, goal_period=1.5)
+        assert all(g.alive().values()), {n: g.log(n)[-2000:] for n in g.processes}
+        for name in ("sim", "controller", "monitor"):
+            assert "a different robot_description arrived while running: ignored" in g.log(name)
+        controller = g.values("/controller")[-1]
+        assert "2 publishers" in controller["message"] and "/probe" in controller["message"]
+        assert controller["locked_joints"] == "[]"
+        g.node.destroy_publisher(forger)
+        g.locked.clear()  # the probe heard the forged set too; from here on only the monitor
+        descriptions[0].publish(String(data=robots.builtin_urdf("panda")))  # for the new sim
+        g.kill("sim")
+        g.spin(1.0)
+        g.start("sim")
+        g.spin(8.0, goal_period=1.5)
+        assert_observed_healthy_motion(g)
+        assert g.values("/controller")[-1]["locked_joints"] == "[]"
