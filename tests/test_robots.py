@@ -251,3 +251,18 @@ def test_a_tree_that_branches_before_the_arm_names_the_branch_and_candidate_tips
         robots.load(urdf)
     assert "candidate tip links: ['hand', 'wheel_l', 'wheel_r']" in str(error.value)
     assert robots.load(urdf, tip_link="hand").joint_names == ("torso", "a1", "a2")
+
+
+def test_hostile_model_strings_are_refused_quickly() -> None:
+    """Issue 14: a long non-XML string was taken as a path; entity bombs must not expand."""
+    import time
+
+    laughs = ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">'
+              + "".join(f'<!ENTITY {chr(98 + i)} "{("&" + chr(97 + i) + ";") * 10}">'
+                        for i in range(9))
+              + ']><robot name="&j;"><link name="l"/></robot>')
+    for spec in ("x" * 300, "a\0b", laughs, "<robot>" * 10, " " * 20_000_000):
+        start = time.perf_counter()
+        with pytest.raises(robots.RobotModelError):
+            robots.load(spec)
+        assert time.perf_counter() - start < 2.0
