@@ -59,7 +59,6 @@ shared by commands and measurements.
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,6 +66,8 @@ import numpy as np
 #: Candidate latencies (s) and response times (s) of the identified plant model.
 LATENCY_GRID = np.round(np.arange(0.0, 0.1501, 0.01), 3)
 RESPONSE_TIME_GRID = np.array([0.0, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15])
+#: Shortest time (s) between two identification updates (each scores every model).
+IDENTIFY_PERIOD = 0.01
 #: Widening of the plausible set: latency below and above (s), response-time grid steps.
 LATENCY_MARGIN = (0.01, 0.02)
 RESPONSE_STEPS = 1
@@ -241,6 +242,49 @@ class CommandHistory:
         return integral[:, None, :] - self.response_times[None, :, None] * lagged
 
 
+class Samples:
+    """The window's measurements: times, positions and every model's predicted positions.
+
+    Contiguous arrays (views, no copies, for the per-update fits), with the window's
+    oldest entries dropped by moving a start index and compacted when the end is reached.
+    """
+
+    def __init__(self, n: int, models: int, capacity: int = 128):
+        self.times = np.zeros(capacity)
+        self.positions = np.zeros((capacity, n))
+        self.predicted = np.zeros((capacity, models, n))
+        self.start = self.end = 0
+
+    def __len__(self) -> int:
+        return self.end - self.start
+
+    def append(self, time: float, position: np.ndarray, predicted: np.ndarray) -> None:
+        """One measurement and the models' predictions at its time."""
+        if self.end == self.times.size:
+            size = len(self)
+            for name in ("times", "positions", "predicted"):
+                old = getattr(self, name)
+                if size > old.shape[0] // 2:  # more than half in use: grow
+                    new = np.zeros((2 * old.shape[0], *old.shape[1:]))
+                else:
+                    new = old
+                new[:size] = old[self.start:self.end].copy()
+                setattr(self, name, new)
+            self.start, self.end = 0, size
+        k = self.end
+        self.times[k], self.positions[k], self.predicted[k] = time, position, predicted
+        self.end += 1
+
+    def drop_before(self, time: float) -> None:
+        """Forget measurements older than `time`."""
+        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
+
+    def window(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(times, positions, predicted) of the window, as views."""
+        return (self.times[self.start:self.end], self.positions[self.start:self.end],
+                self.predicted[self.start:self.end])
+
+
 @dataclass
 class LockDetector:
     """Streams of commands and measurements in, declared locks out."""
@@ -261,9 +305,8 @@ class LockDetector:
         models = np.array([(lat, rt) for lat in self._latencies for rt in self._response_times])
         self._model_latency, self._model_response = models[:, 0], models[:, 1]
         self.history = CommandHistory(self.n, self._response_times)
-        self._times: deque[float] = deque()
-        self._positions: deque[np.ndarray] = deque()
-        self._predicted: deque[np.ndarray] = deque()
+        self._samples = Samples(self.n, len(models))
+        self._last_identification_try = -math.inf
         self._scores = np.zeros(len(models))
         self._weight = 0.0  # forgetting count of identification updates
         self._excitation = 0.0  # s of informative data, with forgetting
@@ -292,7 +335,8 @@ class LockDetector:
     @property
     def latest_time(self) -> float:
         """Time (s) of the newest measurement; -inf before any."""
-        return self._times[-1] if self._times else -math.inf
+        samples = self._samples
+        return float(samples.times[samples.end - 1]) if len(samples) else -math.inf
 
     @property
     def locked(self) -> dict[int, float]:
@@ -341,17 +385,11 @@ class LockDetector:
 
         `blind` (a reason) forbids decisions and identification at this update.
         """
-        if self._times and time <= self._times[-1]:
+        if time <= self.latest_time:
             return []  # out of order or repeated: ignored
-        position = np.asarray(position, dtype=float)
-        self._times.append(time)
-        self._positions.append(position.copy())
-        self._predicted.append(self.history.positions(time - self._latencies).reshape(
-            -1, self.n))
-        while self._times and self._times[0] < time - self.config.window:
-            self._times.popleft()
-            self._positions.popleft()
-            self._predicted.popleft()
+        self._samples.append(time, np.asarray(position, dtype=float),
+                             self.history.positions(time - self._latencies).reshape(-1, self.n))
+        self._samples.drop_before(time - self.config.window)
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
@@ -376,7 +414,7 @@ class LockDetector:
             return f"command stream paused for {gap:.3f} s"
         if now < self._resumed_at + self._settling_time():
             return "settling after the command stream (re)started"
-        times = np.fromiter(self._times, float, len(self._times))
+        times = self._samples.window()[0]
         if times.size < cfg.min_samples or times[-1] - times[0] < cfg.window / 2:
             return "too few joint states in the window"
         if np.max(np.diff(times)) > cfg.window / 2:
@@ -389,18 +427,25 @@ class LockDetector:
 
     def _update(self, now: float, dt: float) -> list[int]:
         cfg = self.config
-        times = np.fromiter(self._times, float, len(self._times))
-        positions = np.array(self._positions)
-        predicted = np.array(self._predicted)  # (samples, models, joints)
+        times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
         centred = times - times.mean()
         spread = centred @ centred
         measured = centred @ positions / spread
-        slopes = np.tensordot(centred, predicted, axes=(0, 0)) / spread  # (models, joints)
-        best = int(np.argmin(self._scores))
+        best = int(np.argmin(self._scores))  # always plausible
+        # Identification (every model) at most every IDENTIFY_PERIOD; decisions need only
+        # the plausible models, far fewer once identified.
+        identify = now - self._last_identification_try >= IDENTIFY_PERIOD
+        if identify:
+            self._last_identification_try = now
+            slopes = np.tensordot(centred, predicted, axes=(0, 0)) / spread  # (models, n)
+            plausible = slopes[self._plausible]
+        else:
+            plausible = np.tensordot(centred, predicted[:, self._plausible, :],
+                                     axes=(0, 0)) / spread
+        best_slope = centred @ predicted[:, best, :] / spread
         error = np.minimum(_slope_error(positions, centred, measured, spread),
                            _slope_error(positions - predicted[:, best, :], centred,
-                                        measured - slopes[best], spread))
-        plausible = slopes[self._plausible]
+                                        measured - best_slope, spread))
         weakest = np.where(np.all(plausible > 0, axis=0), plausible.min(axis=0),
                            np.where(np.all(plausible < 0, axis=0), plausible.max(axis=0), 0.0))
         unlocked = np.array([e.locked_at is None for e in self.joints])
@@ -420,7 +465,7 @@ class LockDetector:
             evidence.standard_error = float(error[j])
             evidence.at_limit = bool(stalled[j] and pushing[j])
         n_stalled, n_following = int(candidates.sum()), int(following.sum())
-        if n_stalled == 0:
+        if n_stalled == 0 and identify:
             self._identify(now, measured, slopes, error, unlocked & ~pushing)
         if n_stalled >= 2 and n_stalled > n_following:
             self.plant_fault = "plant not following commands: " + ", ".join(
