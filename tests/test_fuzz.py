@@ -188,3 +188,30 @@ def test_monitor_survives_hostile_input(monitor, data) -> None:
                                              velocity=[0.1] * 7))
         assert_safe(commands)
         assert np.allclose(commands[-1].velocity, 0.1), node.problems.summary()
+
+
+@pytest.fixture(scope="module")
+def sim():
+    from ft_sim.sim_node import SimNode
+
+    with ros_context() as (context, _):
+        node = SimNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda"), Parameter("publish_clock", value=True)])
+        node.timer.cancel()
+        yield node
+        node.destroy_node()
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_sim_survives_hostile_input(sim, data) -> None:
+    node = sim
+    if data.draw(st.booleans()):
+        timed(node._on_command, joint_state(data, node, "velocity"))
+    else:
+        timed(node._on_inject, JointState(name=data.draw(names)))
+        node._on_reset(None, type("Response", (), {})())
+    timed(node.step)
+    assert np.all(np.isfinite(node.q)) and np.all(np.isfinite(node.qd))
+    assert np.all((node.q >= PANDA.lower) & (node.q <= PANDA.upper))
+    assert np.all(np.abs(node.qd) <= PANDA.velocity_limits + 1e-9)
