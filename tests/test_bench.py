@@ -55,7 +55,7 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
 def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "detection.py"), "--out", str(tmp_path),
-         "--healthy-seconds", "6", "--trials", "1"],
+         "--healthy-seconds", "3", "--trials", "1"],
         capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads((tmp_path / "detection.json").read_text())

@@ -62,7 +62,7 @@ def test_simulated_time_as_the_demo_launch_file_runs_it(tmp_path: Path) -> None:
     params = parameters(tmp_path, {**WATCHDOG_PLANT, "publish_clock": True, "rate": 250.0})
     params["controller"]["use_sim_time"] = params["monitor"]["use_sim_time"] = True
     with graph(tmp_path, params) as g:
-        g.spin(30.0, goal_period=1.5)
+        g.spin(20.0, goal_period=1.5)
         assert_observed_healthy_motion(g)
 
 

@@ -395,6 +395,7 @@ class LockDetector:
         reason = blind or self._gap_reason(time)
         self.not_observing = reason
         if reason is not None:
+            self.plant_fault = None  # no evidence either way
             self._clear_evidence()
             return []
         return self._update(time, dt)
