@@ -26,6 +26,7 @@ from rclpy.parameter import Parameter
 from rosutil import FakePlant, ros_context, spin_until
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
+from std_srvs.srv import Trigger
 
 PANDA = robots.load("panda")
 Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
@@ -394,6 +395,24 @@ def test_model_from_the_robot_description_topic() -> None:
             assert node.robot is robot
             np.testing.assert_array_equal(node.robot.velocity_limits, limits)
         assert np.all(np.abs(plant.velocity()) <= limits)
+        # ... until someone asks for a reload, which adopts the newest usable description.
+        client = plant.node.create_client(Trigger, "controller/reload_model")
+        assert client.wait_for_service(timeout_sec=5.0)
+
+        def reload() -> Trigger.Response:
+            future = client.call_async(Trigger.Request())
+            assert spin_until(plant.executor, future.done, 5.0)
+            return future.result()
+
+        refused = reload()  # the newest is not a robot: the model is kept
+        assert not refused.success and "cannot be used" in refused.message
+        assert node.robot is robot
+        publisher.publish(String(data=robots.builtin_urdf("iiwa14")))
+        answers: list[Trigger.Response] = []
+        assert spin_until(plant.executor, lambda: answers.append(reload()) or
+                          answers[-1].success, 5.0)  # once the node has the new description
+        assert answers[-1].message == "now using iiwa14"
+        assert node.robot.name == "iiwa14"
 
 
 def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:

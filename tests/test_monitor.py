@@ -471,3 +471,13 @@ def test_stale_huge_and_duplicate_inputs_cost_little_and_change_nothing() -> Non
         assert time.perf_counter() - start < 2.0
         assert lp.monitor.locked == {}
         assert np.all(np.array(lp.commands[-1].velocity) == 0.1)  # recovered
+
+
+def test_a_model_from_the_parameters_is_never_reloaded() -> None:
+    with loop() as lp:
+        client = lp.node.create_client(Trigger, "monitor/reload_model")
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(lp.executor, future.done, 5.0)
+        assert not future.result().success
+        assert "restart the node" in future.result().message

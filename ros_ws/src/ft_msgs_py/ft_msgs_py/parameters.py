@@ -4,8 +4,8 @@
 path), else the `robot_description` topic (std_msgs/String, transient local, as
 robot_state_publisher provides it): the first description the node can use is
 kept, and a different one arriving later is refused with an ERROR (a node never
-changes robots, limits included, while commands flow; restart it instead). They
-are read-only once the node runs.
+changes robots, limits included, on its own) until `~/reload_model` is called.
+They are read-only once the node runs.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
+from std_srvs.srv import Trigger
 
 from ft_msgs_py import names, qos
 
@@ -81,9 +82,51 @@ def on_change(node: Node, check: Callable[[dict], object], apply: Callable[[], N
 
 
 def request_model(node: Node, use: Callable[[str, str], None]) -> None:
-    """Call `use(spec, source)` with the model spec from the parameters or, later, the topic."""
+    """Call `use(spec, source)` with the model spec from the parameters or, later, the topic.
+
+    From the topic, the first description the node can use is kept; a different one
+    arriving later is refused with an ERROR until someone calls `~/reload_model`
+    (std_srvs/Trigger), which adopts the newest description (the node must then get
+    joint states of the new robot). A model from the parameters is never reloaded.
+    """
     description = node.get_parameter("robot_description").value
     model = node.get_parameter("robot_model").value
+    state: dict[str, str | None] = {"accepted": None, "newest": None}
+
+    def adopt(text: str, source: str) -> bool:
+        before = getattr(node, "robot", None)
+        use(text, source)
+        robot = getattr(node, "robot", None)
+        if robot is not None and robot is not before:
+            state["accepted"] = text
+            return True
+        return False
+
+    def on_description(msg: String) -> None:
+        state["newest"] = msg.data
+        if state["accepted"] is None:
+            adopt(msg.data, "the robot_description topic")
+        elif msg.data != state["accepted"]:
+            node.get_logger().error(
+                "a different robot_description arrived while running: ignored (call "
+                f"{names.RELOAD_MODEL} to adopt it, with the commands stopped)",
+                throttle_duration_sec=10.0)
+
+    def reload(_request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if description or model:
+            response.success, response.message = False, (
+                "the model comes from the robot_description or robot_model parameter: "
+                "restart the node to change it")
+        elif state["newest"] is None or state["newest"] == state["accepted"]:
+            response.success, response.message = True, "already using the newest description"
+        elif adopt(state["newest"], "the robot_description topic (reload)"):
+            response.success, response.message = True, f"now using {node.robot.name}"
+        else:
+            response.success, response.message = False, ("the newest description cannot be "
+                                                         "used (see the log): model kept")
+        return response
+
+    node.create_service(Trigger, names.RELOAD_MODEL, reload)
     if description:
         use(description, "the robot_description parameter")
     elif model:
@@ -91,20 +134,6 @@ def request_model(node: Node, use: Callable[[str, str], None]) -> None:
     else:
         node.get_logger().info("no robot_description or robot_model parameter: waiting for "
                                f"the '{names.ROBOT_DESCRIPTION}' topic")
-        accepted: list[str] = []  # the description in use, once one was
-
-        def on_description(msg: String) -> None:
-            if accepted:
-                if msg.data != accepted[0]:
-                    node.get_logger().error(
-                        "a different robot_description arrived while running: ignored (the "
-                        "model never changes under a running node; restart it to change "
-                        "robots)", throttle_duration_sec=10.0)
-                return
-            use(msg.data, "the robot_description topic")
-            if getattr(node, "robot", None) is not None:
-                accepted.append(msg.data)
-
         node.create_subscription(String, names.ROBOT_DESCRIPTION, on_description, qos.LATCHED)
 
 
