@@ -11,8 +11,8 @@ acceleration-limited driver on the small command changes of closed-loop control.
 
 **Identification.** A bank of candidate models on a grid (L in 0..150 ms by 10 ms,
 T in {0, 10, 20, 35, 50, 75, 100, 150} ms; a `latency` or `response_time` given in
-the config replaces its grid by that one value). At every update in which the
-plant is seen following and the candidates disagree (a changing command), each
+the config replaces its grid by that one value). At updates (at most every
+`IDENTIFY_PERIOD`) in which no joint stalls and the candidates disagree (a changing command), each
 model's squared error between the measured and predicted slopes of every moving
 joint is added to its score, with exponential forgetting (`memory` s): least
 squares over recent windows, shared by all joints. Until `min_excitation` s of
