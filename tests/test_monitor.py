@@ -125,8 +125,10 @@ def sweep(lp: Loop) -> None:
     lp.send(speed * np.where(np.sin(2 * np.pi * t + np.arange(7)) >= 0, 1.0, -1.0))
 
 
-#: The slowest plant of issue 13's grid.
+#: The slowest plant of issue 13's grid, and the grid: latency x response time (s).
 LAGGING = {"command_latency": 0.05, "response_time": 0.05}
+GRID = [(latency, response) for latency in (0.0, 0.01, 0.03, 0.05)
+        for response in (0.0, 0.02, 0.05)]
 
 
 def test_healthy_motion_with_noise_declares_no_lock() -> None:
@@ -144,10 +146,15 @@ def test_healthy_motion_with_noise_declares_no_lock() -> None:
         assert estimate.latency + estimate.response_time == pytest.approx(0.1, abs=0.03)
 
 
-def test_a_lock_on_the_lagging_plant_is_found_within_300_ms() -> None:
-    with loop(noise=1e-3, sim_parameters=LAGGING) as lp:
-        for _ in range(5 * 250):
+@pytest.mark.parametrize(("latency", "response"), GRID)
+def test_a_lock_is_found_within_300_ms_on_every_plant_of_the_grid(latency: float,
+                                                                  response: float) -> None:
+    """The real nodes in lock-step, default parameters, after healthy sweeping motion."""
+    plant = {"command_latency": latency, "response_time": response}
+    with loop(noise=1e-3, sim_parameters=plant) as lp:
+        for _ in range(3 * 250):
             lp.step(sweep)
+        assert lp.locked_names() == []
         for _ in range(250):
             lp.step(constant(np.full(7, 0.2)))
         lp.inject.publish(JointState(name=["panda_joint6"]))
