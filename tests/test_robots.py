@@ -266,3 +266,15 @@ def test_hostile_model_strings_are_refused_quickly() -> None:
         with pytest.raises(robots.RobotModelError):
             robots.load(spec)
         assert time.perf_counter() - start < 2.0
+
+
+def test_a_lone_gripper_joint_after_the_arm_is_not_taken_into_the_chain() -> None:
+    """Issue 14: Unitree Z1's `jointGripper` (one revolute finger) joined the arm chain."""
+    arm = [(f"joint{i}", "revolute", f"link0{i - 1}", f"link0{i}") for i in range(1, 7)]
+    urdf = _urdf([*arm, ("jointGripper", "revolute", "link06", "gripperMover"),
+                  ("tip", "fixed", "gripperMover", "gripperTip")])
+    robot = robots.load(urdf)
+    assert robot.joint_names == tuple(f"joint{i}" for i in range(1, 7))
+    assert robot.tip_link == "link06"
+    with_gripper = robots.load(urdf, tip_link="gripperTip")
+    assert with_gripper.joint_names[-1] == "jointGripper"

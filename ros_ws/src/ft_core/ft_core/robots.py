@@ -191,13 +191,22 @@ def _leaves(link: str, children: dict[str, list[_UrdfJoint]]) -> list[str]:
     return [leaf for j in below for leaf in _leaves(j.child, children)] if below else [link]
 
 
+def _is_gripper(joint: _UrdfJoint) -> bool:
+    """A movable joint named as a gripper's or a finger's (Unitree Z1's `jointGripper`)."""
+    return joint.kind in _MOVABLE and any(word in joint.name.lower()
+                                          for word in ("gripper", "finger"))
+
+
 def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
     """Walk down from `base` along the only subtree that moves; return where that ends.
 
     Branches with fixed joints only (sensor frames, UR's `base` frame) are passed
     by; past the last movable joint a lone chain of fixed joints (the tool frame) is
-    followed to its end. A gripper makes the tree branch into moving subtrees at the hand, so the
-    default tip of a Panda with fingers is `panda_hand`, the link that carries them.
+    followed to its end. A lone movable joint named like a gripper's or a finger's
+    after the arm (Unitree Z1's `jointGripper`) ends the arm: it is not a joint of
+    the task (give `tip_link` to include it). A two-finger gripper makes the tree
+    branch into moving subtrees at the hand, so the default tip of a Panda with
+    fingers is `panda_hand`, the link that carries them.
     Raises RobotModelError, naming the branch and candidate tips, when the tree
     branches into moving subtrees before any movable joint (a mobile base, two arms).
     """
@@ -206,7 +215,7 @@ def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
     while True:
         moving = _moving_subtrees(tip, children)
         below = children.get(tip, [])
-        if len(moving) == 1:
+        if len(moving) == 1 and not (moved and _is_gripper(moving[0])):
             step = moving[0]
         elif not moving and len(below) == 1:  # a fixed tool frame past the last joint
             step = below[0]
