@@ -11,10 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import yaml
 from deployment import Graph, cpu_hog, graph
 from ft_core import robots
 from ft_msgs_py import convert, qos
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
@@ -68,7 +71,22 @@ def test_simulated_time_as_the_demo_launch_file_runs_it(tmp_path: Path) -> None:
 
 def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
     with graph(tmp_path, parameters(tmp_path, HOLDING_PLANT)) as g:
-        g.spin(8.0, goal_period=1.5)
+        g.spin(4.0, goal_period=1.5)
+        # Critical points set at run time: the boxes are traced off the control loop, which
+        # goes on commanding (issue 14: 0.4-2.4 s without a command, with a plant that
+        # holds the last one).
+        client = g.node.create_client(SetParameters, "controller/set_parameters")
+        assert client.wait_for_service(timeout_sec=10.0)
+        points = Parameter("critical_points", value=[0.5, 0.1, 0.4, 0.45, -0.15, 0.35])
+        count = len(g.commands)
+        future = client.call_async(SetParameters.Request(parameters=[points.to_parameter_msg()]))
+        g.wait(future.done, 10.0, "the parameter change")
+        assert future.result().results[0].successful
+        g.wait(lambda: g.values("/controller")[-1].get("soft_limits") == "2 critical points",
+               60.0, "the soft limits from the critical points")
+        stamps = [convert.stamp_seconds(c.header.stamp) for c in g.commands[count:]]
+        assert max(np.diff(stamps)) < 0.1, "the control loop stalled while the boxes were traced"
+        g.spin(4.0, goal_period=1.5)
         for _ in range(2):
             g.kill("controller")
             g.spin(0.5)
