@@ -57,12 +57,15 @@ class Graph:
         self.locked: list[JointState] = []
         self.states: list[JointState] = []
         self.commands: list[JointState] = []
+        self.raw_commands: list[JointState] = []  # the controller's own output
         self.diagnostics: dict[str, list] = {}  # status name -> [(wall time, status)]
         self.node.create_subscription(JointState, "ft/locked_joints", self.locked.append,
                                       qos.LATCHED)
         self.node.create_subscription(JointState, "joint_states", self.states.append,
                                       qos.SENSOR_INPUT)
         self.node.create_subscription(JointState, "ft/command", self.commands.append,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(JointState, "ft/command_raw", self.raw_commands.append,
                                       qos.SENSOR_INPUT)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics,
                                       qos.SENSOR_INPUT)

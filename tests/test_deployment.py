@@ -78,14 +78,15 @@ def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
         client = g.node.create_client(SetParameters, "controller/set_parameters")
         assert client.wait_for_service(timeout_sec=10.0)
         points = Parameter("critical_points", value=[0.5, 0.1, 0.4, 0.45, -0.15, 0.35])
-        count = len(g.commands)
+        count = len(g.raw_commands)
         future = client.call_async(SetParameters.Request(parameters=[points.to_parameter_msg()]))
         g.wait(future.done, 10.0, "the parameter change")
         assert future.result().results[0].successful
         g.wait(lambda: g.values("/controller")[-1].get("soft_limits") == "2 critical points",
                60.0, "the soft limits from the critical points")
-        stamps = [convert.stamp_seconds(c.header.stamp) for c in g.commands[count:]]
-        assert max(np.diff(stamps)) < 0.1, "the control loop stalled while the boxes were traced"
+        stamps = [convert.stamp_seconds(c.header.stamp) for c in g.raw_commands[count:]]
+        # Tracing took 0.4-2.4 s in the loop; now the gaps are the machine's scheduling.
+        assert max(np.diff(stamps)) < 0.35, "the control loop stalled while the boxes were traced"
         g.spin(4.0, goal_period=1.5)
         for _ in range(2):
             g.kill("controller")
