@@ -32,14 +32,14 @@ def planar_arm(links: Sequence[float], limit: float | None = None,
     return robots.load("".join(parts), task_space="planar")
 
 
-def straight_chain(axes: Sequence[str], link: float = 0.2,
-                   task_space: str = "pose") -> robots.Robot:
-    """A chain of revolute joints with the given axes ("x", "y" or "z"), links along z.
+def chain_urdf(axes: Sequence[str], link: float = 0.2, name: str = "straight") -> str:
+    """URDF of revolute joints j1.. with the given axes ("x", "y" or "z"), links along z.
 
-    At q = 0 it stands straight up: an exactly singular configuration.
+    Links of `link` m, limits +-2.9 rad and 2 rad/s, and a fixed tool link one link
+    past the last joint.
     """
     vectors = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
-    parts = ['<robot name="straight">'] + [f'<link name="l{i}"/>' for i in range(len(axes) + 2)]
+    parts = [f'<robot name="{name}">'] + [f'<link name="l{i}"/>' for i in range(len(axes) + 2)]
     for i, axis in enumerate(axes):
         parts.append(
             f'<joint name="j{i + 1}" type="revolute"><parent link="l{i}"/>'
@@ -48,4 +48,10 @@ def straight_chain(axes: Sequence[str], link: float = 0.2,
             '<limit lower="-2.9" upper="2.9" velocity="2" effort="1"/></joint>')
     parts.append(f'<joint name="tool" type="fixed"><parent link="l{len(axes)}"/>'
                  f'<child link="l{len(axes) + 1}"/><origin xyz="0 0 {link}"/></joint></robot>')
-    return robots.load("".join(parts), task_space=task_space)
+    return "".join(parts)
+
+
+def straight_chain(axes: Sequence[str], link: float = 0.2,
+                   task_space: str = "pose") -> robots.Robot:
+    """`chain_urdf` loaded: at q = 0 it stands straight up, an exactly singular pose."""
+    return robots.load(chain_urdf(axes, link), task_space=task_space)

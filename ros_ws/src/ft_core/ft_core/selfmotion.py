@@ -567,3 +567,39 @@ def soft_limits_for_model(spec: str, chain: Sequence, flat: list[float], q: np.n
     from ft_core import robots
 
     return soft_limits(robots.load(spec, *chain), flat, q)
+
+
+def bent_configuration(robot: Robot) -> np.ndarray:
+    """A working configuration for an arm without a known home (rad).
+
+    The middle of each joint's limits (0 for continuous joints), every joint then
+    bent 0.4 rad, alternately up and down, and kept 0.1 rad inside its limits: away
+    from the straight, singular zero pose most URDFs define. A built-in's home wins.
+    """
+    from ft_core.robots import HOME
+
+    if robot.name in HOME and len(HOME[robot.name]) == robot.n:
+        return robot.home()
+    middle = np.where(np.isfinite(robot.lower) & np.isfinite(robot.upper),
+                      0.5 * (robot.lower + robot.upper), 0.0)
+    bend = 0.4 * np.where(np.arange(robot.n) % 2 == 0, 1.0, -1.0)
+    return np.clip(middle + bend, robot.lower + 0.1, robot.upper - 0.1)
+
+
+def points_around(robot: Robot, q: np.ndarray, count: int = 3, step: float = 0.3,
+                  ) -> list[np.ndarray]:
+    """`count` task points the tool reaches near q.
+
+    The tool at q, then with one more joint at a time moved by +-step rad (first
+    joints first), kept inside the limits. Each point is reachable by construction
+    (its configuration is given): critical points for a demo or a campaign on an arm
+    nobody chose points for.
+    """
+    points, moved = [robot.forward(q)], q.copy()
+    for k in range(1, count):
+        joint = (k - 1) % robot.n
+        moved = moved.copy()
+        moved[joint] += step if k % 2 else -step
+        moved = np.clip(moved, robot.lower, robot.upper)
+        points.append(robot.forward(moved))
+    return points

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from ft_core import robots
 
-from ft_sim.scenario import TASK_POINTS, Record, Scenario, ScenarioConfig
+from ft_sim.scenario import Record, Scenario, ScenarioConfig
 
 
 def summarise(config: ScenarioConfig, record: Record) -> dict:
@@ -133,7 +133,14 @@ def main(argv: list[str] | None = None) -> int:
     """Run the demo; return 0 when the story holds."""
     defaults = ScenarioConfig()
     parser = argparse.ArgumentParser(prog="ft-demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", default=defaults.robot, choices=sorted(TASK_POINTS))
+    parser.add_argument("--robot", default=defaults.robot, help="built-in name "
+                        f"({', '.join(sorted(robots.BUILTINS))}) or URDF path; without task "
+                        "points of its own, three are chosen around a bent configuration "
+                        "(default %(default)s)")
+    parser.add_argument("--base-link", default="", help="first link of the chain")
+    parser.add_argument("--tip-link", default="", help="tool link of the chain")
+    parser.add_argument("--task", default=defaults.task_space, choices=["position"],
+                        help="task space (default %(default)s)")
     parser.add_argument("--resolution", default=defaults.resolution,
                         choices=["least_norm", "max_kfm", "min_jump", "blend"])
     parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
@@ -147,7 +154,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="run without the critical points' bounding-box soft limits")
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     args = parser.parse_args(argv)
-    joints = robots.load(args.robot).joint_names
+    try:
+        joints = robots.load(args.robot, args.base_link or None, args.tip_link or None,
+                             task_space=args.task).joint_names
+    except robots.RobotModelError as error:
+        parser.error(f"--robot: {error}")
     joint = joints[int(args.joint) - 1] if args.joint.isdigit() and \
         1 <= int(args.joint) <= len(joints) else args.joint
     if joint not in joints:
@@ -155,11 +166,13 @@ def main(argv: list[str] | None = None) -> int:
     if not 0 < args.lock_time < args.duration:
         parser.error("--lock-time must lie inside the run")
     scenario = Scenario(ScenarioConfig(
-        robot=args.robot, resolution=args.resolution, lock_joint=joint,
+        robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
+        task_space=args.task, resolution=args.resolution, lock_joint=joint,
         lock_time=args.lock_time, duration=args.duration, seed=args.seed,
         soft_limits=not args.no_soft_limits))
-    print(f"running the {args.robot} in simulated time; {joint} locks at {args.lock_time:g} s, "
-          "then it visits every task point again ...", flush=True)
+    print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "
+          f"{args.lock_time:g} s, then it visits every task point again; task points "
+          f"{[[round(v, 3) for v in p] for p in scenario.config.points]} ...", flush=True)
     try:
         record = scenario.run()
     finally:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import rclpy
 from ft_controller.controller_node import ControllerNode
-from ft_core import robots
+from ft_core import robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, metrics, names, qos
 from geometry_msgs.msg import PoseStamped
@@ -48,10 +48,13 @@ class ScenarioConfig:
     """What to run.
 
     Attributes:
-        robot: model (built-in name or URDF path); task_space its task.
+        robot: model (built-in name or URDF path); base_link, tip_link ("": the
+            defaults) choose the chain; task_space its task.
         resolution: the controller's mode.
-        points: task points visited in turn (m; default the robot's `TASK_POINTS`); all
-            critical unless `critical` says otherwise.
+        points: task points visited in turn (m; default the robot's `TASK_POINTS`, or
+            for an arm without them `selfmotion.points_around` its
+            `selfmotion.bent_configuration`, where the arm then starts); all critical
+            unless `critical` says otherwise.
         critical: indices of the critical points (default: all).
         soft_limits: give the controller the critical points (bounding-box soft limits).
         lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s).
@@ -61,6 +64,8 @@ class ScenarioConfig:
     """
 
     robot: str = "panda"
+    base_link: str = ""
+    tip_link: str = ""
     task_space: str = "position"
     resolution: str = "blend"
     points: tuple[tuple[float, ...], ...] = ()
@@ -105,20 +110,30 @@ class Scenario:
     """Builds the nodes in their own context (and DDS domain) and runs them."""
 
     def __init__(self, config: ScenarioConfig, domain_id: int | None = None):
-        if not config.points:
-            config = replace(config, points=TASK_POINTS[config.robot])
+        self.robot = robots.load(config.robot, config.base_link or None,
+                                 config.tip_link or None, task_space=config.task_space)
+        start = None  # the sim's default (the model's home)
+        if not config.points and self.robot.name in TASK_POINTS:
+            config = replace(config, points=TASK_POINTS[self.robot.name])
+        elif not config.points:
+            start = selfmotion.bent_configuration(self.robot)
+            config = replace(config, points=tuple(
+                tuple(float(v) for v in p[:3]) for p in selfmotion.points_around(
+                    self.robot, start)))
         self.config = config
-        self.robot = robots.load(config.robot, task_space=config.task_space)
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.executor = SingleThreadedExecutor(context=self.context)
-        model = {"robot_model": config.robot, "task_space": config.task_space}
+        model = {"robot_model": config.robot, "task_space": config.task_space,
+                 **{name: value for name, value in (("base_link", config.base_link),
+                                                    ("tip_link", config.tip_link)) if value}}
         critical = config.critical if config.critical is not None else range(len(config.points))
         self.critical = list(critical)
         flat = [v for i in self.critical for v in config.points[i]]
         self.sim = SimNode(context=self.context, parameter_overrides=_params(
             model, publish_clock=True, rate=config.rate, position_noise=config.noise,
-            seed=config.seed))
+            seed=config.seed, **({} if start is None else {
+                "initial_positions": [float(v) for v in start]})))
         self.sim.timer.cancel()  # stepped by hand
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
