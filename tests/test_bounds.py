@@ -75,3 +75,19 @@ def test_pose_points_use_position_and_quaternion() -> None:
     np.testing.assert_allclose(target, pose, atol=1e-12)
     with pytest.raises(ValueError, match="multiple of 7"):
         selfmotion.targets_from_flat(robot, [0.0] * 6)
+
+
+def test_an_arm_without_a_home_is_seeded_from_a_bent_configuration(tmp_path) -> None:
+    """Issue 15 (in part): ft-bounds on a user's URDF seeded from the all-zero pose."""
+    from models import chain_urdf
+
+    urdf = tmp_path / "arm7.urdf"
+    urdf.write_text(chain_urdf("zyzyzyz", name="arm7"))
+    robot = robots.load(str(urdf), task_space="position")
+    points = selfmotion.points_around(robot, selfmotion.bent_configuration(robot))
+    text = ";".join(",".join(f"{v:.5f}" for v in p) for p in points)
+    output = tmp_path / "soft.yaml"
+    assert bounds.main(["--robot", str(urdf), "--task", "position", f"--points={text}",
+                        "--output", str(output)]) == 0
+    params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+    assert len(params["soft_limits"]["lower"]) == robot.n

@@ -3,7 +3,8 @@
     ft-bounds --robot panda --task position --points "0.5,0.1,0.4;0.45,-0.15,0.35"
 
 For each critical point it traces the self-motion manifold (from `--seed`, or from a
-configuration it finds), prints the point's bounding box and normalised volume, then
+configuration it finds near the built-in's home or, for other arms, near
+`selfmotion.bent_configuration`), prints the point's bounding box and normalised volume, then
 the intersection of the boxes and whether every point is still reachable inside it
 (seed 000 sec. III, steps 3-5). On success it writes a ROS 2 parameters file that the
 controller accepts (`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with
@@ -116,13 +117,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ft-bounds: {error}", file=sys.stderr)
         return 1
     print(f"{robot.name}: {robot.n} joints {list(robot.joint_names)}, {robot.task_space} task")
+    # Without --seed: the built-in's home, else a bent configuration (the all-zero pose of
+    # most URDFs is straight and singular, and its components rarely share a box).
+    around = selfmotion.bent_configuration(robot) if seed is None else seed
     progress = _Progress(len(targets))
     boxes = []
     for index, target in enumerate(targets):
         label = np.round(target[:3, 3] if target.ndim == 2 else target, 4).tolist()
         progress.point(index, f"point {label}")
         try:
-            start = selfmotion.find_seed(robot, target, robot.home() if seed is None else seed)
+            start = selfmotion.find_seed(robot, target, around)
             manifold = selfmotion.trace(robot, target, start, step=args.step,
                                         progress=progress.step)
         except selfmotion.UnreachableError as error:
@@ -142,11 +146,13 @@ def main(argv: list[str] | None = None) -> int:
     if empty:
         names = [robot.joint_names[j] for j in empty]
         print(f"ft-bounds: the boxes do not intersect on {names}: no soft limits keep every "
-              "point reachable after a failure", file=sys.stderr)
+              "point reachable after a failure. Try --seed with a configuration that reaches "
+              "the points from one posture (each point's self-motion component is traced "
+              "from the one nearest the seed), or fewer or closer points", file=sys.stderr)
         return 4
     print(f"  volume {selfmotion.box_volume(robot, lower, upper):.4g}")
     unreachable = [i + 1 for i, q in enumerate(selfmotion.reachability(
-        robot, targets, lower, upper, robot.home() if seed is None else seed)) if q is None]
+        robot, targets, lower, upper, around)) if q is None]
     if unreachable:
         print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection",
               file=sys.stderr)
