@@ -49,6 +49,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 	$(BIN)/python bench/detection.py --out bench_out
+	rm -rf bench_out/runs  # the campaign resumes from kept runs: start afresh
 	$(BIN)/ft-campaign --runs 20 --out bench_out
 	$(BIN)/python bench/nodes.py --out bench_out
 

@@ -85,8 +85,9 @@ def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
         g.wait(lambda: g.values("/controller")[-1].get("soft_limits") == "2 critical points",
                60.0, "the soft limits from the critical points")
         stamps = [convert.stamp_seconds(c.header.stamp) for c in g.raw_commands[count:]]
-        # Tracing took 0.4-2.4 s in the loop; now the gaps are the machine's scheduling.
-        assert max(np.diff(stamps)) < 0.35, "the control loop stalled while the boxes were traced"
+        # Tracing took 0.7 s (these points) to 2.4 s in the loop; now the gaps are the
+        # machine's scheduling, up to 0.46 s seen on a loaded 2-core machine.
+        assert max(np.diff(stamps)) < 0.6, "the control loop stalled while the boxes were traced"
         g.spin(4.0, goal_period=1.5)
         for _ in range(2):
             g.kill("controller")

@@ -54,7 +54,10 @@ def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
 
 @pytest.mark.parametrize("soft", [True, False])
 def test_a_campaign_run(soft: bool) -> None:
-    result = campaign.one_run((3, "blend", soft, 96 if soft else 97))
+    base = {"robot": "panda", "base_link": "", "tip_link": "", "command_latency": 0.02,
+            "response_time": 0.02, "hold_last_command": True}
+    result = campaign.one_run((3, "blend", soft, 96 if soft else 97, base))
+    assert result["false_locks"] == []
     assert result["correct_detection"] and result["non_finite"] == 0
     if soft:
         assert result["success"]  # the guarantee of the bounding boxes
@@ -88,3 +91,20 @@ def test_docker_files_refer_to_what_the_workspace_provides() -> None:
     assert next(line for line in dockerfile.splitlines() if line.startswith("FROM")) == (
         "FROM ros:jazzy")
     assert "colcon build" in dockerfile and "install/setup.sh" in dockerfile
+
+
+def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, capsys) -> None:
+    """Issue 15 (in part): ft-campaign on a URDF with a realistic plant, resumable."""
+    from models import chain_urdf
+
+    urdf = tmp_path / "arm7.urdf"
+    urdf.write_text(chain_urdf("zyzyzyz", name="arm7"))
+    arguments = ["--runs", "1", "--workers", "2", "--robot", str(urdf), "--latency", "0.02",
+                 "--response-time", "0.02", "--hold-last-command", "--out", str(tmp_path)]
+    assert campaign.main(arguments) == 0
+    assert "5 runs (0 kept from before)" in capsys.readouterr().out
+    kept = sorted((tmp_path / "runs").glob("*/*.json"))
+    assert len(kept) == 5
+    assert "runs with a false lock" in (tmp_path / "campaign.md").read_text()
+    assert campaign.main(arguments) == 0  # nothing left to run
+    assert "5 runs (5 kept from before)" in capsys.readouterr().out

@@ -273,11 +273,16 @@ class ControllerNode(SuiteNode):
         self._boxes_generation += 1
         self._soft_note = (f"computing soft limits from {len(flat)} values of critical points "
                            "(the previous limits meanwhile)")
-        if self._background is None:
-            self._background = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
-        self._boxes_job = (self._boxes_generation, self._background.submit(
-            selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+        try:
+            if self._background is None:
+                self._background = ProcessPoolExecutor(
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            self._boxes_job = (self._boxes_generation, self._background.submit(
+                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+        except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
+            self._soft_note = "none (critical points failed)"
+            self.problems.report("critical points", f"cannot start the process that traces "
+                                 f"the boxes ({error}); running without their soft limits")
 
     def _take_boxes(self) -> None:
         """Switch to soft limits computed in the background, if any are ready."""

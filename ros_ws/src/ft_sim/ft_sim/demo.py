@@ -55,7 +55,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "kfm_before": float(a["kfm"][i - 1]) if i else None,
         "kfm_after": float(a["kfm"][-1]),
         "points": len(record.tour) or len(config.points), "reached_after": reached_after,
-        "non_finite": record.non_finite,
+        "non_finite": record.non_finite, "false_locks": record.false_locks,
     }
 
 
@@ -69,6 +69,9 @@ def verdict(summary: dict) -> list[str]:
                         "points reached after the lock")
     if summary["non_finite"]:
         problems.append(f"{summary['non_finite']} messages with non-finite values")
+    if summary["false_locks"]:
+        problems.append(f"healthy joints declared locked before the failure: "
+                        f"{summary['false_locks']}")
     return problems
 
 

@@ -61,6 +61,7 @@ class ScenarioConfig:
         duration: longest run (simulated s); rate: sim, controller and joint-state rate (Hz).
         noise: position noise (rad); seed: noise seed.
         goal_tolerance: m; goal_timeout: s per visit.
+        command_latency, response_time (s), hold_last_command: the sim's plant options.
     """
 
     robot: str = "panda"
@@ -79,6 +80,9 @@ class ScenarioConfig:
     seed: int = 0
     goal_tolerance: float = 2e-3
     goal_timeout: float = 4.0
+    command_latency: float = 0.0
+    response_time: float = 0.0
+    hold_last_command: bool = False
 
 
 @dataclass
@@ -98,6 +102,7 @@ class Record:
     injected_at: float | None = None
     detected_at: float | None = None
     detected: list[str] = field(default_factory=list)
+    false_locks: list[str] = field(default_factory=list)  #: declared before the injection
     non_finite: int = 0
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -132,7 +137,9 @@ class Scenario:
         flat = [v for i in self.critical for v in config.points[i]]
         self.sim = SimNode(context=self.context, parameter_overrides=_params(
             model, publish_clock=True, rate=config.rate, position_noise=config.noise,
-            seed=config.seed, **({} if start is None else {
+            seed=config.seed, command_latency=config.command_latency,
+            response_time=config.response_time, hold_last_command=config.hold_last_command,
+            **({} if start is None else {
                 "initial_positions": [float(v) for v in start]})))
         self.sim.timer.cancel()  # stepped by hand
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
@@ -174,6 +181,8 @@ class Scenario:
         self._metrics = metrics.values(msg)
 
     def _on_locked(self, msg: JointState) -> None:
+        if msg.name and self.record.injected_at is None:
+            self.record.false_locks = sorted(set(self.record.false_locks) | set(msg.name))
         if msg.name and self.record.detected_at is None and self.record.injected_at is not None:
             self.record.detected_at = convert.stamp_seconds(msg.header.stamp)
             self.record.detected = list(msg.name)
