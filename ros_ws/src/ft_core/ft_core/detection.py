@@ -163,12 +163,38 @@ def _slope_error(values: np.ndarray, centred: np.ndarray, slope: np.ndarray,
     return np.sqrt(np.sum((values - fitted) ** 2, axis=0) / (values.shape[0] - 2) / spread)
 
 
-class CommandHistory:
+class _Buffers:
+    """Arrays that grow along their first axis: entries [start, end) are in use.
+
+    Old entries are dropped by moving `start`; when `end` reaches the capacity, the
+    entries in use move to the front, into arrays twice as large if more than half
+    of the capacity is in use. Subclasses name their arrays in `NAMES`.
+    """
+
+    NAMES: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return self.end - self.start
+
+    def _make_room(self) -> None:
+        size = len(self)
+        for name in self.NAMES:
+            old = getattr(self, name)
+            new = (np.zeros((2 * old.shape[0], *old.shape[1:])) if size > old.shape[0] // 2
+                   else old)
+            new[:size] = old[self.start:self.end].copy()
+            setattr(self, name, new)
+        self.start, self.end = 0, size
+
+
+class CommandHistory(_Buffers):
     """Piecewise-constant commands, their running integral and their lagged versions.
 
     Entry k holds the command u_k in force from time s_k, the integral U(s_k) (rad)
     and, for each response time T, the lag's state y_T(s_k) (rad/s).
     """
+
+    NAMES = ("times", "values", "integrals", "lagged")
 
     def __init__(self, n: int, response_times: np.ndarray, capacity: int = 256):
         self.n, self.response_times = n, np.asarray(response_times, float)
@@ -179,9 +205,6 @@ class CommandHistory:
         self.integrals = np.zeros((capacity, n))
         self.lagged = np.zeros((capacity, self.response_times.size, n))
         self.start = self.end = 0
-
-    def __len__(self) -> int:
-        return self.end - self.start
 
     @property
     def last_time(self) -> float:
@@ -206,20 +229,6 @@ class CommandHistory:
         self.times[k], self.values[k] = time, velocity
         self.end += 1
 
-    def _make_room(self) -> None:
-        size = len(self)
-        if size > self.times.size // 2:  # more than half in use: grow
-            for name in ("times", "values", "integrals", "lagged"):
-                old = getattr(self, name)
-                grown = np.zeros((2 * old.shape[0], *old.shape[1:]))
-                grown[:size] = old[self.start:self.end]
-                setattr(self, name, grown)
-        else:
-            for name in ("times", "values", "integrals", "lagged"):
-                array = getattr(self, name)
-                array[:size] = array[self.start:self.end].copy()
-        self.start, self.end = 0, size
-
     def forget_before(self, time: float) -> None:
         """Drop entries no longer needed for times >= `time` (the one in force stays)."""
         times = self.times[self.start:self.end]
@@ -242,12 +251,13 @@ class CommandHistory:
         return integral[:, None, :] - self.response_times[None, :, None] * lagged
 
 
-class Samples:
+class Samples(_Buffers):
     """The window's measurements: times, positions and every model's predicted positions.
 
-    Contiguous arrays (views, no copies, for the per-update fits), with the window's
-    oldest entries dropped by moving a start index and compacted when the end is reached.
+    Contiguous arrays: the per-update fits read views, no copies.
     """
+
+    NAMES = ("times", "positions", "predicted")
 
     def __init__(self, n: int, models: int, capacity: int = 128):
         self.times = np.zeros(capacity)
@@ -255,22 +265,10 @@ class Samples:
         self.predicted = np.zeros((capacity, models, n))
         self.start = self.end = 0
 
-    def __len__(self) -> int:
-        return self.end - self.start
-
     def append(self, time: float, position: np.ndarray, predicted: np.ndarray) -> None:
         """One measurement and the models' predictions at its time."""
         if self.end == self.times.size:
-            size = len(self)
-            for name in ("times", "positions", "predicted"):
-                old = getattr(self, name)
-                if size > old.shape[0] // 2:  # more than half in use: grow
-                    new = np.zeros((2 * old.shape[0], *old.shape[1:]))
-                else:
-                    new = old
-                new[:size] = old[self.start:self.end].copy()
-                setattr(self, name, new)
-            self.start, self.end = 0, size
+            self._make_room()
         k = self.end
         self.times[k], self.positions[k], self.predicted[k] = time, position, predicted
         self.end += 1

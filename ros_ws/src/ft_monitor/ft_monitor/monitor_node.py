@@ -242,19 +242,20 @@ class MonitorNode(SuiteNode):
     def _on_command(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        stamp = self.problems.message_time("ft/command_raw", msg.header.stamp, self.now())
+        now = self.now()
+        stamp = self.problems.message_time("ft/command_raw", msg.header.stamp, now)
         try:
             if stamp is None:
                 raise convert.MessageError("stamp ahead of the clock")
-            if self.now() - stamp > self.param("command_timeout"):
-                raise convert.MessageError(f"stale: stamped {self.now() - stamp:.3f} s ago")
+            if now - stamp > self.param("command_timeout"):
+                raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
             qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
         except convert.MessageError as error:
             self.problems.report("ft/command_raw", f"{error}: commanding zeros")
             self._publish_command(np.zeros(self.robot.n), msg.header.stamp)
             return
         self.problems.report("ft/command_raw", None)
-        self._last_command = self.now()
+        self._last_command = now
         self._last_command_steady = time.monotonic()
         locked = sorted(self.detector.locked)
         limits = self.robot.velocity_limits * self.param("velocity_scale")
