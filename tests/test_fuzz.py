@@ -113,6 +113,10 @@ def monitor():
     with ros_context() as (context, _), tempfile.TemporaryDirectory() as state:
         node = MonitorNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"), Parameter("state_directory", value=state)])
+        for _ in range(3):  # the first calls load what they need: not what is timed
+            node._on_command(convert.joint_state(NAMES, node.get_clock().now().to_msg(),
+                                                 velocity=[0.1] * 7))
+            node._on_state(good_state(node))
         yield node
         node.destroy_node()
 
@@ -198,6 +202,7 @@ def sim():
         node = SimNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"), Parameter("publish_clock", value=True)])
         node.timer.cancel()
+        node.step()  # the first step loads what it needs: not what is timed
         yield node
         node.destroy_node()
 
