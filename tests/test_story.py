@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import json
 from pathlib import Path
 
 import pytest
@@ -12,13 +13,44 @@ from models import chain_urdf
 from paths import PANDA_URDF, REPO
 
 
-def test_the_demo_story_holds(tmp_path: Path) -> None:
-    """Short demo: right joint detected, task continued, every point reached, all finite."""
-    assert demo.main(["--joint", "panda_joint4", "--lock-time", "3", "--out",
+def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> None:
+    """Short demo: right joint detected, task continued, every point reached, all finite.
+
+    Its rosbag2 (MCAP) reads back with rosbags and holds the lock as it happened.
+    """
+    assert demo.main(["--joint", "panda_joint4", "--lock-time", "3", "--record", "--out",
                       str(tmp_path)]) == 0
     text = (tmp_path / "report.md").read_text()
     assert "detected | panda_joint4" in text and "3 of 3" in text
     assert (tmp_path / "demo.png").stat().st_size > 10_000
+    assert (tmp_path / "arm.png").stat().st_size > 10_000
+    topics = recorded(tmp_path / "bag")
+    assert set(topics) == {"/joint_states", "/ft/target_pose", "/ft/command_raw", "/ft/command",
+                           "/ft/locked_joints", "/ft/inject_failure", "/ft/metrics",
+                           "/diagnostics"}
+    assert len(topics["/joint_states"]) > 1000  # 250 Hz for several simulated seconds
+    (injected_ns, injection), = topics["/ft/inject_failure"]
+    assert list(injection.name) == ["panda_joint4"]
+    locks = [(t, list(msg.name)) for t, msg in topics["/ft/locked_joints"] if list(msg.name)]
+    assert locks and locks[0][1] == ["panda_joint4"]
+    assert 0 < locks[0][0] - injected_ns < 2e9  # logged in simulated time, after the lock
+    detected = float(text.split("detected | panda_joint4 at ")[1].split(" s")[0])
+    assert abs(locks[0][0] / 1e9 - detected) < 0.1
+
+
+def recorded(bag: Path) -> dict[str, list[tuple[int, object]]]:
+    """Every message of a rosbag2, by topic: (log time in ns, message)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    topics: dict[str, list[tuple[int, object]]] = {}
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        assert [path.suffix for path in reader.paths] == [""]
+        assert {c.msgtype for c in reader.connections} >= {"sensor_msgs/msg/JointState"}
+        topics = {c.topic: [] for c in reader.connections}
+        for connection, t, raw in reader.messages():
+            topics[connection.topic].append((t, reader.deserialize(raw, connection.msgtype)))
+    return topics
 
 
 def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
@@ -54,13 +86,14 @@ def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
 
 @pytest.mark.parametrize("soft", [True, False])
 def test_a_campaign_run(soft: bool) -> None:
-    base = {"robot": "panda", "base_link": "", "tip_link": "", "command_latency": 0.02,
-            "response_time": 0.02, "hold_last_command": True}
-    result = campaign.one_run((3, "blend", soft, 96 if soft else 97, base))
+    design = campaign.design_of("panda", "", "", {
+        "command_latency": 0.02, "response_time": 0.02, "hold_last_command": True})
+    result = campaign.one_run(campaign.Task(3, "blend", soft, 96 if soft else 97, design))
     assert result["false_locks"] == []
     assert result["correct_detection"] and result["non_finite"] == 0
-    if soft:
-        assert result["success"]  # the guarantee of the bounding boxes
+    assert len(result["waypoint_visits"]) >= 2  # it wandered before the lock
+    if soft:  # the guarantee of the bounding boxes: locked inside, every point reachable
+        assert not result["outside_box"] and result["reachable"] == 3
     row = campaign.table([result]).splitlines()[2]
     assert row.startswith(f"| blend, {'with' if soft else 'without'} soft limits | 1 |")
 
@@ -99,12 +132,18 @@ def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, 
 
     urdf = tmp_path / "arm7.urdf"
     urdf.write_text(chain_urdf("zyzyzyz", name="arm7"))
-    arguments = ["--runs", "1", "--workers", "2", "--robot", str(urdf), "--latency", "0.02",
-                 "--response-time", "0.02", "--hold-last-command", "--out", str(tmp_path)]
+    arguments = ["--runs", "1", "--modes", "blend", "--workers", "2", "--robot", str(urdf),
+                 "--latency", "0.02", "--response-time", "0.02", "--hold-last-command",
+                 "--record", "--out", str(tmp_path)]
     assert campaign.main(arguments) == 0
-    assert "5 runs (0 kept from before)" in capsys.readouterr().out
+    assert "2 runs (0 kept from before)" in capsys.readouterr().out
     kept = sorted((tmp_path / "runs").glob("*/*.json"))
-    assert len(kept) == 5
-    assert "runs with a false lock" in (tmp_path / "campaign.md").read_text()
+    assert [path.name for path in kept] == ["0-blend-free.json", "0-blend-soft.json"]
+    for path in kept:  # each run's recording, with the lock injected in it
+        injected = recorded(path.with_suffix(""))["/ft/inject_failure"]
+        assert len(injected) == 1 and json.loads(path.read_text())["locked"] in (
+            injected[0][1].name)
+    text = (tmp_path / "campaign.md").read_text()
+    assert "runs with a false lock" in text and "| blend | 1 |" in text
     assert campaign.main(arguments) == 0  # nothing left to run
-    assert "5 runs (5 kept from before)" in capsys.readouterr().out
+    assert "2 runs (2 kept from before)" in capsys.readouterr().out

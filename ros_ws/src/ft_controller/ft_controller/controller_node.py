@@ -250,6 +250,11 @@ class ControllerNode(SuiteNode):
             self._boxes_dirty = True
         self._rebuild_engine(self._critical_box)
 
+    @property
+    def critical_box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The soft limits (lower, upper; rad) in force from the critical points, if any."""
+        return self._critical_box
+
     def _rebuild_engine(self, critical_box: tuple | None) -> None:
         """New engine from the parameters; `critical_box` from the critical points, if any."""
         self._critical_box = critical_box

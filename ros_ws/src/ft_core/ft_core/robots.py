@@ -398,11 +398,15 @@ class Robot:
         return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(rotation)])
 
     def _reach(self) -> float:
-        data = self._data
-        pin.framesForwardKinematics(self._model, data, pin.neutral(self._model))
-        points = [data.oMi[j].translation for j in range(1, self._model.njoints)]
-        points.append(data.oMf[self._tip].translation)
+        points = self.skeleton(pin.neutral(self._model))
         return float(sum(np.linalg.norm(b - a) for a, b in pairwise(points)))
+
+    def skeleton(self, q: np.ndarray) -> np.ndarray:
+        """The chain as points (n + 1, 3; m, base frame): each joint's origin, then the tool."""
+        pin.framesForwardKinematics(self._model, self._data, self._check(q))
+        placements = [self._data.oMi[j] for j in range(1, self._model.njoints)]
+        placements.append(self._data.oMf[self._tip])
+        return np.array([(self._base_inverse * pose).translation for pose in placements])
 
     def _check(self, q: np.ndarray) -> np.ndarray:
         q = np.asarray(q, dtype=float)

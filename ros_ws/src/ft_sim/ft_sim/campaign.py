@@ -1,22 +1,28 @@
 """`ft-campaign` (used by `make bench`): the fault experiment of seed 000 sec. V at scale.
 
-Each run is a `scenario`: the arm (the Panda by default, or `--robot` with its chain
-options; position task) cycles between three critical points and a non-critical
-waypoint far to the side; a random joint locks at a random time (seeded, the same
-draws for every condition); then it tours the critical points. Success: every
-critical point reached again (within the goal tolerance and timeout); a lock
-declared before the failure is a false lock. The sim's plant options
+Does keeping the joints inside the critical points' bounding boxes while healthy
+keep every critical point reachable after a lock (seed 000 sec. III-V)? Each run
+is a `scenario` on the arm (the Panda by default, or `--robot` with its chain
+options; position task): it wanders for a long time between three critical points
+and `WAYPOINTS` far, non-critical waypoints, so that an arm without soft limits can
+drift; a random joint locks at a random time in `LOCK_WINDOW`; then the arm tours the
+critical points. Success: every critical point reached again (within 5 mm, 5 s
+each). The waypoints are drawn inside the soft-limit box (so the arm with soft
+limits can reach them too) and far from the critical points; a run with and one
+without soft limits share the seed, hence the waypoints and the lock (a paired
+design). A lock declared before the failure is a false lock. The sim's plant options
 (`--latency`, `--response-time`, `--hold-last-command`) make it realistic.
-Conditions:
 
-- with and without the critical points' bounding-box soft limits (`blend`);
-- each resolution mode with soft limits, for the distributions of detection
-  latency and of the joint-velocity jump at the lock.
+Conditions: each resolution mode (`--modes`) with and without the soft limits.
+The table gives each success rate with its 95 % Wilson interval, and per mode the
+runs whose outcome the soft limits changed with the exact McNemar test on them.
 
 Runs go to a process pool (`--workers`), one DDS domain per run counted from
-ROS_DOMAIN_ID + 1. Each finished run is kept in `<out>/runs/<options>/` (a folder
-per arm and plant options) and not run again: a campaign resumes where it stopped.
-Writes `<out>/campaign.md` (table), `campaign.json` (every run) and `campaign.png`.
+ROS_DOMAIN_ID + 1, with a progress bar on a terminal. Each finished run is kept in
+`<out>/runs/<options>/` (a folder per arm, plant and task design) and not run again:
+a campaign resumes where it stopped. `--record` also keeps each run's topics as a
+rosbag2 (MCAP) in a folder of the run's name beside its result. Writes
+`<out>/campaign.md` (tables), `campaign.json` (every run) and `campaign.png`.
 """
 
 from __future__ import annotations
@@ -27,93 +33,237 @@ import json
 import multiprocessing
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from ft_core import robots, selfmotion
+from scipy import stats
+from tqdm import tqdm
 
 from ft_sim.demo import summarise
 from ft_sim.scenario import TASK_POINTS, ScenarioConfig, run
 
-#: The Panda's non-critical waypoint, far from its critical points (m).
-PANDA_WAYPOINT = (0.15, 0.5, 0.25)
 MODES = ("least_norm", "max_kfm", "min_jump", "blend")
+#: Far, non-critical waypoints per run (visited in turn after the critical points).
+WAYPOINTS = 8
+#: A waypoint is at least this fraction of the arm's typical reach from every critical point.
+FAR = 0.3
+#: The lock comes this long (simulated s) after the task starts, drawn uniformly.
+LOCK_WINDOW = (12.0, 24.0)
+GOAL_TOLERANCE = 5e-3  #: m
+GOAL_TIMEOUT = 5.0  #: s per visit
 
 
-def points(robot: robots.Robot) -> tuple[tuple[float, ...], ...]:
-    """Three critical points, then a non-critical waypoint far from them (m).
+@dataclass(frozen=True)
+class Task:
+    """One run to do: the seed (the draws), the condition, its DDS domain, the design.
 
-    The built-in's task points, or for another arm three points around its bent
-    configuration and, as the waypoint, the tool with the first joint turned 1.2 rad.
+    `design` holds everything the runs of one campaign share (arm, plant options,
+    critical points, soft-limit box); it names the folder the run is kept in.
     """
-    if robot.name == "panda":
-        return (*TASK_POINTS["panda"], PANDA_WAYPOINT)
-    start = selfmotion.bent_configuration(robot)
-    far = start.copy()
-    far[0] = np.clip(far[0] + 1.2, robot.lower[0], robot.upper[0])
-    chosen = [*selfmotion.points_around(robot, start), robot.forward(far)]
+
+    seed: int
+    mode: str
+    soft: bool
+    domain: int
+    design: dict = field(hash=False)
+
+    @property
+    def name(self) -> str:
+        """The run's file name stem."""
+        return f"{self.seed}-{self.mode}-{'soft' if self.soft else 'free'}"
+
+
+def critical_points(robot: robots.Robot) -> tuple[tuple[float, ...], ...]:
+    """Three critical points (m): the built-in's task points, or around a bent configuration."""
+    if robot.name in TASK_POINTS:
+        return TASK_POINTS[robot.name]
+    chosen = selfmotion.points_around(robot, selfmotion.bent_configuration(robot))
     return tuple(tuple(float(v) for v in p[:3]) for p in chosen)
 
 
+def waypoints(robot: robots.Robot, box: tuple[np.ndarray, np.ndarray],
+              critical: tuple[tuple[float, ...], ...], seed: int,
+              count: int = WAYPOINTS) -> list[tuple[float, ...]]:
+    """`count` far waypoints for run `seed` (m), reachable inside the soft-limit box.
+
+    Configurations drawn uniformly inside the box (and the joint limits); their tool
+    points, kept when at least `FAR` x the median distance of the drawn points from the
+    base away from every critical point (the farthest ones if too few are that far).
+    """
+    rng = np.random.default_rng([seed, 1])
+    lower = np.maximum(box[0], robot.lower)
+    upper = np.minimum(box[1], robot.upper)
+    lower, upper = np.where(np.isfinite(lower), lower, -np.pi), np.where(
+        np.isfinite(upper), upper, np.pi)
+    drawn = np.array([robot.forward(q)[:3] for q in rng.uniform(lower, upper,
+                                                                (20 * count, robot.n))])
+    distance = np.min(np.linalg.norm(drawn[:, None, :] - np.array(critical)[None], axis=2),
+                      axis=1)
+    far = np.flatnonzero(distance >= FAR * np.median(np.linalg.norm(drawn, axis=1)))
+    if far.size < count:
+        far = np.argsort(-distance)[:count]
+    return [tuple(float(v) for v in drawn[i]) for i in far[:count]]
+
+
+def tour(critical: tuple[tuple[float, ...], ...], far: list[tuple[float, ...]],
+         ) -> tuple[tuple[tuple[float, ...], ...], tuple[int, ...]]:
+    """The points in visiting order and the indices of the critical ones among them.
+
+    Each critical point is followed by two waypoints, the remaining waypoints come last:
+    the arm travels far between critical points, as in a pick-and-place cell.
+    """
+    order: list[tuple[float, ...]] = []
+    marks: list[int] = []
+    rest = list(far)
+    for point in critical:
+        marks.append(len(order))
+        order += [point, *rest[:2]]
+        rest = rest[2:]
+    return tuple(order + rest), tuple(marks)
+
+
 def draw(seed: int, joints: tuple[str, ...]) -> tuple[str, float]:
-    """The joint that locks and when (s), for run `seed`."""
+    """The joint that locks and when (s after the task starts), for run `seed`."""
     rng = np.random.default_rng(seed)
-    return joints[int(rng.integers(len(joints)))], float(rng.uniform(2.0, 8.0))
+    return joints[int(rng.integers(len(joints)))], float(rng.uniform(*LOCK_WINDOW))
 
 
-def one_run(task: tuple) -> dict:
-    """Run one scenario; return its summary (JSON-ready)."""
-    seed, mode, soft, domain, base = task
-    robot = robots.load(base["robot"], base["base_link"] or None, base["tip_link"] or None,
-                        task_space="position")
-    joint, lock_time = draw(seed, robot.joint_names)
-    config = ScenarioConfig(points=points(robot), critical=(0, 1, 2), resolution=mode,
-                            soft_limits=soft, lock_joint=joint, lock_time=lock_time,
-                            duration=30.0, rate=125.0, seed=seed, goal_tolerance=5e-3,
-                            goal_timeout=5.0, **base)
-    record = run(config, domain_id=domain)
+def one_run(task: Task, bag: Path | None = None) -> dict:
+    """Run one scenario (and record it to `bag`); return its summary (JSON-ready)."""
+    design = task.design
+    robot = robots.load(design["robot"], design["base_link"] or None,
+                        design["tip_link"] or None, task_space="position")
+    critical = tuple(tuple(p) for p in design["critical"])
+    box = tuple(np.array(side) for side in design["box"])
+    joint, lock_time = draw(task.seed, robot.joint_names)
+    points, marks = tour(critical, waypoints(robot, box, critical, task.seed))
+    config = ScenarioConfig(
+        robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
+        points=points, critical=marks, resolution=task.mode, soft_limits=task.soft,
+        lock_joint=joint, lock_time=lock_time,
+        duration=LOCK_WINDOW[1] + (len(critical) + 1) * GOAL_TIMEOUT, rate=125.0,
+        seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
+        **design["plant"])
+    record = run(config, domain_id=task.domain, bag=bag)
     summary = summarise(config, record)
-    summary.update(seed=seed, soft_limits=soft,
+    j = robot.joint_names.index(joint)
+    value = summary["locked_value"]
+    q_lock = record.arrays()["q"][int(np.searchsorted(record.t, record.injected_at))] \
+        if value is not None else None
+    summary.update(seed=task.seed, soft_limits=task.soft,
                    success=len(summary["reached_after"]) == summary["points"],
-                   correct_detection=summary["detected"] == [joint])
+                   correct_detection=summary["detected"] == [joint],
+                   outside_box=value is not None and not box[0][j] <= value <= box[1][j],
+                   reachable=None if q_lock is None else reachable(robot, critical, q_lock, j))
     return summary
 
 
-def tasks(runs: int, first_domain: int, base: dict) -> list[tuple]:
-    """Every (seed, mode, soft limits, DDS domain, scenario options) to run."""
-    conditions = [("blend", False)] + [(mode, True) for mode in MODES]
-    todo = [(seed, mode, soft) for seed in range(runs) for mode, soft in conditions]
-    return [(seed, mode, soft, (first_domain + i % 60) % 230, base) for i, (seed, mode, soft)
-            in enumerate(todo)]
+def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: np.ndarray,
+              joint: int) -> int:
+    """How many critical points the arm can reach at all with `joint` locked where q has it.
+
+    Inverse kinematics with that joint pinned, from q and 30 seeded random starts
+    (`selfmotion.find_seed`): what the bounding boxes guarantee (seed 000 sec. III),
+    whatever a local controller then manages.
+    """
+    lower, upper = robot.lower.copy(), robot.upper.copy()
+    lower[joint] = upper[joint] = q[joint]
+    return sum(found is not None for found in selfmotion.reachability(
+        robot, [np.array(p) for p in critical], lower, upper, q))
 
 
-def _kept(out: Path, task: tuple) -> Path:
-    """Where a finished run is kept: one folder per arm and plant, one file per run."""
-    seed, mode, soft, _, base = task
-    options = hashlib.sha256(json.dumps(base, sort_keys=True).encode()).hexdigest()[:12]
-    return out / "runs" / options / f"{seed}-{mode}-{'soft' if soft else 'free'}.json"
+def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict) -> dict:
+    """What every run of a campaign shares: arm, plant, critical points and their box.
+
+    Raises selfmotion.UnreachableError when the critical points have no common box.
+    """
+    robot = robots.load(robot_spec, base_link or None, tip_link or None,
+                        task_space="position")
+    critical = critical_points(robot)
+    box, _ = selfmotion.soft_limits(robot, [v for p in critical for v in p],
+                                    selfmotion.bent_configuration(robot))
+    return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link,
+            "plant": plant, "critical": [list(p) for p in critical],
+            "box": [[float(v) for v in side] for side in box],
+            "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW)}
+
+
+def tasks(runs: int, modes: tuple[str, ...], first_domain: int, design: dict) -> list[Task]:
+    """Every run: each seed under each mode, without and with soft limits."""
+    todo = [(seed, mode, soft) for seed in range(runs) for mode in modes
+            for soft in (False, True)]
+    return [Task(seed, mode, soft, (first_domain + i % 60) % 230, design)
+            for i, (seed, mode, soft) in enumerate(todo)]
+
+
+def kept(out: Path, task: Task) -> Path:
+    """Where a finished run is kept: one folder per campaign design, one file per run."""
+    options = hashlib.sha256(json.dumps(task.design, sort_keys=True).encode()).hexdigest()[:12]
+    return out / "runs" / options / f"{task.name}.json"
+
+
+def wilson(successes: int, runs: int) -> tuple[float, float]:
+    """95 % Wilson score interval of a success rate."""
+    interval = stats.binomtest(successes, runs).proportion_ci(0.95, method="wilson")
+    return float(interval.low), float(interval.high)
+
+
+def _rate(successes: int, runs: int) -> str:
+    low, high = wilson(successes, runs)
+    return f"{successes}/{runs} ({100 * successes / runs:.0f} %, {100 * low:.0f}-{100 * high:.0f})"
 
 
 def table(results: list[dict]) -> str:
-    """Markdown table: success, detection and jump per condition."""
-    lines = ["| condition | runs | success | right joint detected | runs with a false lock "
+    """Markdown tables: each condition, then the runs whose outcome soft limits changed.
+
+    Per condition: success with its CI, IK reachability after the lock, the lock
+    against the box, waypoints, detection and the velocity jump.
+    """
+    lines = ["| condition | runs | success (%, 95 % CI) | every point reachable (IK) | "
+             "lock outside the box | waypoints reached | right joint detected "
+             "| runs with a false lock "
              "| detection latency median / max (ms) | velocity jump median / max (rad/s) |",
-             "|---|---:|---:|---:|---:|---:|---:|"]
-    conditions = [("blend", False)] + [(mode, True) for mode in MODES]
-    for mode, soft in conditions:
-        group = [r for r in results if r["resolution"] == mode and r["soft_limits"] == soft]
-        if not group:
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    modes = [m for m in MODES if any(r["resolution"] == m for r in results)]
+    for mode in modes:
+        for soft in (False, True):
+            group = [r for r in results if r["resolution"] == mode and r["soft_limits"] == soft]
+            if not group:
+                continue
+            latency = [r["latency_ms"] for r in group if r["latency_ms"] is not None]
+            jump = [r["velocity_jump"] for r in group if r["velocity_jump"] is not None]
+            visits = [v for r in group for v in r["waypoint_visits"]]
+            lines.append(
+                f"| {mode}, {'with' if soft else 'without'} soft limits | {len(group)} | "
+                f"{_rate(sum(r['success'] for r in group), len(group))} | "
+                f"{_rate(sum(r['reachable'] == r['points'] for r in group), len(group))} | "
+                f"{sum(r['outside_box'] for r in group)}/{len(group)} | "
+                f"{100 * np.mean(visits) if visits else 0:.0f} % | "
+                f"{sum(r['correct_detection'] for r in group)}/{len(group)} | "
+                f"{sum(bool(r.get('false_locks')) for r in group)}/{len(group)} | "
+                f"{_stat(latency, '.0f')} | {_stat(jump, '.2f')} |")
+    lines += ["", "| mode | paired runs | failed only without soft limits | failed only with "
+              "them | exact McNemar p |", "|---|---:|---:|---:|---:|"]
+    for mode in modes:
+        pairs = _pairs(results, mode)
+        if not pairs:
             continue
-        latency = [r["latency_ms"] for r in group if r["latency_ms"] is not None]
-        jump = [r["velocity_jump"] for r in group if r["velocity_jump"] is not None]
-        name = f"{mode}, {'with' if soft else 'without'} soft limits"
-        lines.append(
-            f"| {name} | {len(group)} | {sum(r['success'] for r in group)}/{len(group)} | "
-            f"{sum(r['correct_detection'] for r in group)}/{len(group)} | "
-            f"{sum(bool(r.get('false_locks')) for r in group)}/{len(group)} | "
-            f"{_stat(latency, '.0f')} | {_stat(jump, '.2f')} |")
+        only_free = sum(soft["success"] and not free["success"] for free, soft in pairs)
+        only_soft = sum(free["success"] and not soft["success"] for free, soft in pairs)
+        p = stats.binomtest(only_free, only_free + only_soft).pvalue if only_free + only_soft \
+            else 1.0
+        lines.append(f"| {mode} | {len(pairs)} | {only_free} | {only_soft} | {p:.2g} |")
     return "\n".join(lines) + "\n"
+
+
+def _pairs(results: list[dict], mode: str) -> list[tuple[dict, dict]]:
+    """(without, with soft limits) runs of `mode` that share a seed."""
+    by = {(r["seed"], r["soft_limits"]): r for r in results if r["resolution"] == mode}
+    return [(by[seed, False], by[seed, True]) for seed, soft in sorted(by)
+            if not soft and (seed, True) in by]
 
 
 def _stat(values: list[float], fmt: str) -> str:
@@ -123,19 +273,25 @@ def _stat(values: list[float], fmt: str) -> str:
 
 
 def figure(results: list[dict], path: Path) -> None:
-    """Success rates and the latency and jump distributions per condition."""
+    """Success rates with their 95 % intervals, latency and jump distributions."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    conditions = [("blend", False)] + [(mode, True) for mode in MODES]
-    labels = [f"{m}\n{'soft' if s else 'no soft'}" for m, s in conditions]
+    conditions = [(m, s) for m in MODES for s in (False, True)
+                  if any(r["resolution"] == m and r["soft_limits"] == s for r in results)]
     groups = [[r for r in results if r["resolution"] == m and r["soft_limits"] == s]
               for m, s in conditions]
-    axes[0].bar(labels, [np.mean([r["success"] for r in g]) if g else 0 for g in groups])
-    axes[0].set_ylabel("success rate")
+    labels = [f"{m}\n{'soft' if s else 'no soft'}" for m, s in conditions]
+    rates = np.array([np.mean([r["success"] for r in g]) for g in groups])
+    intervals = np.array([wilson(sum(r["success"] for r in g), len(g)) for g in groups])
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    axes[0].bar(labels, rates, color=["tab:gray" if not s else "tab:blue"
+                                      for _, s in conditions])
+    axes[0].errorbar(labels, rates, yerr=[rates - intervals[:, 0], intervals[:, 1] - rates],
+                     fmt="none", color="k", capsize=3)
+    axes[0].set_ylabel("success rate (95 % CI)")
     axes[1].boxplot([[r["latency_ms"] for r in g if r["latency_ms"] is not None] or [0]
                      for g in groups], tick_labels=labels)
     axes[1].set_ylabel("detection latency (ms)")
@@ -149,12 +305,39 @@ def figure(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def execute(todo: list[Task], out: Path, workers: int, record: bool) -> int:
+    """Run `todo` in a pool, keeping each result as it finishes; the number that crashed."""
+    crashed = 0
+    # Not multiprocessing.Pool: its workers are daemons, and a daemon cannot start the
+    # process in which the controller traces the critical points' boxes. Spawned, not
+    # forked: a fork of a process with DDS threads (a test session's) can deadlock.
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(one_run, task, kept(out, task).with_suffix("")
+                               if record else None): task for task in todo}
+        with tqdm(total=len(todo), unit="run", disable=None, file=sys.stderr) as bar:
+            for future in as_completed(futures):
+                task = futures[future]
+                try:
+                    result = future.result()
+                except Exception as error:  # reported, not kept: a rerun retries it
+                    crashed += 1
+                    tqdm.write(f"run {task.name} crashed: {error!r}", file=sys.stderr)
+                else:
+                    kept(out, task).write_text(json.dumps(result) + "\n")
+                bar.update()
+    return crashed
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the campaign and write its outputs; 0 unless a run produced non-finite values."""
+    """Run the campaign and write its outputs; 0 unless a run crashed or went non-finite."""
     parser = argparse.ArgumentParser(prog="ft-campaign", description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20, help="seeds per condition")
+    parser.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES),
+                        help="resolution modes, each with and without soft limits")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
+    parser.add_argument("--record", action="store_true",
+                        help="keep every run's topics as a rosbag2 (MCAP) beside its result")
     parser.add_argument("--robot", default="panda", help="built-in name or URDF path")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
@@ -167,37 +350,34 @@ def main(argv: list[str] | None = None) -> int:
                         default=int(os.environ.get("ROS_DOMAIN_ID", "29")) + 1,
                         help="first DDS domain id of the runs (default ROS_DOMAIN_ID + 1)")
     args = parser.parse_args(argv)
+    plant = {"command_latency": args.latency, "response_time": args.response_time,
+             "hold_last_command": args.hold_last_command}
     try:
-        robots.load(args.robot, args.base_link or None, args.tip_link or None)
+        design = design_of(args.robot, args.base_link, args.tip_link, plant)
     except robots.RobotModelError as error:
         parser.error(f"--robot: {error}")
-    base = {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link,
-            "command_latency": args.latency, "response_time": args.response_time,
-            "hold_last_command": args.hold_last_command}
-    every = tasks(args.runs, args.first_domain, base)
-    todo = [task for task in every if not _kept(args.out, task).exists()]
+    except selfmotion.UnreachableError as error:
+        print(f"ft-campaign: the critical points chosen for this arm have no common "
+              f"soft-limit box ({error}); try another --tip-link", file=sys.stderr)
+        return 1
+    every = tasks(args.runs, tuple(args.modes), args.first_domain, design)
+    todo = [task for task in every if not kept(args.out, task).exists()]
     print(f"{len(every)} runs ({len(every) - len(todo)} kept from before) on {args.workers} "
-          "workers ...", flush=True)
+          f"workers; critical points {design['critical']} ...", flush=True)
     if every:
-        _kept(args.out, every[0]).parent.mkdir(parents=True, exist_ok=True)
-    # Not multiprocessing.Pool: its workers are daemons, and a daemon cannot start the
-    # process in which the controller traces the critical points' boxes. Spawned, not
-    # forked: a fork of a process with DDS threads (a test session's) can deadlock.
-    with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")
-                             ) as pool:
-        for done, (task, result) in enumerate(zip(todo, pool.map(one_run, todo),
-                                                  strict=True), 1):
-            _kept(args.out, task).write_text(json.dumps(result) + "\n")
-            print(f"  {done}/{len(todo)}: seed {task[0]}, {task[1]}, "
-                  f"{'soft' if task[2] else 'free'}: "
-                  f"{'success' if result['success'] else 'failed'}", flush=True)
-    results = [json.loads(_kept(args.out, task).read_text()) for task in every]
-    text = table(results)
+        kept(args.out, every[0]).parent.mkdir(parents=True, exist_ok=True)
+    crashed = execute(todo, args.out, args.workers, args.record)
+    results = [json.loads(kept(args.out, task).read_text()) for task in every
+               if kept(args.out, task).exists()]
+    text = table(results) if results else "no finished runs\n"
     (args.out / "campaign.md").write_text(text)
     (args.out / "campaign.json").write_text(json.dumps(results, indent=1) + "\n")
-    figure(results, args.out / "campaign.png")
+    if results:
+        figure(results, args.out / "campaign.png")
     print(text)
-    return 0 if not any(r["non_finite"] for r in results) else 1
+    if crashed:
+        print(f"{crashed} runs crashed (not kept: a rerun retries them)", file=sys.stderr)
+    return 0 if not crashed and not any(r["non_finite"] for r in results) else 1
 
 
 if __name__ == "__main__":

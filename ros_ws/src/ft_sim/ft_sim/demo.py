@@ -4,8 +4,10 @@ In one process, on real topics: the sim (owning the clock), the controller (with
 bounding-box soft limits from the task's critical points) and the monitor. The
 Panda visits three task points in turn; mid-task a joint is locked through
 `ft/inject_failure`; the monitor detects it and the controller carries on with
-the remaining joints. It prints a report and writes it, with a figure, to the
-output folder:
+the remaining joints. It prints a report and writes it to the output folder with
+two figures, the time plots (`demo.png`) and the arm in 3D before the lock, at the
+lock and after recovery with its tool path and task points (`arm.png`); with
+`--record`, every topic as a rosbag2 in MCAP (`bag/`):
 
 - detection latency: from the injection to `ft/locked_joints`;
 - tool-velocity error |J (qd_actual - qd_commanded)| before the lock, while it is
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from ft_core import robots
 
+from ft_sim import arm_view
 from ft_sim.scenario import Record, Scenario, ScenarioConfig
 
 
@@ -41,12 +44,16 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
     d = int(np.searchsorted(t, detected)) if detected is not None else len(t)
     after = t > (detected if detected is not None else np.inf) + 2 / config.rate
     reached_after = sorted(p for p, ok in record.tour.items() if ok)
-    jump = None
+    jump, locked_value = None, None
+    if injected is not None and config.lock_joint in record.joint_names and i < len(t):
+        locked_value = float(a["q"][i, record.joint_names.index(config.lock_joint)])
+    critical = set(range(len(config.points)) if config.critical is None else config.critical)
     if detected is not None and 0 < i and d + 1 < len(t):
         jump = float(np.linalg.norm(a["qd_command"][d + 1] - a["qd_command"][i - 1]))
     return {
         "robot": config.robot, "resolution": config.resolution, "locked": config.lock_joint,
-        "injected_at_s": injected, "detected_at_s": detected, "detected": record.detected,
+        "injected_at_s": injected, "locked_value": locked_value,
+        "detected_at_s": detected, "detected": record.detected,
         "latency_ms": None if detected is None else 1000 * (detected - injected),
         "error_before": float(error[:i].max()) if i else 0.0,
         "error_during": float(error[i:d + 1].max()) if d > i else 0.0,
@@ -56,6 +63,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "kfm_after": float(a["kfm"][-1]),
         "points": len(record.tour) or len(config.points), "reached_after": reached_after,
         "non_finite": record.non_finite, "false_locks": record.false_locks,
+        "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
     }
 
 
@@ -156,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-soft-limits", action="store_true",
                         help="run without the critical points' bounding-box soft limits")
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
+    parser.add_argument("--record", action="store_true", help="also write every topic as a "
+                        "rosbag2 (MCAP) to <out>/bag, for Foxglove, PlotJuggler or ros2 bag")
     args = parser.parse_args(argv)
     try:
         joints = robots.load(args.robot, args.base_link or None, args.tip_link or None,
@@ -172,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
         robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
         task_space=args.task, resolution=args.resolution, lock_joint=joint,
         lock_time=args.lock_time, duration=args.duration, seed=args.seed,
-        soft_limits=not args.no_soft_limits))
+        soft_limits=not args.no_soft_limits), bag=args.out / "bag" if args.record else None)
     print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "
           f"{args.lock_time:g} s, then it visits every task point again; task points "
           f"{[[round(v, 3) for v in p] for p in scenario.config.points]} ...", flush=True)
@@ -187,8 +197,11 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "report.md").write_text(text)
     figure(record, summary, args.out / "demo.png")
+    arm_view.draw(scenario.robot, record, config.points, scenario.critical, config.lock_joint,
+                  args.out / "arm.png")
     print(text)
-    print(f"wrote {args.out / 'report.md'} and {args.out / 'demo.png'}")
+    written = ["report.md", "demo.png", "arm.png"] + (["bag"] if args.record else [])
+    print(f"wrote {', '.join(str(args.out / name) for name in written)}")
     return 0 if not problems else 1
 
 

@@ -6,7 +6,10 @@ and publishes `/clock` and `joint_states`; the controller's timer fires and
 commands; the monitor republishes; the step ends once the sim holds the command
 for the new instant. A driver visits the task points in turn with `ft/target_pose`
 (the next one once the tool is within `goal_tolerance`, or after `goal_timeout`)
-and locks `lock_joint` at `lock_time` through `ft/inject_failure`. After the lock
+and locks `lock_joint` through `ft/inject_failure` `lock_time` after the task
+started. The task starts once the controller has its soft limits (the critical
+points' boxes are traced in the background while the arm holds still), so that runs
+with and without them wander for the same time. After the lock
 it tours the critical points once, each until reached or `goal_timeout` (seed 000
 sec. V: can every critical point still be reached?), and the run ends. Every
 step is recorded for the report.
@@ -18,6 +21,7 @@ import math
 import tempfile
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -32,6 +36,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from ft_sim.bag import Recorder
 from ft_sim.sim_node import SimNode
 
 #: Critical points of the built-in 7-DOF arms for a position task (m, base frame): a
@@ -53,12 +58,15 @@ class ScenarioConfig:
         resolution: the controller's mode.
         points: task points visited in turn (m; default the robot's `TASK_POINTS`, or
             for an arm without them `selfmotion.points_around` its
-            `selfmotion.bent_configuration`, where the arm then starts); all critical
-            unless `critical` says otherwise.
+            `selfmotion.bent_configuration`); all critical unless `critical` says
+            otherwise. The arm starts at `selfmotion.bent_configuration` (a built-in's
+            home).
         critical: indices of the critical points (default: all).
         soft_limits: give the controller the critical points (bounding-box soft limits).
-        lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s).
-        duration: longest run (simulated s); rate: sim, controller and joint-state rate (Hz).
+        lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s
+            after the task starts).
+        duration: longest run (simulated s after the task starts); rate: sim, controller
+            and joint-state rate (Hz).
         noise: position noise (rad); seed: noise seed.
         goal_tolerance: m; goal_timeout: s per visit.
         command_latency, response_time (s), hold_last_command: the sim's plant options.
@@ -97,7 +105,9 @@ class Record:
     kfm: list[float] = field(default_factory=list)
     tool_velocity_error: list[float] = field(default_factory=list)
     goal: list[int] = field(default_factory=list)
-    reached: list[tuple[float, int]] = field(default_factory=list)  #: (time, point index)
+    #: Visits before the lock: (time the visit ended, point index, reached).
+    visits: list[tuple[float, int, bool]] = field(default_factory=list)
+    started_at: float = 0.0  #: simulated time the task started (s)
     tour: dict[int, bool] = field(default_factory=dict)  #: critical point -> reached after lock
     injected_at: float | None = None
     detected_at: float | None = None
@@ -112,16 +122,19 @@ class Record:
 
 
 class Scenario:
-    """Builds the nodes in their own context (and DDS domain) and runs them."""
+    """Builds the nodes in their own context (and DDS domain) and runs them.
 
-    def __init__(self, config: ScenarioConfig, domain_id: int | None = None):
+    With `bag`, every topic of the run is also written there as a rosbag2 (MCAP).
+    """
+
+    def __init__(self, config: ScenarioConfig, domain_id: int | None = None,
+                 bag: Path | None = None):
         self.robot = robots.load(config.robot, config.base_link or None,
                                  config.tip_link or None, task_space=config.task_space)
-        start = None  # the sim's default (the model's home)
+        start = selfmotion.bent_configuration(self.robot)
         if not config.points and self.robot.name in TASK_POINTS:
             config = replace(config, points=TASK_POINTS[self.robot.name])
         elif not config.points:
-            start = selfmotion.bent_configuration(self.robot)
             config = replace(config, points=tuple(
                 tuple(float(v) for v in p[:3]) for p in selfmotion.points_around(
                     self.robot, start)))
@@ -139,8 +152,7 @@ class Scenario:
             model, publish_clock=True, rate=config.rate, position_noise=config.noise,
             seed=config.seed, command_latency=config.command_latency,
             response_time=config.response_time, hold_last_command=config.hold_last_command,
-            **({} if start is None else {
-                "initial_positions": [float(v) for v in start]})))
+            initial_positions=[float(v) for v in start]))
         self.sim.timer.cancel()  # stepped by hand
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
@@ -165,6 +177,8 @@ class Scenario:
                                         qos.SENSOR_INPUT)
         self.driver.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked,
                                         qos.LATCHED)
+        self.recorder = None if bag is None else Recorder(
+            self.driver, bag, lambda: round(self.sim.t * 1e9))
         for node in (self.sim, self.controller, self.monitor, self.driver):
             self.executor.add_node(node)
         self.record = Record(list(self.robot.joint_names))
@@ -213,13 +227,18 @@ class Scenario:
     def run(self) -> Record:
         """Run until the post-lock tour ends (or `duration`); return the record."""
         cfg, rec, robot = self.config, self.record, self.robot
-        self._spin_until(lambda: self.controller.robot is not None and
-                         self.monitor.robot is not None, 10.0)
-        goal, since = 0, 0.0
+        if not self._spin_until(lambda: self.controller.robot is not None and
+                                self.monitor.robot is not None, 10.0):
+            raise TimeoutError("the controller and the monitor did not load the model in 10 s")
+        if self.config.soft_limits and self.critical:
+            self._wait_for_soft_limits()
+        rec.started_at = start = self.sim.t
+        goal, since = 0, start
         tour: list[int] = []  # critical points still to visit after the lock
         self._send_goal(goal)
         for _ in range(round(cfg.duration * cfg.rate)):
-            if cfg.lock_joint and rec.injected_at is None and self.sim.t >= cfg.lock_time:
+            if (cfg.lock_joint and rec.injected_at is None
+                    and self.sim.t >= start + cfg.lock_time):
                 self._inject_pub.publish(JointState(name=[cfg.lock_joint]))
                 self._spin_until(lambda: cfg.lock_joint in self.sim.locked)
                 rec.injected_at = self.sim.t
@@ -245,9 +264,8 @@ class Scenario:
             reached = distance < cfg.goal_tolerance
             if not reached and self.sim.t - since <= cfg.goal_timeout:
                 continue
-            if reached:
-                rec.reached.append((self.sim.t, goal))
             if rec.injected_at is None:
+                rec.visits.append((self.sim.t, goal, reached))
                 goal = (goal + 1) % len(cfg.points)
             else:
                 rec.tour[tour.pop(0)] = reached
@@ -258,9 +276,20 @@ class Scenario:
             self._send_goal(goal)
         return rec
 
+    def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
+        """Step the still arm until the controller has the critical points' soft limits."""
+        deadline = time.monotonic() + timeout
+        while self.controller.critical_box is None:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"the controller had no soft limits after {timeout:g} s "
+                                   "(see its 'critical points' diagnostics)")
+            self.step()
+
     def close(self) -> None:
         """Shut the nodes and the context down."""
         self.executor.shutdown()
+        if self.recorder is not None:
+            self.recorder.close()
         for node in (self.sim, self.controller, self.monitor, self.driver):
             node.destroy_node()
         rclpy.shutdown(context=self.context)
@@ -271,9 +300,10 @@ def _params(model: dict, **values) -> list[Parameter]:
     return [Parameter(k, value=v) for k, v in {**model, **values}.items()]
 
 
-def run(config: ScenarioConfig, domain_id: int | None = None) -> Record:
-    """Build, run and close a scenario."""
-    scenario = Scenario(config, domain_id)
+def run(config: ScenarioConfig, domain_id: int | None = None, bag: Path | None = None,
+        ) -> Record:
+    """Build, run and close a scenario (recorded to `bag` if given)."""
+    scenario = Scenario(config, domain_id, bag)
     try:
         return scenario.run()
     finally:
