@@ -49,6 +49,29 @@ def test_point_one_link_from_the_base_spans_every_joints_full_range() -> None:
     assert selfmotion.box_volume(PLANAR, lower, upper) == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("seed", [None, [0.0, 0.5, math.pi], [0.0, 0.0, math.pi],
+                                  [0.3, 1.0, 2.0]])
+def test_branches_crossing_at_singular_configurations_are_all_followed(seed) -> None:
+    """Issue 15: the planar 3R at (1, 0), whose branches cross at singular configurations.
+
+    The folded branch (q1 = 0, q3 = pi, joint 2 turning freely with the tool on its
+    axis) meets the branch where q1 turns through the singular configurations q2 = 0
+    and q2 = pi; the component is both, spanning every joint's full circle. Without a
+    seed `find_seed` lands on the folded branch; the second seed is on it, the third
+    is a crossing itself, the last a regular point.
+    """
+    target = np.array([1.0, 0.0])
+    manifold = selfmotion.trace(PLANAR, target, None if seed is None else np.array(seed))
+    assert len(manifold.paths) >= 2  # a branch beside the seed's was followed
+    lower, upper = manifold.box
+    assert np.all(np.isinf(lower)) and np.all(np.isinf(upper))
+    assert selfmotion.box_volume(PLANAR, lower, upper) == pytest.approx(1.0)
+    assert np.all([np.linalg.norm(PLANAR.forward(q) - target) < 1e-8
+                   for q in manifold.samples])
+    folded = np.abs(np.abs(manifold.samples[:, 2]) - math.pi) < 1e-6
+    assert folded.any() and (~folded).any()  # on both branches
+
+
 @pytest.mark.parametrize("radius", [1.5, 2.0, 2.5])
 def test_intermediate_radii_match_the_brute_force_box(radius: float) -> None:
     manifold = selfmotion.trace(PLANAR, np.array([radius, 0.0]), np.array([0.3, -0.8, 0.5]))

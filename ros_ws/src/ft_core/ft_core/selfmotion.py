@@ -12,6 +12,15 @@ by Newton drift correction J+ (x* - x) (`project`). Components found from other
 starting points are never merged (seed 000, end of sec. IV).
 
 - r = 1: the curve is followed both ways until it closes or meets a physical limit.
+  Where it passes a singular configuration (smallest singular value of J below
+  `BRANCH_SIGMA`, a local minimum along the curve), branches of the manifold may
+  cross: from points around it in the 2-D near-null space of J, projected onto the
+  manifold, every branch not traced yet is followed too (at most `MAX_BRANCHES`).
+  They are connected to the seed's branch through the crossing, so they belong to
+  its component. Without this, the planar 3R at (1, 0) traced from the seed
+  `find_seed` gives (on the folded branch q3 = pi, where joint 2 turns freely)
+  yields a box of normalised volume 1e-29, where the component spans every joint's
+  full circle (seed 000 sec. II).
 - r = 2: the spiral of seed 000 eqs 6-7, phi' = v / r, r = gamma phi, with
   theta' = sin(phi) v1 + cos(phi) v2 + J+ (x* - x). Reading taken for eqs 8-9
   (the extraction garbles eq 9): the new null-space basis is the rotation of the
@@ -59,6 +68,12 @@ SPIRAL_STEP_FACTOR = 3
 EXPLORE_LENGTH = 300
 #: Rounds of extremal walks (r >= 2).
 EXTREMAL_ROUNDS = 2
+#: Smallest singular value of J (m/rad) below which a curve's local minimum is a crossing.
+BRANCH_SIGMA = 0.05
+#: Most branches followed from crossings per trace (r = 1).
+MAX_BRANCHES = 8
+#: Directions tried around a crossing, and how far out (in tracing steps).
+BRANCH_DIRECTIONS, BRANCH_OFFSET = 8, 5
 #: Damping of the Newton steps (only near singular configurations).
 NEWTON_DAMPING = Damping(threshold=1e-3, max_damping=1e-2)
 
@@ -75,7 +90,8 @@ class Manifold:
         robot: the robot it belongs to.
         target: the task point x* (as `Robot.forward` returns it).
         seed: the configuration the tracing started from (rad).
-        paths: ordered samples (k, n) of each traced path; all start at the seed.
+        paths: ordered samples (k, n) of each traced path; each starts at the seed or,
+            for a branch followed from a crossing, next to an earlier path.
         method: "point", "curve", "spiral" or "extremal".
         step: the tracing step (rad).
         closed: a 1-D curve that came back to the seed.
@@ -234,6 +250,46 @@ def _curve(walker: _Walker, seed: np.ndarray, step: float,
     return paths, False
 
 
+def _near(robot: Robot, samples: np.ndarray, q: np.ndarray, distance: float) -> bool:
+    """Whether q is within `distance` of a sample (modulo 2 pi for joints without limits)."""
+    difference = samples - q
+    continuous = _continuous(robot)
+    difference[:, continuous] = (difference[:, continuous] + np.pi) % (2 * np.pi) - np.pi
+    return bool(np.min(np.linalg.norm(difference, axis=1)) < distance)
+
+
+def _crossings(robot: Robot, path: np.ndarray) -> list[np.ndarray]:
+    """Samples of a path where branches of the manifold may cross (see the module notes)."""
+    sigma = np.array([np.linalg.svd(robot.scale_task(robot.jacobian(q)), compute_uv=False)[-1]
+                      for q in path])
+    padded = np.concatenate([[np.inf], sigma, [np.inf]])
+    minima = (sigma < BRANCH_SIGMA) & (sigma <= padded[:-2]) & (sigma <= padded[2:])
+    return [path[k] for k in np.flatnonzero(minima)]
+
+
+def _branches(walker: _Walker, paths: list[np.ndarray], step: float,
+              max_steps: int) -> list[np.ndarray]:
+    """The curves through the crossings on `paths` not traced yet, followed in turn."""
+    robot = walker.robot
+    found, queue = list(paths), list(paths)
+    while queue:
+        for crossing in _crossings(robot, queue.pop(0)):
+            near_null = np.linalg.svd(robot.scale_task(robot.jacobian(crossing)))[2][
+                robot.m - 1:robot.m + 1]
+            for angle in np.linspace(0, 2 * math.pi, BRANCH_DIRECTIONS, endpoint=False):
+                offset = BRANCH_OFFSET * step * (math.cos(angle) * near_null[0]
+                                                 + math.sin(angle) * near_null[1])
+                start = project(robot, walker.target, crossing + offset)
+                if start is None or _near(robot, np.vstack(found), start, 2 * step):
+                    continue
+                branch, _ = _curve(walker, start, step, max_steps)
+                found += branch
+                queue += branch
+                if len(found) - len(paths) >= MAX_BRANCHES:
+                    return found
+    return found
+
+
 def _extremal(walker: _Walker, start: np.ndarray, joint: int, sign: float, step: float,
               max_steps: int) -> np.ndarray:
     """Seed 000 eq 10: move along the null-space projection of +-e_joint to its extremum."""
@@ -378,6 +434,7 @@ def trace(robot: Robot, target: np.ndarray, q_seed: np.ndarray | None = None,
         return Manifold(robot, target, seed, (seed[None],), "point", step)
     if r == 1:
         paths, closed = _curve(walker, seed, step, max_steps)
+        paths = _branches(walker, paths, step, max_steps)
         return Manifold(robot, target, seed, tuple(paths), "curve", step, closed)
     paths: list[np.ndarray] = []
     method = "extremal"
