@@ -91,3 +91,44 @@ def test_an_arm_without_a_home_is_seeded_from_a_bent_configuration(tmp_path) -> 
                         "--output", str(output)]) == 0
     params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
     assert len(params["soft_limits"]["lower"]) == robot.n
+
+
+def test_without_points_it_chooses_them_around_the_seed_and_says_which(
+        tmp_path: Path, capsys) -> None:
+    """Issue 15: `ft-bounds --robot <urdf>` alone, on the real-world Panda URDF."""
+    from paths import PANDA_URDF
+
+    output = tmp_path / "soft.yaml"
+    assert bounds.main(["--robot", str(PANDA_URDF), "--output", str(output)]) == 0
+    out = capsys.readouterr().out
+    assert "no --points: chose 3 around the seed: --points " in out
+    chosen = out.split("--points ")[1].split("\n")[0].strip('"')
+    params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+    np.testing.assert_allclose(params["critical_points"], bounds.parse_points(chosen),
+                               atol=1e-4)
+    robot = robots.load(str(PANDA_URDF), task_space="position")
+    start = selfmotion.bent_configuration(robot)
+    np.testing.assert_allclose(np.reshape(params["critical_points"], (3, 3)),
+                               selfmotion.points_around(robot, start), atol=1e-4)
+    lower, upper = np.array(params["soft_limits"]["lower"]), np.array(
+        params["soft_limits"]["upper"])
+    assert np.all(lower <= start + 1e-9) and np.all(start <= upper + 1e-9)
+
+
+def test_chosen_pose_points_round_trip_and_a_thin_intersection_says_what_to_try(
+        tmp_path: Path, capsys) -> None:
+    """Pose points are written as position and quaternion and read back as the same poses.
+
+    Around the Panda's home, 0.3 rad apart, the pose task's 1-D self-motion curves give
+    boxes whose intersection misses two of the points: exit 4 with advice.
+    """
+    robot = robots.load("panda", task_space="pose")
+    chosen = selfmotion.points_around(robot, robot.home())
+    flat = selfmotion.flat_from_targets(robot, chosen)
+    assert len(flat) == 21
+    for target, expected in zip(selfmotion.targets_from_flat(robot, flat), chosen, strict=True):
+        np.testing.assert_allclose(target, expected, atol=1e-12)
+    code, output = run(tmp_path, "--robot", "panda", "--task", "pose")
+    assert code == 4 and not output.exists()
+    assert "cannot be reached inside the intersection: try fewer or closer points" in (
+        capsys.readouterr().err)

@@ -1,14 +1,17 @@
 """`ft-bounds`: bounding-box soft limits for critical task points, as a parameters file.
 
     ft-bounds --robot panda --task position --points "0.5,0.1,0.4;0.45,-0.15,0.35"
+    ft-bounds --robot my_arm.urdf --tip-link tool0
 
-For each critical point it traces the self-motion manifold (from `--seed`, or from a
-configuration it finds near the built-in's home or, for other arms, near
-`selfmotion.bent_configuration`), prints the point's bounding box and normalised volume, then
-the intersection of the boxes and whether every point is still reachable inside it
-(seed 000 sec. III, steps 3-5). On success it writes a ROS 2 parameters file that the
-controller accepts (`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with
-the model selection), for every node (`/**`).
+Without `--points`, three points the tool reaches around the seed configuration are
+chosen (`selfmotion.points_around`) and printed. For each critical point it traces the
+self-motion manifold (from a configuration that reaches the point, found from `--seed`,
+else the built-in's home or, for other arms, `selfmotion.bent_configuration`), prints
+the point's bounding box and normalised volume, then the intersection of the boxes and
+whether every point is still reachable inside it (seed 000 sec. III, steps 3-5). On
+success it writes a ROS 2 parameters file that the controller accepts
+(`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with the model
+selection), for every node (`/**`).
 
 Exit status: 0 success; 1 bad input (robot model, points, seed); 2 usage; 3 a point
 is out of reach; 4 the boxes do not intersect or a point cannot be reached inside
@@ -93,10 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="ft-bounds", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", required=True, help="built-in name or URDF file")
     parser.add_argument("--task", default="position", choices=sorted(robots.TASK_DIMENSIONS))
-    parser.add_argument("--points", required=True,
-                        help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: x,y,z,qx,qy,qz,qw)")
+    parser.add_argument("--points", help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: "
+                        "x,y,z,qx,qy,qz,qw); default: three points around the seed")
     parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing "
-                        "(default: the robot's home configuration)")
+                        "(default: the built-in's home, else a bent configuration)")
     parser.add_argument("--base-link")
     parser.add_argument("--tip-link")
     parser.add_argument("--step", type=float, default=selfmotion.STEP,
@@ -106,20 +109,28 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         robot = robots.load(args.robot, args.base_link, args.tip_link, args.task)
-        flat = parse_points(args.points)
-        targets = selfmotion.targets_from_flat(robot, flat)
         seed = None if args.seed is None else np.array(_numbers(args.seed))
         if seed is not None and seed.shape != (robot.n,):
             raise ValueError(f"--seed needs {robot.n} joint values, got {seed.size}")
+        # Without --seed: the built-in's home, else a bent configuration (the all-zero pose
+        # of most URDFs is straight and singular, and its components rarely share a box).
+        around = selfmotion.bent_configuration(robot) if seed is None else seed
+        if args.points is None:
+            flat = selfmotion.flat_from_targets(robot, selfmotion.points_around(robot, around))
+        else:
+            flat = parse_points(args.points)
+        targets = selfmotion.targets_from_flat(robot, flat)
         if not (args.step > 0):
             raise ValueError("--step must be positive")
     except ValueError as error:
         print(f"ft-bounds: {error}", file=sys.stderr)
         return 1
     print(f"{robot.name}: {robot.n} joints {list(robot.joint_names)}, {robot.task_space} task")
-    # Without --seed: the built-in's home, else a bent configuration (the all-zero pose of
-    # most URDFs is straight and singular, and its components rarely share a box).
-    around = selfmotion.bent_configuration(robot) if seed is None else seed
+    if args.points is None:
+        size = selfmotion.point_size(robot)
+        chosen = ";".join(",".join(f"{v:.4f}" for v in flat[i:i + size])
+                          for i in range(0, len(flat), size))
+        print(f"no --points: chose {len(targets)} around the seed: --points \"{chosen}\"")
     progress = _Progress(len(targets))
     boxes = []
     for index, target in enumerate(targets):
@@ -154,8 +165,10 @@ def main(argv: list[str] | None = None) -> int:
     unreachable = [i + 1 for i, q in enumerate(selfmotion.reachability(
         robot, targets, lower, upper, around)) if q is None]
     if unreachable:
-        print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection",
-              file=sys.stderr)
+        print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection: "
+              "try fewer or closer points (a pose task's self-motion is a curve, so its "
+              "boxes are thin), or --seed with a configuration that reaches them all from "
+              "one posture", file=sys.stderr)
         return 4
     print("every point is reachable inside the intersection")
     args.output.write_text("# Soft limits from ft-bounds (seed 000 sec. III).\n" + yaml.safe_dump(

@@ -590,6 +590,19 @@ def targets_from_flat(robot: Robot, values: Sequence[float]) -> list[np.ndarray]
     return targets
 
 
+def flat_from_targets(robot: Robot, targets: Sequence[np.ndarray]) -> list[float]:
+    """The flat list `targets_from_flat` reads: x, y(, z) or x, y, z, qx, qy, qz, qw each."""
+    flat: list[float] = []
+    for target in targets:
+        target = np.asarray(target, dtype=float)
+        if robot.task_space != "pose":
+            flat += [float(v) for v in target]
+            continue
+        quaternion = pin.Quaternion(target[:3, :3]).coeffs()  # x, y, z, w
+        flat += [float(v) for v in (*target[:3, 3], *quaternion)]
+    return flat
+
+
 def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
                             ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
     """Critical points -> intersected self-motion boxes -> (soft limits, number of points).
