@@ -119,16 +119,23 @@ def test_chosen_pose_points_round_trip_and_a_thin_intersection_says_what_to_try(
         tmp_path: Path, capsys) -> None:
     """Pose points are written as position and quaternion and read back as the same poses.
 
-    Around the Panda's home, 0.3 rad apart, the pose task's 1-D self-motion curves give
-    boxes whose intersection misses two of the points: exit 4 with advice.
+    The default points of a pose task (0.15 rad apart around the Panda's home) share a
+    box; 0.3 rad apart, the 1-D self-motion curves give boxes whose intersection
+    misses two of the points: exit 4 with advice.
     """
     robot = robots.load("panda", task_space="pose")
-    chosen = selfmotion.points_around(robot, robot.home())
-    flat = selfmotion.flat_from_targets(robot, chosen)
-    assert len(flat) == 21
-    for target, expected in zip(selfmotion.targets_from_flat(robot, flat), chosen, strict=True):
-        np.testing.assert_allclose(target, expected, atol=1e-12)
     code, output = run(tmp_path, "--robot", "panda", "--task", "pose")
+    assert code == 0
+    params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+    chosen = selfmotion.points_around(robot, robot.home())
+    for target, expected in zip(selfmotion.targets_from_flat(robot, params["critical_points"]),
+                                chosen, strict=True):
+        np.testing.assert_allclose(target, expected, atol=1e-9)
+    apart = selfmotion.flat_from_targets(robot, selfmotion.points_around(robot, robot.home(),
+                                                                         step=0.3))
+    text = ";".join(",".join(f"{v:.9f}" for v in apart[i:i + 7]) for i in range(0, 21, 7))
+    output.unlink()
+    code, output = run(tmp_path, "--robot", "panda", "--task", "pose", f"--points={text}")
     assert code == 4 and not output.exists()
     assert "cannot be reached inside the intersection: try fewer or closer points" in (
         capsys.readouterr().err)

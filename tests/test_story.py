@@ -61,6 +61,15 @@ def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
     assert "detected | panda_joint4" in text and "3 of 3" in text
 
 
+def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
+    """Issue 15: `--task pose`: pose points chosen around the home, soft limits from them."""
+    assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "3",
+                      "--duration", "16", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert "detected | panda_joint3" in text and "3 of 3" in text
+    assert "| soft limits | 3 critical points |" in text
+
+
 def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
     """A synthetic 7-joint URDF: task points are chosen around a bent configuration."""
     urdf = tmp_path / "arm7.urdf"

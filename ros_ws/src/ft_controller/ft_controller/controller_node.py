@@ -255,6 +255,20 @@ class ControllerNode(SuiteNode):
         """The soft limits (lower, upper; rad) in force from the critical points, if any."""
         return self._critical_box
 
+    @property
+    def soft_limits_note(self) -> str:
+        """The soft limits in force: "none", "<k> critical points", "computing ...".
+
+        "none (critical points failed)" when they could not be computed (the reason
+        is in the diagnostics).
+        """
+        return self._soft_note
+
+    @property
+    def soft_limits_pending(self) -> bool:
+        """Whether soft limits from the critical points are still to be computed or taken."""
+        return self._boxes_dirty or self._boxes_job is not None
+
     def _rebuild_engine(self, critical_box: tuple | None) -> None:
         """New engine from the parameters; `critical_box` from the critical points, if any."""
         self._critical_box = critical_box

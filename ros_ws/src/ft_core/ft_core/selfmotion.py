@@ -656,15 +656,19 @@ def bent_configuration(robot: Robot) -> np.ndarray:
     return np.clip(middle + bend, robot.lower + 0.1, robot.upper - 0.1)
 
 
-def points_around(robot: Robot, q: np.ndarray, count: int = 3, step: float = 0.3,
+def points_around(robot: Robot, q: np.ndarray, count: int = 3, step: float | None = None,
                   ) -> list[np.ndarray]:
     """`count` task points the tool reaches near q.
 
     The tool at q, then with one more joint at a time moved by +-step rad (first
     joints first), kept inside the limits. Each point is reachable by construction
     (its configuration is given): critical points for a demo or a campaign on an arm
-    nobody chose points for.
+    nobody chose points for. The default step is 0.3 rad, or 0.15 for a pose task:
+    its self-motion manifolds are thinner (a curve on a 7-joint arm), and the boxes
+    of points 0.3 rad apart on the Panda do not all contain each point.
     """
+    if step is None:
+        step = 0.15 if robot.task_space == "pose" else 0.3
     points, moved = [robot.forward(q)], q.copy()
     for k in range(1, count):
         joint = (k - 1) % robot.n

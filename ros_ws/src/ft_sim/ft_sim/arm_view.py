@@ -34,7 +34,7 @@ def draw(robot: Robot, record: Record, points: tuple[tuple[float, ...], ...],
     import matplotlib.pyplot as plt
 
     q = np.asarray(record.q)
-    tool = np.array([robot.forward(qi)[:3] for qi in q[::5]])
+    tool = np.array([robot.transform(qi)[:3, 3] for qi in q[::5]])
     skeletons = {index: np.vstack([np.zeros(3), robot.skeleton(q[index])])  # from the base
                  for _, index in moments(record)}
     every = np.vstack([tool, *skeletons.values(), np.array(points)[:, :3]])

@@ -63,6 +63,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "kfm_after": float(a["kfm"][-1]),
         "points": len(record.tour) or len(config.points), "reached_after": reached_after,
         "non_finite": record.non_finite, "false_locks": record.false_locks,
+        "soft_limits": record.soft_limits,
         "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
     }
 
@@ -103,6 +104,7 @@ def report(summary: dict, problems: list[str]) -> str:
         f"| joint-velocity jump at the lock | {_fmt(s['velocity_jump'], ' rad/s', 3)} |",
         f"| kfm before / after | {_fmt(s['kfm_before'], ' m', 3)} / "
         f"{_fmt(s['kfm_after'], ' m', 3)} |",
+        f"| soft limits | {s['soft_limits']} |",
         f"| task points reached after the lock | "
         f"{len(s['reached_after'])} of {s['points']} |", "",
         "Verdict: " + ("the task went on after the failure." if not problems
@@ -150,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
                         "(default %(default)s)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
-    parser.add_argument("--task", default=defaults.task_space, choices=["position"],
+    parser.add_argument("--task", default=defaults.task_space, choices=["position", "pose"],
                         help="task space (default %(default)s)")
     parser.add_argument("--resolution", default=defaults.resolution,
                         choices=["least_norm", "max_kfm", "min_jump", "blend"])

@@ -48,6 +48,10 @@ TASK_POINTS = {
 }
 
 
+#: A pose goal is reached within this many rad of orientation per m of position tolerance.
+ANGLE_PER_METRE = 10.0
+
+
 @dataclass
 class ScenarioConfig:
     """What to run.
@@ -56,11 +60,11 @@ class ScenarioConfig:
         robot: model (built-in name or URDF path); base_link, tip_link ("": the
             defaults) choose the chain; task_space its task.
         resolution: the controller's mode.
-        points: task points visited in turn (m; default the robot's `TASK_POINTS`, or
-            for an arm without them `selfmotion.points_around` its
-            `selfmotion.bent_configuration`); all critical unless `critical` says
-            otherwise. The arm starts at `selfmotion.bent_configuration` (a built-in's
-            home).
+        points: task points visited in turn (m: x, y, z; a pose task adds the
+            orientation qx, qy, qz, qw; default the robot's position `TASK_POINTS`, or
+            `selfmotion.points_around` its `selfmotion.bent_configuration`); all
+            critical unless `critical` says otherwise. The arm starts at
+            `selfmotion.bent_configuration` (a built-in's home).
         critical: indices of the critical points (default: all).
         soft_limits: give the controller the critical points (bounding-box soft limits).
         lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s
@@ -68,7 +72,8 @@ class ScenarioConfig:
         duration: longest run (simulated s after the task starts); rate: sim, controller
             and joint-state rate (Hz).
         noise: position noise (rad); seed: noise seed.
-        goal_tolerance: m; goal_timeout: s per visit.
+        goal_tolerance: m (a pose goal also within `ANGLE_PER_METRE` x as many rad);
+            goal_timeout: s per visit.
         command_latency, response_time (s), hold_last_command: the sim's plant options.
     """
 
@@ -108,6 +113,7 @@ class Record:
     #: Visits before the lock: (time the visit ended, point index, reached).
     visits: list[tuple[float, int, bool]] = field(default_factory=list)
     started_at: float = 0.0  #: simulated time the task started (s)
+    soft_limits: str = "none"  #: the controller's soft limits when the task started
     tour: dict[int, bool] = field(default_factory=dict)  #: critical point -> reached after lock
     injected_at: float | None = None
     detected_at: float | None = None
@@ -132,13 +138,18 @@ class Scenario:
         self.robot = robots.load(config.robot, config.base_link or None,
                                  config.tip_link or None, task_space=config.task_space)
         start = selfmotion.bent_configuration(self.robot)
-        if not config.points and self.robot.name in TASK_POINTS:
+        if not config.points and self.robot.name in TASK_POINTS and (
+                config.task_space == "position"):
             config = replace(config, points=TASK_POINTS[self.robot.name])
         elif not config.points:
-            config = replace(config, points=tuple(
-                tuple(float(v) for v in p[:3]) for p in selfmotion.points_around(
-                    self.robot, start)))
+            flat = selfmotion.flat_from_targets(self.robot, selfmotion.points_around(
+                self.robot, start))
+            size = selfmotion.point_size(self.robot)
+            config = replace(config, points=tuple(tuple(flat[i:i + size])
+                                                  for i in range(0, len(flat), size)))
         self.config = config
+        self._targets = selfmotion.targets_from_flat(
+            self.robot, [v for point in config.points for v in point])
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -213,9 +224,13 @@ class Scenario:
     def _send_goal(self, index: int) -> None:
         msg = PoseStamped()
         msg.header.stamp = convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
+        point = self.config.points[index]
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (
-            float(v) for v in self.config.points[index])
+            float(v) for v in point[:3])
         msg.pose.orientation.w = 1.0
+        if len(point) == 7:
+            o = msg.pose.orientation
+            o.x, o.y, o.z, o.w = (float(v) for v in point[3:])
         self._goal_pub.publish(msg)
 
     def step(self) -> None:
@@ -258,10 +273,11 @@ class Scenario:
             rec.qd_command.append(command)
             rec.kfm.append(self._metrics.get("kfm", math.nan))
             rec.tool_velocity_error.append(float(np.linalg.norm(
-                robot.jacobian(before) @ (self.sim.qd - command))))
+                robot.jacobian(before)[:3] @ (self.sim.qd - command))))
             rec.goal.append(goal)
-            distance = float(np.linalg.norm(robot.forward(q)[:3] - np.array(cfg.points[goal])))
-            reached = distance < cfg.goal_tolerance
+            error = robot.task_error(self._targets[goal], q)
+            reached = (np.linalg.norm(error[:3]) < cfg.goal_tolerance
+                       and np.linalg.norm(error[3:]) < ANGLE_PER_METRE * cfg.goal_tolerance)
             if not reached and self.sim.t - since <= cfg.goal_timeout:
                 continue
             if rec.injected_at is None:
@@ -277,13 +293,19 @@ class Scenario:
         return rec
 
     def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
-        """Step the still arm until the controller has the critical points' soft limits."""
+        """Step the still arm until the controller has computed its soft limits (or failed).
+
+        The outcome is `Record.soft_limits` (the controller's note, e.g. "3 critical
+        points" or "none (critical points failed)").
+        """
         deadline = time.monotonic() + timeout
-        while self.controller.critical_box is None:
+        self.step()  # the controller starts the computation at its first joint state
+        while self.controller.soft_limits_pending:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"the controller had no soft limits after {timeout:g} s "
                                    "(see its 'critical points' diagnostics)")
             self.step()
+        self.record.soft_limits = self.controller.soft_limits_note
 
     def close(self) -> None:
         """Shut the nodes and the context down."""
