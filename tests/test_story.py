@@ -95,7 +95,8 @@ def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
 
 @pytest.mark.parametrize("soft", [True, False])
 def test_a_campaign_run(soft: bool) -> None:
-    design = campaign.design_of("panda", "", "", {
+    """One run per condition on the real-world Panda URDF and a realistic plant."""
+    design = campaign.design_of(str(PANDA_URDF), "", "", {
         "command_latency": 0.02, "response_time": 0.02, "hold_last_command": True})
     result = campaign.one_run(campaign.Task(3, "blend", soft, 96 if soft else 97, design))
     assert result["false_locks"] == []
