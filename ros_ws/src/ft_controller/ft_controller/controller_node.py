@@ -26,6 +26,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
+from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.robots import Robot, RobotModelError
 from ft_core.targets import (
     PoseTracking,
@@ -90,6 +91,14 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                      "in this namespace (empty: any single publisher)", {"read_only": True}),
     "idle_null_space_motion": (False, "with no target, allow null-space motion (kfm ascent, "
                                "limit avoidance); otherwise hold still", {}),
+    "observability.enabled": (False, "null-space excursions of joints not commanded for "
+                              "observability.idle_time, so that a lock on them shows up", {}),
+    "observability.idle_time": (5.0, "s a joint may go uncommanded before an excursion",
+                                {"floating_point_range": _floats(0.01, 3600.0)}),
+    "observability.speed": (0.15, "rad/s, peak joint velocity of an excursion",
+                            {"floating_point_range": _floats(0.06, 10.0)}),
+    "observability.duration": (1.0, "s, one excursion (out and back)",
+                               {"floating_point_range": _floats(0.01, 60.0)}),
 }
 
 
@@ -124,6 +133,7 @@ class ControllerNode(SuiteNode):
         self._boxes_job: tuple[int, Future] | None = None
         self._boxes_generation = 0
         self._last = None
+        self._excursions: Excursions | None = None
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
         self._rate_window = (0, self.now())
@@ -164,6 +174,7 @@ class ControllerNode(SuiteNode):
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self.robot, self._order, self.engine = robot, order, engine
+        self._excursions = self._observability(robot, {})
         self._model_source = (spec, parameters.chain_arguments(self))
         self._labels = metrics.labels(self.command_joints)
         self._boxes_dirty = len(self.param("critical_points")) > 0
@@ -231,6 +242,7 @@ class ControllerNode(SuiteNode):
                 ResolutionEngine(robot, config)  # validates lengths against the robot
                 if "critical_points" in changes:
                     selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
+                self._observability(robot, changes)
         except (ValueError, TypeError) as error:
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
@@ -248,7 +260,16 @@ class ControllerNode(SuiteNode):
             return
         if "critical_points" in changed:
             self._boxes_dirty = True
+        if any(name.startswith("observability.") for name in changed):
+            self._excursions = self._observability(self.robot, {})
         self._rebuild_engine(self._critical_box)
+
+    def _observability(self, robot: Robot, changes: dict) -> Excursions | None:
+        """The excursions the `observability.*` parameters (with `changes`) ask for."""
+        value = {name: changes.get(f"observability.{name}", self.param(f"observability.{name}"))
+                 for name in ("enabled", "idle_time", "speed", "duration")}
+        config = ObservabilityConfig(value["idle_time"], value["speed"], value["duration"])
+        return Excursions(robot.n, config) if value["enabled"] else None
 
     @property
     def critical_box(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -455,10 +476,24 @@ class ControllerNode(SuiteNode):
         if idle and not self.param("idle_null_space_motion"):
             qd = np.zeros(robot.n)
             result.jump_index = 0.0
+        qd = self._excite(q, qd, locked, now)
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(robot.n)
         self._last = result
         self._publish(qd, result)
+
+    def _excite(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> np.ndarray:
+        """The command with the observability excursion under way, if any (null space only)."""
+        if self._excursions is None:
+            return qd
+        for k, (joint, speed) in enumerate(self._excursions.update(now, qd, locked)):
+            moved = self.engine.excursion(q, qd, joint, speed, locked)
+            if moved is not None:
+                qd = moved
+            elif k == 0:  # the idle joint itself cannot move: no excursion now
+                self._excursions.cannot_move(joint, now)
+                return qd
+        return qd
 
     def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
         """(task velocity, idle) from the latest target."""
@@ -520,7 +555,8 @@ class ControllerNode(SuiteNode):
                   "state_age_s": now - self.state_stamp if self._q is not None else "none",
                   "target": self._target.kind if self._target else "none",
                   "target_age_s": now - self._target.stamp if self._target else "none",
-                  "locked_joints": sorted(self._locked), "soft_limits": self._soft_note}
+                  "locked_joints": sorted(self._locked), "soft_limits": self._soft_note,
+                  "observability": self._observability_note()}
         if self._last is not None:
             values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
                           status=self._last.status)
@@ -533,6 +569,12 @@ class ControllerNode(SuiteNode):
         else:
             level, message = diagnostics.OK, self._last.status
         return self.status(level, message, values)
+
+    def _observability_note(self) -> str:
+        if self._excursions is None:
+            return "off"
+        joint = self._excursions.active
+        return "waiting" if joint is None else f"exciting {self.robot.joint_names[joint]}"
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""

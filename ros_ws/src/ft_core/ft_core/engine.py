@@ -40,6 +40,7 @@ from numba import njit
 
 from ft_core import limits, measures, postfailure
 from ft_core.checks import all_finite
+from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
 
@@ -298,6 +299,37 @@ class ResolutionEngine:
                          and cfg.kfm_gain > 0),
                 use_jump=next_failure and cfg.resolution in ("min_jump", "blend"))
         return view
+
+    def excursion(self, q: np.ndarray, qd: np.ndarray, joint: int, speed: float,
+                  locked: Iterable[int] = ()) -> np.ndarray | None:
+        """The command qd plus a null-space motion moving `joint` at `speed` (rad/s), or None.
+
+        The motion is N e_j speed / N_jj with N = V V^T the projector on the null space of
+        the healthy joints' Jacobian (V from its SVD), so J of the motion is 0 to numerical
+        precision and `joint` moves at exactly `speed`. It is scaled down by the largest
+        factor in [0, 1] that keeps qd + motion inside the velocity bounds of the active
+        soft and hard limits (`limits.preference_scale`). None when N_jj is below
+        `observability.MIN_SHARE`: the joint cannot move without moving the tool.
+        (`observability`; issue 16.)
+        """
+        view = self._locked_set(locked)
+        index = view.healthy
+        if joint not in index:
+            return None
+        J = self.robot.scale_task(self.robot.jacobian(np.asarray(q, dtype=float)))[:, index]
+        _, sigmas, Vt = np.linalg.svd(J)
+        rank = int(np.sum(sigmas > 1e-12 * max(sigmas.max(initial=0.0), 1.0)))
+        null = Vt[rank:].T
+        k = int(np.flatnonzero(index == joint)[0])
+        column = null @ null[k]
+        if column[k] < MIN_SHARE:
+            return None
+        motion = speed * column / column[k]
+        qd = np.array(qd, dtype=float)
+        lo, hi = limits.velocity_bounds(np.asarray(q, dtype=float)[index], view.lower,
+                                        view.upper, view.velocity, self.config.dt)
+        qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
+        return qd
 
     def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.

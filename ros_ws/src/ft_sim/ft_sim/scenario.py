@@ -221,7 +221,14 @@ class Scenario:
             self.executor.spin_once(timeout_sec=0.01)
         return True
 
-    def _send_goal(self, index: int) -> None:
+    @property
+    def command(self) -> np.ndarray:
+        """The controller's latest command (rad/s, chain order; zeros before the first)."""
+        return (np.array(self._raw.velocity) if self._raw is not None
+                else np.zeros(self.robot.n))
+
+    def send_goal(self, index: int) -> None:
+        """Publish task point `index` as the pose goal."""
         msg = PoseStamped()
         msg.header.stamp = convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
         point = self.config.points[index]
@@ -233,37 +240,47 @@ class Scenario:
             o.x, o.y, o.z, o.w = (float(v) for v in point[3:])
         self._goal_pub.publish(msg)
 
+    def inject(self, joint: str) -> None:
+        """Lock `joint` through `ft/inject_failure`; returns once the sim has it locked."""
+        self._inject_pub.publish(JointState(name=[joint]))
+        if not self._spin_until(lambda: joint in self.sim.locked):
+            raise TimeoutError(f"the sim did not lock {joint} within 5 s of the injection")
+        self.record.injected_at = self.sim.t
+
     def step(self) -> None:
-        """One period of the loop."""
+        """One period of the loop: the sim steps, then holds the command for the new instant."""
         self.sim.step()
         now = self.sim.t
-        self._spin_until(lambda: self.sim.command_time >= now)
+        if not self._spin_until(lambda: self.sim.command_time >= now):
+            raise TimeoutError(f"no command for simulated time {now:.3f} s within 5 s")
 
-    def run(self) -> Record:
-        """Run until the post-lock tour ends (or `duration`); return the record."""
-        cfg, rec, robot = self.config, self.record, self.robot
+    def start(self) -> float:
+        """Wait for the model and the soft limits (if any); the simulated start time (s)."""
         if not self._spin_until(lambda: self.controller.robot is not None and
                                 self.monitor.robot is not None, 10.0):
             raise TimeoutError("the controller and the monitor did not load the model in 10 s")
         if self.config.soft_limits and self.critical:
             self._wait_for_soft_limits()
-        rec.started_at = start = self.sim.t
+        self.record.started_at = self.sim.t
+        return self.sim.t
+
+    def run(self) -> Record:
+        """Run until the post-lock tour ends (or `duration`); return the record."""
+        cfg, rec, robot = self.config, self.record, self.robot
+        start = self.start()
         goal, since = 0, start
         tour: list[int] = []  # critical points still to visit after the lock
-        self._send_goal(goal)
+        self.send_goal(goal)
         for _ in range(round(cfg.duration * cfg.rate)):
             if (cfg.lock_joint and rec.injected_at is None
                     and self.sim.t >= start + cfg.lock_time):
-                self._inject_pub.publish(JointState(name=[cfg.lock_joint]))
-                self._spin_until(lambda: cfg.lock_joint in self.sim.locked)
-                rec.injected_at = self.sim.t
+                self.inject(cfg.lock_joint)
                 tour = [p for p in range(goal, len(cfg.points)) if p in self.critical]
                 tour += [p for p in range(goal) if p in self.critical]
                 goal, since = tour[0], self.sim.t
-                self._send_goal(goal)
+                self.send_goal(goal)
             # The controller's command in force during this step, before the monitor.
-            command = (np.array(self._raw.velocity) if self._raw is not None
-                       else np.zeros(robot.n))
+            command = self.command
             before = self.sim.q.copy()
             self.step()
             q = self.sim.q.copy()
@@ -289,7 +306,7 @@ class Scenario:
                     break
                 goal = tour[0]
             since = self.sim.t
-            self._send_goal(goal)
+            self.send_goal(goal)
         return rec
 
     def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
