@@ -64,3 +64,17 @@ def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: 
     assert new["trials"] == 12 and new["detected"] + new["missed"] + new["wrong"] == 12
     assert new["detected"] > 0 and new["p99_ms"] >= new["p50_ms"] > 0
     assert "| new | 0.2 rad/s |" in (tmp_path / "detection.md").read_text()
+
+
+def test_observability_benchmark_writes_its_outputs(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "observability.py"), "--out", str(tmp_path),
+         "--trials", "1"],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    figures = json.loads((tmp_path / "observability.json").read_text())
+    assert figures["summary"]["trials"] == 1 and len(figures["trials"]) == 1
+    latency, deviation = figures["trials"][0]
+    assert latency is None or latency > 0
+    assert 0 < deviation < 0.01
+    assert "| trials | detected |" in (tmp_path / "observability.md").read_text()

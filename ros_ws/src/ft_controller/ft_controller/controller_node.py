@@ -95,7 +95,7 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                               "observability.idle_time, so that a lock on them shows up", {}),
     "observability.idle_time": (5.0, "s a joint may go uncommanded before an excursion",
                                 {"floating_point_range": _floats(0.01, 3600.0)}),
-    "observability.speed": (0.15, "rad/s, peak joint velocity of an excursion",
+    "observability.speed": (0.3, "rad/s, peak joint velocity of an excursion",
                             {"floating_point_range": _floats(0.06, 10.0)}),
     "observability.duration": (1.0, "s, one excursion (out and back)",
                                {"floating_point_range": _floats(0.01, 60.0)}),

@@ -45,7 +45,7 @@ class ObservabilityConfig:
     """
 
     idle_time: float = 5.0
-    speed: float = 0.15
+    speed: float = 0.3
     duration: float = 1.0
 
     def __post_init__(self) -> None:

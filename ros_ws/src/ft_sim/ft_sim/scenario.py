@@ -247,6 +247,36 @@ class Scenario:
             raise TimeoutError(f"the sim did not lock {joint} within 5 s of the injection")
         self.record.injected_at = self.sim.t
 
+    def distance(self, index: int) -> float:
+        """Position distance (m) of the tool from task point `index`."""
+        return float(np.linalg.norm(self.robot.task_error(self._targets[index], self.sim.q)[:3]))
+
+    def reach(self, index: int, tolerance: float, timeout: float) -> bool:
+        """Send task point `index` and step until the tool is within `tolerance` (m, s)."""
+        self.send_goal(index)
+        for _ in range(round(timeout * self.config.rate)):
+            if self.distance(index) < tolerance:
+                return True
+            self.step()
+        return self.distance(index) < tolerance
+
+    def hold(self, index: int, seconds: float) -> float:
+        """Step for `seconds` (the goal unchanged); the largest distance from point `index` (m)."""
+        deviation = 0.0
+        for _ in range(round(seconds * self.config.rate)):
+            self.step()
+            deviation = max(deviation, self.distance(index))
+        return deviation
+
+    def until_detected(self, timeout: float) -> float | None:
+        """Step until the monitor declares a lock after the injection; its latency (s) or None."""
+        deadline = self.sim.t + timeout
+        while self.record.detected_at is None and self.sim.t < deadline:
+            self.step()
+        if self.record.detected_at is None or self.record.injected_at is None:
+            return None
+        return self.record.detected_at - self.record.injected_at
+
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant."""
         self.sim.step()
