@@ -156,7 +156,7 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
     summary.update(seed=task.seed, soft_limits=task.soft,
                    success=len(summary["reached_after"]) == summary["points"],
                    correct_detection=summary["detected"] == [joint],
-                   outside_box=value is not None and not box[0][j] <= value <= box[1][j],
+                   outside_box=value is not None and not bool(box[0][j] <= value <= box[1][j]),
                    reachable=None if q_lock is None else reachable(robot, critical, q_lock, j))
     return summary
 

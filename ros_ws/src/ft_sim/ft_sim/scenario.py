@@ -323,8 +323,8 @@ class Scenario:
                 robot.jacobian(before)[:3] @ (self.sim.qd - command))))
             rec.goal.append(goal)
             error = robot.task_error(self._targets[goal], q)
-            reached = (np.linalg.norm(error[:3]) < cfg.goal_tolerance
-                       and np.linalg.norm(error[3:]) < ANGLE_PER_METRE * cfg.goal_tolerance)
+            reached = bool(np.linalg.norm(error[:3]) < cfg.goal_tolerance
+                           and np.linalg.norm(error[3:]) < ANGLE_PER_METRE * cfg.goal_tolerance)
             if not reached and self.sim.t - since <= cfg.goal_timeout:
                 continue
             if rec.injected_at is None:
