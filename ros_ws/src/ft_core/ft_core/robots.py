@@ -401,6 +401,29 @@ class Robot:
         points = self.skeleton(pin.neutral(self._model))
         return float(sum(np.linalg.norm(b - a) for a, b in pairwise(points)))
 
+    def outboard_moments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(axes, moments), each (n, 3), in the URDF root frame, from the URDF's inertias.
+
+        axes[i]: the unit axis of joint i (zero for a prismatic joint); moments[i]: the
+        first moment of inertia m (c - p_i) (kg m) of everything outboard of joint i
+        about its origin p_i, c being that composite body's centre of mass (seed 002's
+        s*_{i-1}). Through Pinocchio's subtree centres of mass.
+        """
+        model, data = self._model, self._data
+        q = self._check(q)
+        pin.centerOfMass(model, data, q, True)
+        J = pin.computeJointJacobians(model, data, q)
+        axes = np.zeros((self.n, 3))
+        moments = np.zeros((self.n, 3))
+        for i in range(self.n):
+            joint = i + 1  # Pinocchio's joint 0 is the universe
+            angular = J[3:, model.joints[joint].idx_v]
+            if np.linalg.norm(angular) > 0.5:  # revolute: a unit axis; prismatic: zero
+                axes[i] = angular
+            # Subtree centres of mass of joints other than the root are in the joint's frame.
+            moments[i] = data.mass[joint] * (data.oMi[joint].rotation @ data.com[joint])
+        return axes, moments
+
     def skeleton(self, q: np.ndarray) -> np.ndarray:
         """The chain as points (n + 1, 3; m, base frame): each joint's origin, then the tool."""
         pin.framesForwardKinematics(self._model, self._data, self._check(q))
