@@ -62,6 +62,9 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
     "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
                  {"floating_point_range": _floats(0.0, 1e4)}),
+    "swing_gain": (0.0, "swing-measure descent for free-swinging failures, rad/s per rad "
+                   "(0: off; needs the URDF's inertias)",
+                   {"floating_point_range": _floats(0.0, 100.0)}),
     "jump_gain": (1.0, "minimum-jump term (1 = exact)",
                   {"floating_point_range": _floats(0.0, 100.0)}),
     "limit_gain": (1.0, "soft/hard limit avoidance, rad/s at a box edge",
@@ -221,6 +224,7 @@ class ControllerNode(SuiteNode):
                                             np.minimum(box[1], soft[1]))
         return EngineConfig(
             resolution=value["resolution"], kfm_gain=value["kfm_gain"],
+            swing_gain=value["swing_gain"],
             jump_gain=value["jump_gain"], limit_gain=value["limit_gain"],
             failure_probabilities=probabilities,
             soft_lower=() if box is None else box[0], soft_upper=() if box is None else box[1],

@@ -17,7 +17,11 @@ characteristic length). The null-space preference z sums, by `resolution`:
 - `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (seed 004 eq 5; gain 1 is
   the exact minimum-jump solution);
 - always, when a box applies: limit_gain * `limits.avoidance` away from the edges
-  of the effective box (soft limits intersected with the URDF limits).
+  of the effective box (soft limits intersected with the URDF limits);
+- in every mode, when swing_gain > 0: -swing_gain * grad h, descent on the swing
+  measure of free-swinging failures (`swing`, seed 002 eq 14 used in eq 3 as the
+  paper proposes; zero for a URDF without inertias). About 0.6 ms a cycle on 7
+  joints (numpy over every joint pair, not compiled): off by default.
 
 The kfm and jump terms refer to the next failure and are used only while
 n - |locked| - 1 >= m. Hard limits (URDF positions and velocity_scale times URDF
@@ -38,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ft_core import limits, measures, postfailure
+from ft_core import limits, measures, postfailure, swing
 from ft_core.checks import all_finite
 from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
@@ -67,6 +71,7 @@ class EngineConfig:
     Attributes:
         resolution: "least_norm", "max_kfm", "min_jump" or "blend".
         kfm_gain: gain of the kfm gradient ascent, rad/s per (m/rad) of grad K, >= 0.
+        swing_gain: gain of the swing-measure descent, rad/s per rad of grad h, >= 0.
         jump_gain: gain of the minimum-jump term (1 = exact minimum), >= 0.
         limit_gain: gain of the soft/hard-limit avoidance (rad/s at an edge), >= 0.
         failure_probabilities: one per joint (>= 0); empty = equally likely.
@@ -81,6 +86,7 @@ class EngineConfig:
 
     resolution: str = "blend"
     kfm_gain: float = 50.0
+    swing_gain: float = 0.0
     jump_gain: float = 1.0
     limit_gain: float = 1.0
     failure_probabilities: Sequence[float] = ()
@@ -96,7 +102,8 @@ class EngineConfig:
     def __post_init__(self) -> None:
         if self.resolution not in RESOLUTIONS:
             raise ValueError(f"resolution {self.resolution!r} is not one of {RESOLUTIONS}")
-        for name in ("kfm_gain", "jump_gain", "limit_gain", "kfm_temperature", "limit_buffer"):
+        for name in ("kfm_gain", "swing_gain", "jump_gain", "limit_gain", "kfm_temperature",
+                     "limit_buffer"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value}")
@@ -173,13 +180,14 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
 def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
            task_scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray,
            weights: np.ndarray, gains: np.ndarray, use_kfm: bool, use_jump: bool,
-           probabilities: bool):
+           probabilities: bool, bias: np.ndarray):
     """The arithmetic of `ResolutionEngine.step` for m <= healthy joints, compiled.
 
     `gains` = (kfm_gain, jump_gain, limit_gain, kfm_temperature, limit_buffer, dt,
-    damping threshold, max_damping). Returns, for the healthy joints: the scaled
-    Jacobian, the scaled task velocity, z, lo, hi, the damped inverse, post-failure
-    sigmas, sigma_min, the reduced velocities (0 x 0 without a next failure), and
+    damping threshold, max_damping); `bias` (healthy joints) is added to z. Returns,
+    for the healthy joints: the scaled Jacobian, the scaled task velocity, z, lo, hi,
+    the damped inverse, post-failure sigmas, sigma_min, the reduced velocities (0 x 0
+    without a next failure), and
     qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1] that keeps it within
     [lo, hi] (`limits.preference_scale`), and whether it is; if not, the caller runs
     the rest of `limits.saturate_in_null_space`, which starts the same way.
@@ -193,7 +201,7 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     x = task_scale * xd
     qh = q[healthy]
     L, V, columns, sigmas, vectors = postfailure.analyse(Js)
-    z = limit_gain * limits.avoidance(qh, lower, upper, buffer)
+    z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
     reduced = np.zeros((0, 0))
     if nh > m:
         reduced = postfailure.reduced_velocities(columns, x, L, V, sigmas, threshold,
@@ -300,6 +308,14 @@ class ResolutionEngine:
                 use_jump=next_failure and cfg.resolution in ("min_jump", "blend"))
         return view
 
+    def _swing_descent(self, q: np.ndarray, healthy: np.ndarray) -> np.ndarray:
+        """-swing_gain * grad h on the healthy joints (zeros when the gain is 0)."""
+        if self.config.swing_gain == 0:
+            return np.zeros(healthy.size)
+        weights = np.zeros(self.robot.n)
+        weights[healthy] = 1.0  # a locked joint is braked: it does not swing
+        return -self.config.swing_gain * swing.swing_gradient(self.robot, q, weights)[healthy]
+
     def excursion(self, q: np.ndarray, qd: np.ndarray, joint: int, speed: float,
                   locked: Iterable[int] = ()) -> np.ndarray | None:
         """The command qd plus a null-space motion moving `joint` at `speed` (rad/s), or None.
@@ -363,7 +379,7 @@ class ResolutionEngine:
             Js, x, z, lo, hi, pinv, sigmas_h, sigma_min, reduced, qd_h, fits = _cycle(
                 J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper, view.velocity,
                 view.weights, self._gains, view.use_kfm, view.use_jump,
-                self._probabilities is not None)
+                self._probabilities is not None, self._swing_descent(q, index))
             scale, saturated_h = 1.0, np.zeros(nh, dtype=bool)
             if not fits:
                 result = limits.saturate_in_null_space(Js, x, z, lo, hi, cfg.damping, pinv)

@@ -36,16 +36,6 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 _DEGENERATE = 1e-12
 
 
-def _angle_terms(z: np.ndarray, s: np.ndarray, up: np.ndarray) -> tuple[float, float]:
-    """(A, B) with theta = atan2(A, B) (eqs 11-13)."""
-    return float(z @ np.cross(up, s)), float(np.cross(s, z) @ np.cross(z, up))
-
-
-def _defined(z: np.ndarray, s: np.ndarray, up: np.ndarray) -> bool:
-    return (np.linalg.norm(np.cross(s, z)) > _DEGENERATE
-            and np.linalg.norm(np.cross(z, up)) > _DEGENERATE)
-
-
 def _moments(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     axes, moments = robot.outboard_moments(q)
     prismatic = [robot.joint_names[i] for i in np.flatnonzero(np.linalg.norm(axes, axis=1) == 0)]
@@ -54,13 +44,25 @@ def _moments(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return axes, moments
 
 
+class _Terms:
+    """Eqs 11-13 for every joint: theta = atan2(a, b), with the cross products reused."""
+
+    def __init__(self, axes: np.ndarray, moments: np.ndarray, gravity: Sequence[float]):
+        self.up = -np.asarray(gravity, dtype=float)
+        self.z_up = np.cross(axes, self.up)
+        self.up_s = np.cross(self.up, moments)
+        self.s_z = np.cross(moments, axes)
+        self.a = np.einsum("ic,ic->i", axes, self.up_s)
+        self.b = np.einsum("ic,ic->i", self.s_z, self.z_up)
+        self.defined = ((np.linalg.norm(self.s_z, axis=1) > _DEGENERATE)
+                        & (np.linalg.norm(self.z_up, axis=1) > _DEGENERATE))
+        self.theta = np.where(self.defined, np.arctan2(self.a, self.b), 0.0)
+
+
 def swing_angles(robot: Robot, q: np.ndarray,
                  gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray:
     """Swing angle of each joint were it to fail at q (rad, (n,); eq 13)."""
-    up = -np.asarray(gravity, dtype=float)
-    axes, moments = _moments(robot, q)
-    return np.array([np.arctan2(*_angle_terms(z, s, up)) if _defined(z, s, up) else 0.0
-                     for z, s in zip(axes, moments, strict=True)])
+    return _Terms(*_moments(robot, q), gravity).theta
 
 
 def swing_measure(robot: Robot, q: np.ndarray, weights: Sequence[float] | None = None,
@@ -74,21 +76,16 @@ def swing_measure(robot: Robot, q: np.ndarray, weights: Sequence[float] | None =
 def swing_gradient(robot: Robot, q: np.ndarray, weights: Sequence[float] | None = None,
                    gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray:
     """dh/dq (rad^2 per rad, (n,)), analytic (see the module notes)."""
-    up = -np.asarray(gravity, dtype=float)
     w = np.ones(robot.n) if weights is None else np.asarray(weights, dtype=float)
     axes, moments = _moments(robot, q)
-    gradient = np.zeros(robot.n)
-    for i, (z, s) in enumerate(zip(axes, moments, strict=True)):
-        if not _defined(z, s, up) or w[i] == 0:
-            continue
-        a, b = _angle_terms(z, s, up)
-        theta = np.arctan2(a, b)
-        for k in range(robot.n):
-            zk = axes[k]
-            dz = np.cross(zk, z) if k < i else np.zeros(3)
-            ds = np.cross(zk, s if k < i else moments[k])
-            da = dz @ np.cross(up, s) + z @ np.cross(up, ds)
-            db = ((np.cross(ds, z) + np.cross(s, dz)) @ np.cross(z, up)
-                  + np.cross(s, z) @ np.cross(dz, up))
-            gradient[k] += 2 * w[i] * theta * (b * da - a * db) / (a * a + b * b)
-    return gradient
+    t = _Terms(axes, moments, gravity)
+    # All pairs at once: [i, k] holds the derivative of joint i's terms by q_k.
+    below = (np.arange(robot.n)[None, :] < np.arange(robot.n)[:, None])[..., None]
+    dz = np.where(below, np.cross(axes[None, :], axes[:, None]), 0.0)
+    ds = np.cross(axes[None, :], np.where(below, moments[:, None], moments[None, :]))
+    da = np.einsum("ikc,ic->ik", dz, t.up_s) + np.einsum("ikc,ic->ik", ds, t.z_up)
+    db = (np.einsum("ikc,ic->ik", np.cross(ds, axes[:, None]) + np.cross(moments[:, None], dz),
+                    t.z_up) + np.einsum("ikc,ic->ik", np.cross(dz, t.up), t.s_z))
+    factor = np.where(t.defined, 2 * w * t.theta, 0.0) / np.where(
+        t.defined, t.a ** 2 + t.b ** 2, 1.0)
+    return factor @ (t.b[:, None] * da - t.a[:, None] * db)
