@@ -34,7 +34,17 @@ identification the best model is only a guess). A joint is
 - observable when |c| >= `min_command` and |c| >= 2 `confidence` s;
 - stalled when observable, v / c < `ratio` and |v - c| > `confidence` s;
 - following when observable and v / c >= `following_ratio`;
-- stalled at a physical limit, with the command pushing into it: reported, never a lock.
+- stalled at a physical limit, with the command pushing into it: reported, never a lock;
+- moving on its own when |v| >= `min_command` and v lies further than
+  max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
+  [min(0, p_min), max(0, p_max)] over the plausible predictions p: at rest while
+  commanded to stay, against its command, or well beyond it. Held for `persistence` s
+  (with no plant fault), the joint is declared free-swinging (seed 002: a joint that
+  lost its torque moves under gravity), reported in `swinging`, never as a lock. A
+  free-swinging joint moving against its command passes through a stall, so it may
+  first be declared locked: a locked joint (declared, restored or detected) that then
+  moves by itself is taken out of the locked set and declared free-swinging. A joint
+  declared locked after that (the brake applied) is not reclassified again.
 
 **No decision without evidence.** Nothing is decided (and the reason is kept in
 `not_observing`) while the command stream has a gap longer than half a window,
@@ -48,7 +58,8 @@ while the caller says so (`measure(..., blind=reason)`).
 least one other commanded joint follows the model. When two or more joints stall
 and they outnumber those following, the plant as a whole is not following (a
 stopped driver, an emergency stop, a lost command path): `plant_fault` says so with
-the evidence and no lock is declared. Two genuine simultaneous locks on a 7-joint
+the evidence and no lock is declared; likewise two or more joints moving on their
+own that outnumber those following. Two genuine simultaneous locks on a 7-joint
 arm are both declared (two stalled, the others following); locks of more joints at
 once than keep following are reported as a plant fault, never as locks. A joint
 whose lock evidence holds for `persistence` s is declared locked and stays so
@@ -140,6 +151,8 @@ class JointEvidence:
     standard_error: float = 0.0  #: of the slope (rad/s)
     evidence_since: float | None = None  #: when the current lock evidence started (s)
     at_limit: bool = False  #: stalled at a physical limit
+    swing_since: float | None = None  #: when the current free-swing evidence started (s)
+    swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)
     position: float = 0.0  #: position when locked (rad)
 
@@ -316,6 +329,7 @@ class LockDetector:
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
+        self.newly_swinging: list[int] = []  #: joints declared free-swinging at the last update
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -340,6 +354,12 @@ class LockDetector:
     def locked(self) -> dict[int, float]:
         """{joint index: position at lock} of every locked joint."""
         return {i: e.position for i, e in enumerate(self.joints) if e.locked_at is not None}
+
+    @property
+    def swinging(self) -> dict[int, float]:
+        """{joint index: time declared} of the joints declared free-swinging (not locked)."""
+        return {i: e.swinging_at for i, e in enumerate(self.joints)
+                if e.swinging_at is not None and e.locked_at is None}
 
     def lock(self, joint: int, position: float, time: float) -> None:
         """Mark a joint locked (a failure declared on purpose, or restored from storage)."""
@@ -381,8 +401,11 @@ class LockDetector:
     def measure(self, time: float, position: np.ndarray, blind: str | None = None) -> list[int]:
         """A measured configuration; returns the joints newly declared locked.
 
+        Joints newly declared free-swinging are in `newly_swinging` after the call.
+
         `blind` (a reason) forbids decisions and identification at this update.
         """
+        self.newly_swinging = []
         if time <= self.latest_time:
             return []  # out of order or repeated: ignored
         self._samples.append(time, np.asarray(position, dtype=float),
@@ -422,7 +445,7 @@ class LockDetector:
 
     def _clear_evidence(self) -> None:
         for evidence in self.joints:
-            evidence.evidence_since = None
+            evidence.evidence_since = evidence.swing_since = None
 
     def _update(self, now: float, dt: float) -> list[int]:
         cfg = self.config
@@ -458,18 +481,29 @@ class LockDetector:
                    | ((weakest < 0) & (latest <= self.lower + cfg.limit_margin)))
         candidates = stalled & ~pushing
         following = observable & (ratio >= cfg.following_ratio)
+        # A locked joint should not move at all: its healthy range is [0, 0].
+        healthy_low = np.where(unlocked, np.minimum(plausible.min(axis=0), 0.0), 0.0)
+        healthy_high = np.where(unlocked, np.maximum(plausible.max(axis=0), 0.0), 0.0)
+        outside = np.maximum(healthy_low - measured, measured - healthy_high)
+        undeclared = np.array([e.swinging_at is None for e in self.joints])
+        on_its_own = (undeclared & (np.abs(measured) >= cfg.min_command)
+                      & (outside > np.maximum(cfg.confidence * error, cfg.min_command)))
+        candidates &= ~on_its_own & undeclared  # a free-swinging joint is not a lock
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])
             evidence.standard_error = float(error[j])
             evidence.at_limit = bool(stalled[j] and pushing[j])
         n_stalled, n_following = int(candidates.sum()), int(following.sum())
-        if n_stalled == 0 and identify:
+        n_own = int(on_its_own.sum())
+        if n_stalled == 0 and n_own == 0 and identify:
             self._identify(now, measured, slopes, error, unlocked & ~pushing)
-        if n_stalled >= 2 and n_stalled > n_following:
+        odd = candidates if n_stalled >= 2 and n_stalled > n_following else (
+            on_its_own if n_own >= 2 and n_own > n_following else None)
+        if odd is not None:
             self.plant_fault = "plant not following commands: " + ", ".join(
                 f"joint {j} measured {measured[j]:.3f} rad/s, expected {weakest[j]:.3f}"
-                for j in np.flatnonzero(candidates))
+                for j in np.flatnonzero(odd))
             self._seen_following = 0.0
             self._clear_evidence()
             return []
@@ -480,6 +514,18 @@ class LockDetector:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return []
+        for j in np.flatnonzero(on_its_own):
+            evidence = self.joints[j]
+            if evidence.swinging_at is not None:
+                continue
+            if evidence.swing_since is None:
+                evidence.swing_since = now
+            if now - evidence.swing_since >= cfg.persistence:
+                # A joint declared locked that moves was never locked: it swings.
+                evidence.swinging_at, evidence.locked_at = now, None
+                self.newly_swinging.append(int(j))
+        for j in np.flatnonzero(~on_its_own):
+            self.joints[j].swing_since = None
         newly = []
         for j, evidence in enumerate(self.joints):
             supported = candidates[j] and n_following - following[j] >= 1

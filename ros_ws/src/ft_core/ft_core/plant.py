@@ -11,7 +11,9 @@ The command path of a real arm, step by step (`Plant.step`):
    `response_time` (v' = (u - v) / T, integrated exactly for a command held over the
    step), then within `acceleration_limit` (rad/s^2, per joint);
 5. positions integrate the velocity (exactly for the lag, trapezoidal under an
-   acceleration limit) and stop at the position limits; locked joints do not move.
+   acceleration limit) and stop at the position limits; locked joints do not move;
+   free-swinging joints (`swing`) ignore the commands and follow the accelerations
+   `free_swing_acceleration(q, qd)` gives (semi-implicit Euler, 1 ms substeps).
 
 Times are seconds on the plant's clock; velocities rad/s (m/s for prismatic joints).
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +71,9 @@ class Plant:
         self.qd = np.zeros(self.n)
         self.t = time
         self.locked: dict[int, float] = {}  #: joint index -> position where it locked
+        self.swinging: set[int] = set()  #: joints that lost their torque (`swing`)
+        #: (q, qd) -> accelerations (n,) of the free-swinging joints (rad/s^2).
+        self.free_swing_acceleration: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
         self._commands: deque[tuple[float, np.ndarray]] = deque()
 
     def configure(self, config: PlantConfig) -> None:
@@ -88,14 +94,23 @@ class Plant:
         self._commands.append((time, np.asarray(velocity, float).copy()))
 
     def lock(self, joint: int) -> None:
-        """Lock a joint where it is (it stops at once)."""
+        """Lock a joint where it is (it stops at once; a free-swinging one is braked)."""
         self.locked.setdefault(joint, float(self.q[joint]))
+        self.swinging.discard(joint)
         self.qd[joint] = 0.0
 
+    def swing(self, joint: int) -> None:
+        """The joint loses its torque: from now on it follows `free_swing_acceleration`."""
+        if self.free_swing_acceleration is None:
+            raise ValueError("free swinging needs free_swing_acceleration")
+        if joint not in self.locked:
+            self.swinging.add(joint)
+
     def release(self) -> list[int]:
-        """Release every lock; returns the joints that were locked."""
-        released = sorted(self.locked)
+        """Release every lock and free swing; returns the joints that were failed."""
+        released = sorted(set(self.locked) | self.swinging)
         self.locked.clear()
+        self.swinging.clear()
         return released
 
     def _in_force(self) -> np.ndarray:
@@ -135,4 +150,21 @@ class Plant:
         q = np.clip(self.q + moved, self.lower, self.upper)
         stopped = (q != self.q + moved)  # at a position limit
         v[stopped] = 0.0
+        if self.swinging:
+            q, v = self._swing(q, v, dt)
         self.q, self.qd = q, v
+
+    def _swing(self, q: np.ndarray, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The free-swinging joints over dt, from where they were (1 ms substeps)."""
+        free = sorted(self.swinging)
+        q, v = q.copy(), v.copy()
+        q[free], v[free] = self.q[free], self.qd[free]
+        steps = max(1, math.ceil(dt / 0.001))
+        h = dt / steps
+        for _ in range(steps):
+            v[free] += h * self.free_swing_acceleration(q, v)[free]
+            q[free] += h * v[free]
+            at_limit = (q < self.lower) | (q > self.upper)
+            q = np.clip(q, self.lower, self.upper)
+            v[free] = np.where(at_limit[free], 0.0, v[free])
+        return q, v

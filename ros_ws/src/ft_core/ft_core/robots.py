@@ -424,6 +424,17 @@ class Robot:
             moments[i] = data.mass[joint] * (data.oMi[joint].rotation @ data.com[joint])
         return axes, moments
 
+    def gravity_dynamics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(gravity torques g(q) in N m, diagonal of the joint-space inertia in kg m^2).
+
+        From the URDF's inertias, gravity along the root's -z (Pinocchio's
+        computeGeneralizedGravity and CRBA).
+        """
+        q = self._check(q)
+        gravity = pin.computeGeneralizedGravity(self._model, self._data, q).copy()
+        inertia = np.diag(pin.crba(self._model, self._data, q)).copy()
+        return gravity, inertia
+
     def skeleton(self, q: np.ndarray) -> np.ndarray:
         """The chain as points (n + 1, 3; m, base frame): each joint's origin, then the tool."""
         pin.framesForwardKinematics(self._model, self._data, self._check(q))

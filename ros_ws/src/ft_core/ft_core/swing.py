@@ -32,6 +32,8 @@ from ft_core.robots import Robot
 
 #: Gravity (m/s^2) in the URDF root frame when none is given: -z, as URDF assumes.
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
+#: Viscous damping (1/s) of a free-swinging joint in `pendulum_acceleration`.
+FREE_SWING_DAMPING = 2.0
 #: Norm below which a projection (of s or g on the plane normal to an axis) is zero.
 _DEGENERATE = 1e-12
 
@@ -89,3 +91,18 @@ def swing_gradient(robot: Robot, q: np.ndarray, weights: Sequence[float] | None 
     factor = np.where(t.defined, 2 * w * t.theta, 0.0) / np.where(
         t.defined, t.a ** 2 + t.b ** 2, 1.0)
     return factor @ (t.b[:, None] * da - t.a[:, None] * db)
+
+
+def pendulum_acceleration(robot: Robot, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """Joint accelerations (rad/s^2, (n,)) of each joint were it free-swinging at q, qd.
+
+    The simulated stand-in for a joint that lost its torque: a pendulum about its axis,
+    the other joints held by their drives, -g_i(q) / M_ii - `FREE_SWING_DAMPING` qd_i
+    with g the generalised gravity and M the joint-space inertia (Pinocchio, from the
+    URDF's inertias; a joint without outboard inertia gets 0). It neglects the
+    coupling with the moving joints and friction other than the viscous term.
+    """
+    gravity, inertia = robot.gravity_dynamics(q)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        falling = np.where(inertia > 0, -gravity / inertia, 0.0)
+    return falling - FREE_SWING_DAMPING * np.asarray(qd, dtype=float)

@@ -75,6 +75,8 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                              _floats(0.5, 50.0)),
     "detection.follow_time": (_DETECTION.follow_time, "s the plant must be seen following "
                               "commands before any decision", _floats(0.0, 10.0)),
+    "brake_free_swinging": (False, "declare a free-swinging joint locked where it is (ask "
+                            "for its brake) instead of only reporting it", {}),
     "remap_commands": (True, "remap commands through the reduced Jacobian once joints lock",
                        {}),
     "command_timeout": (0.2, "s without a command before the watchdog publishes zeros",
@@ -199,6 +201,8 @@ class MonitorNode(SuiteNode):
         newly = self.detector.measure(
             stamp, q, None if listeners else "nobody subscribes to ft/command(_array)")
         self.problems.report("plant", self.detector.plant_fault)
+        if self.detector.newly_swinging:
+            self._free_swinging(self.detector.newly_swinging, q, stamp)
         if newly:
             for j in newly:
                 name = self.robot.joint_names[j]
@@ -208,6 +212,19 @@ class MonitorNode(SuiteNode):
                     f"measured {evidence.measured:.4f} rad/s against at least "
                     f"{evidence.commanded:.4f} expected")
             self._locked_changed(stamp)
+
+    def _free_swinging(self, joints: list[int], q: np.ndarray, stamp: float) -> None:
+        """Report joints newly found moving on their own; with the option, brake them."""
+        brake = self.param("brake_free_swinging")
+        for j in joints:
+            evidence = self.detector.joints[j]
+            self.get_logger().error(
+                f"joint {self.robot.joint_names[j]} free-swinging (t = {stamp:.3f} s): measured "
+                f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
+                + ("; declaring it locked where it is (brake)" if brake else ""))
+            if brake:
+                self.detector.lock(j, float(q[j]), stamp)
+        self._locked_changed(stamp)  # a lock taken back, or the brake applied
 
     def _on_declare(self, msg: JointState) -> None:
         if self.robot is None:
@@ -338,6 +355,9 @@ class MonitorNode(SuiteNode):
                   "command_age_s": age if math.isfinite(age) else "none"}
         stalls = []
         statuses = []
+        swinging = [] if self.detector is None else sorted(
+            self.robot.joint_names[j] for j in self.detector.swinging)
+        values["free_swinging_joints"] = swinging
         if self.robot is not None:
             values.update(self._plant_values())
             for name in self.command_joints:
@@ -345,6 +365,8 @@ class MonitorNode(SuiteNode):
                 level, message = diagnostics.OK, "ok"
                 if name in locked:
                     level, message = diagnostics.ERROR, "locked"
+                elif name in swinging:
+                    level, message = diagnostics.ERROR, "free-swinging"
                 elif evidence.at_limit:
                     level, message = diagnostics.WARN, "stalled at a joint limit"
                     stalls.append(name)
@@ -355,8 +377,10 @@ class MonitorNode(SuiteNode):
                     "standard_error": evidence.standard_error}, joint=name))
         if self.problems.active:
             level, message = diagnostics.ERROR, self.problems.summary()
-        elif locked:
-            level, message = diagnostics.ERROR, f"locked: {sorted(locked)}"
+        elif locked or swinging:
+            level, message = diagnostics.ERROR, "; ".join(
+                [f"locked: {sorted(locked)}"] * bool(locked)
+                + [f"free-swinging: {swinging}"] * bool(swinging))
         elif stalls:
             level, message = diagnostics.WARN, f"stalled at a limit: {stalls}"
         elif age > self.param("command_timeout"):

@@ -180,6 +180,8 @@ class Scenario:
                                                       qos.RELIABLE)
         self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,
                                                         qos.RELIABLE)
+        self._swing_pub = self.driver.create_publisher(JointState, names.INJECT_FREE_SWING,
+                                                       qos.RELIABLE)
         self._raw: JointState | None = None
         self._metrics: dict[str, float] = {}
         self.driver.create_subscription(JointState, names.COMMAND_RAW, self._on_raw,
@@ -276,6 +278,12 @@ class Scenario:
         if self.record.detected_at is None or self.record.injected_at is None:
             return None
         return self.record.detected_at - self.record.injected_at
+
+    def inject_free_swing(self, joint: str) -> None:
+        """`joint` loses its torque (`ft/inject_free_swing`); returns once the sim has it."""
+        self._swing_pub.publish(JointState(name=[joint]))
+        if not self._spin_until(lambda: joint in self.sim.swinging):
+            raise TimeoutError(f"the sim did not free {joint} within 5 s of the injection")
 
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant."""

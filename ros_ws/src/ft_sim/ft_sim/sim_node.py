@@ -21,7 +21,11 @@ otherwise it follows its node clock. `step()` is public, so tests and the demo c
 run the plant faster than real time.
 
 `ft/inject_failure` (JointState, names) locks those joints where they are, from the
-next step, until `~/reset`; unknown names are rejected with a warning. A lock can
+next step, until `~/reset`; unknown names are rejected with a warning.
+`ft/inject_free_swing` (JointState, names) makes those joints lose their torque: they
+ignore the commands and swing under gravity as `ft_core.swing.pendulum_acceleration`
+says (needs the URDF's inertias: a joint without outboard inertia is refused with a
+warning); a lock injected on a swinging joint brakes it; `~/reset` ends both. A lock can
 also be scheduled with `failure.joint` and `failure.time` (s of plant time).
 """
 
@@ -30,7 +34,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ft_core import robots
+from ft_core import robots, swing
 from ft_core.plant import Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
 from rcl_interfaces.msg import FloatingPointRange
@@ -87,6 +91,8 @@ class SimNode(Node):
                            if self._own_clock else None)
         self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
+        self.create_subscription(JointState, names.INJECT_FREE_SWING, self._on_free_swing,
+                                 qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
         parameters.on_change(self, self._check_plant, self._configure_plant)
         parameters.request_model(self, self._set_model)
@@ -162,6 +168,7 @@ class SimNode(Node):
         except (robots.RobotModelError, ValueError) as error:
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
+        plant.free_swing_acceleration = lambda q, qd: swing.pendulum_acceleration(robot, q, qd)
         self.robot, self.plant = robot, plant
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
 
@@ -194,6 +201,34 @@ class SimNode(Node):
     def _on_inject(self, msg: JointState) -> None:
         if self.robot is not None:
             self.lock(list(msg.name))
+
+    @property
+    def swinging(self) -> list[str]:
+        """Names of the joints injected free-swinging (and not braked since)."""
+        if self.plant is None:
+            return []
+        return sorted(self.robot.joint_names[j] for j in self.plant.swinging)
+
+    def free_swing(self, joint_names: list[str]) -> None:
+        """Joints lose their torque and swing under gravity (failure injection)."""
+        _, inertia = self.robot.gravity_dynamics(self.plant.q)
+        for name in joint_names:
+            if name not in self.robot.joint_names:
+                self.get_logger().warning(f"inject_free_swing: unknown joint {name[:64]!r} "
+                                          "rejected", throttle_duration_sec=5.0)
+                continue
+            j = self.robot.joint_names.index(name)
+            if inertia[j] <= 0:
+                self.get_logger().warning(f"inject_free_swing: {name} has no inertia outboard "
+                                          "in the URDF, so it cannot swing: rejected")
+            elif j not in self.plant.swinging:
+                self.plant.swing(j)
+                self.get_logger().warning(f"joint {name} free-swinging from "
+                                          f"{self.plant.q[j]:.4f} rad (t = {self.t:.3f} s)")
+
+    def _on_free_swing(self, msg: JointState) -> None:
+        if self.robot is not None:
+            self.free_swing(list(msg.name))
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = ([self.robot.joint_names[j] for j in self.plant.release()]
