@@ -35,6 +35,7 @@ from ft_core.targets import (
     staleness_scale,
     twist_velocity,
 )
+from ft_core.task_channel import TaskChannel
 from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
@@ -43,7 +44,7 @@ from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, Header
 
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
@@ -137,6 +138,9 @@ class ControllerNode(SuiteNode):
         self._boxes_generation = 0
         self._last = None
         self._excursions: Excursions | None = None
+        self._channel: TaskChannel | None = None
+        self._suspect: str | None = None
+        self._suspect_sent = -math.inf
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
         self._rate_window = (0, self.now())
@@ -144,6 +148,8 @@ class ControllerNode(SuiteNode):
 
         self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
         self._metrics_pub = self.create_publisher(Float64MultiArray, names.METRICS, qos.RELIABLE)
+        self._suspect_pub = self.create_publisher(JointState, names.SUSPECTED_FAILURE,
+                                                  qos.RELIABLE)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
@@ -178,6 +184,7 @@ class ControllerNode(SuiteNode):
             return
         self.robot, self._order, self.engine = robot, order, engine
         self._excursions = self._observability(robot, {})
+        self._channel = TaskChannel(robot) if robot.task_space != "pose" else None
         self._model_source = (spec, parameters.chain_arguments(self))
         self._labels = metrics.labels(self.command_joints)
         self._boxes_dirty = len(self.param("critical_points")) > 0
@@ -485,6 +492,30 @@ class ControllerNode(SuiteNode):
             qd = np.zeros(robot.n)
         self._last = result
         self._publish(qd, result)
+        self._watch_task(q, qd, locked, now)
+
+    def _watch_task(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> None:
+        """Feed the task-space channel (`ft_core.task_channel`) on pose goals.
+
+        A new suspect is published on `ft/suspected_failure` for the monitor to decide.
+        """
+        if self._channel is None or self._target is None or self._target.kind != "pose":
+            return
+        error = float(np.linalg.norm(self.robot.task_error(self._target.value, q)))
+        joint = self._channel.update(now, q, qd, error, tuple(locked))
+        name = None if joint is None else self.robot.joint_names[joint]
+        if name is not None and name != self._suspect:
+            self.get_logger().warning(
+                f"task error not decreasing while joints are commanded: {name}'s loss explains "
+                f"the motion (residual {self._channel.residuals[joint]:.2f} of the unexplained "
+                "motion); suspected, for the monitor to decide")
+        if name is not None and (name != self._suspect
+                                 or now - self._suspect_sent >= self._channel.config.window):
+            # Again every window while it lasts: the monitor may not have had the evidence.
+            self._suspect_pub.publish(JointState(header=Header(
+                stamp=self.get_clock().now().to_msg()), name=[name]))
+            self._suspect_sent = now
+        self._suspect = name
 
     def _excite(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> np.ndarray:
         """The command with the observability excursion under way, if any (null space only)."""
@@ -560,7 +591,8 @@ class ControllerNode(SuiteNode):
                   "target": self._target.kind if self._target else "none",
                   "target_age_s": now - self._target.stamp if self._target else "none",
                   "locked_joints": sorted(self._locked), "soft_limits": self._soft_note,
-                  "observability": self._observability_note()}
+                  "observability": self._observability_note(),
+                  "suspected_lock": self._suspect or "none"}
         if self._last is not None:
             values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
                           status=self._last.status)

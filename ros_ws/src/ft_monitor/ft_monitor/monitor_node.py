@@ -114,6 +114,8 @@ class MonitorNode(SuiteNode):
                                  qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
+        self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
+                                 qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
         parameters.on_change(self, self._detector_config, self._configure_detector)
         parameters.request_model(self, self._set_model)
@@ -225,6 +227,35 @@ class MonitorNode(SuiteNode):
             if brake:
                 self.detector.lock(j, float(q[j]), stamp)
         self._locked_changed(stamp)  # a lock taken back, or the brake applied
+
+    def _on_suspect(self, msg: JointState) -> None:
+        """A joint the controller's task channel suspects: locked if the measurements agree."""
+        if self.robot is None or self._q is None:
+            return
+        try:
+            known = convert.names_to_indices(list(msg.name)[:convert.MAX_NAMES],
+                                             self.robot.joint_names)
+        except convert.MessageError as error:
+            self.get_logger().warning(f"ft/suspected_failure ignored: {error}",
+                                      throttle_duration_sec=5.0)
+            return
+        cfg, now = self.detector.config, self.now()
+        for j in known.values():
+            evidence, name = self.detector.joints[j], self.robot.joint_names[j]
+            if j in self.detector.locked:
+                continue
+            still = (abs(evidence.commanded) >= cfg.min_command
+                     and abs(evidence.measured) < cfg.ratio * abs(evidence.commanded))
+            if not still:
+                self.get_logger().warning(
+                    f"suspected lock of {name} not confirmed: measured {evidence.measured:.4f} "
+                    f"rad/s, commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
+                continue
+            self.detector.lock(j, float(self._q[j]), now)
+            self.get_logger().error(
+                f"joint {name} locked (suspected by the task-space channel, confirmed: measured "
+                f"{evidence.measured:.4f} rad/s against {evidence.commanded:.4f} commanded)")
+            self._locked_changed(now)
 
     def _on_declare(self, msg: JointState) -> None:
         if self.robot is None:

@@ -75,6 +75,7 @@ class ScenarioConfig:
         goal_tolerance: m (a pose goal also within `ANGLE_PER_METRE` x as many rad);
             goal_timeout: s per visit.
         command_latency, response_time (s), hold_last_command: the sim's plant options.
+        start: the initial configuration (rad, chain order; default the bent one).
     """
 
     robot: str = "panda"
@@ -96,6 +97,7 @@ class ScenarioConfig:
     command_latency: float = 0.0
     response_time: float = 0.0
     hold_last_command: bool = False
+    start: tuple[float, ...] = ()
 
 
 @dataclass
@@ -137,7 +139,8 @@ class Scenario:
                  bag: Path | None = None):
         self.robot = robots.load(config.robot, config.base_link or None,
                                  config.tip_link or None, task_space=config.task_space)
-        start = selfmotion.bent_configuration(self.robot)
+        start = (np.array(config.start, dtype=float) if config.start
+                 else selfmotion.bent_configuration(self.robot))
         if not config.points and self.robot.name in TASK_POINTS and (
                 config.task_space == "position"):
             config = replace(config, points=TASK_POINTS[self.robot.name])
@@ -235,7 +238,7 @@ class Scenario:
         msg.header.stamp = convert.stamp_from_nanoseconds(round(self.sim.t * 1e9))
         point = self.config.points[index]
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (
-            float(v) for v in point[:3])
+            float(v) for v in (*point[:3], 0.0, 0.0)[:3])  # a planar point has z = 0
         msg.pose.orientation.w = 1.0
         if len(point) == 7:
             o = msg.pose.orientation
