@@ -283,9 +283,9 @@ class ControllerNode(SuiteNode):
         return Excursions(robot.n, config) if value["enabled"] else None
 
     @property
-    def critical_box(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The soft limits (lower, upper; rad) in force from the critical points, if any."""
-        return self._critical_box
+    def suspected_lock(self) -> str | None:
+        """The joint the task-space channel suspects now, if any."""
+        return self._suspect
 
     @property
     def soft_limits_note(self) -> str:

@@ -242,8 +242,8 @@ class MonitorNode(SuiteNode):
         cfg, now = self.detector.config, self.now()
         for j in known.values():
             evidence, name = self.detector.joints[j], self.robot.joint_names[j]
-            if j in self.detector.locked:
-                continue
+            if j in self.detector.locked or j in self.detector.swinging:
+                continue  # known already (a free-swinging joint stays reported as such)
             still = (abs(evidence.commanded) >= cfg.min_command
                      and abs(evidence.measured) < cfg.ratio * abs(evidence.commanded))
             if not still:
