@@ -71,6 +71,7 @@ class Graph:
                                       qos.SENSOR_INPUT)
         self._goal = self.node.create_publisher(PoseStamped, "ft/target_pose", qos.RELIABLE)
         self._inject = self.node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
+        self._free = self.node.create_publisher(JointState, "ft/inject_free_swing", qos.RELIABLE)
         self._goal_index = 0
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
@@ -145,6 +146,10 @@ class Graph:
     def inject(self, joint: str) -> None:
         """Lock a joint in the sim (the monitor is not told)."""
         self._inject.publish(JointState(name=[joint]))
+
+    def inject_free_swing(self, joint: str) -> None:
+        """Make a joint of the sim lose its torque (the monitor is not told)."""
+        self._free.publish(JointState(name=[joint]))
 
     def locked_names(self) -> list[str]:
         """The newest locked set seen (empty before any message)."""

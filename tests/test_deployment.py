@@ -9,6 +9,7 @@ On main before issue 13, the same graphs locked 6 of 7 joints within a minute.
 
 from __future__ import annotations
 
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +87,16 @@ def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
                60.0, "the soft limits from the critical points")
         stamps = [convert.stamp_seconds(c.header.stamp) for c in g.raw_commands[count:]]
         # Tracing took 0.7 s (these points) to 2.4 s in the loop; now the gaps are the
-        # machine's scheduling, up to 0.46 s seen on a loaded 2-core machine.
-        assert max(np.diff(stamps)) < 0.6, "the control loop stalled while the boxes were traced"
+        # machine's scheduling, up to 0.46 s seen on a loaded 2-core machine, and once
+        # 1.2 s in a full test run: a stall of the whole machine, which the sim's joint
+        # states show too. A gap of the controller's alone is the loop blocking.
+        states = np.array([convert.stamp_seconds(m.header.stamp) for m in g.states])
+        for before, after in pairwise(stamps):
+            if after - before >= 0.6:
+                inside = states[(states > before) & (states < after)]
+                assert np.max(np.diff([before, *inside, after])) > 0.5 * (after - before), (
+                    f"the control loop stalled for {after - before:.2f} s while the boxes "
+                    "were traced, and the sim did not")
         g.spin(4.0, goal_period=1.5)
         for _ in range(2):
             g.kill("controller")
@@ -164,3 +173,40 @@ def test_orders_the_nodes_must_not_take(tmp_path: Path) -> None:
         g.spin(8.0, goal_period=1.5)
         assert_observed_healthy_motion(g)
         assert g.values("/controller")[-1]["locked_joints"] == "[]"
+
+
+def test_observability_motion_finds_a_lock_the_task_never_reveals(tmp_path: Path) -> None:
+    """Issue 16: the arm holds a goal when panda_joint7 (on the tool axis) locks.
+
+    The controller's excursions make the lock visible to the monitor, in separate
+    processes on a plant that holds the last command.
+    """
+    params = parameters(tmp_path, HOLDING_PLANT)
+    params["controller"] |= {"observability.enabled": True, "observability.idle_time": 2.0}
+    with graph(tmp_path, params) as g:
+        g.send_goal()
+        g.spin(8.0)
+        assert g.ever_locked() == set()
+        g.inject("panda_joint7")
+        g.wait(lambda: g.locked_names() == ["panda_joint7"], 25.0,
+               "panda_joint7 detected through the excursions")
+        assert g.ever_locked() == {"panda_joint7"}
+
+
+def test_a_free_swinging_joint_is_reported_not_locked(tmp_path: Path) -> None:
+    """Issue 16: joint 2 of the example-robot-data Panda (with inertias) loses its torque.
+
+    The arm holds a goal; the monitor reports the joint free-swinging and locks nothing.
+    """
+    from paths import PANDA_URDF
+
+    params = parameters(tmp_path, WATCHDOG_PLANT, robot_model=str(PANDA_URDF))
+    with graph(tmp_path, params) as g:
+        g.send_goal()
+        g.spin(6.0)
+        g.inject_free_swing("panda_joint2")
+        g.wait(lambda: any(v.get("free_swinging_joints") == "[panda_joint2]"
+                           for v in g.values("/monitor")[-2:]), 15.0,
+               "panda_joint2 reported free-swinging")
+        assert g.ever_locked() == set()
+        assert "free-swinging" in g.values("/monitor")[-1]["message"]

@@ -508,7 +508,7 @@ class ControllerNode(SuiteNode):
             self.get_logger().warning(
                 f"task error not decreasing while joints are commanded: {name}'s loss explains "
                 f"the motion (residual {self._channel.residuals[joint]:.2f} of the unexplained "
-                "motion); suspected, for the monitor to decide")
+                "motion); suspected, for the monitor to decide", throttle_duration_sec=5.0)
         if name is not None and (name != self._suspect
                                  or now - self._suspect_sent >= self._channel.config.window):
             # Again every window while it lasts: the monitor may not have had the evidence.
