@@ -247,10 +247,13 @@ class Scenario:
 
     def inject(self, joint: str) -> None:
         """Lock `joint` through `ft/inject_failure`; returns once the sim has it locked."""
-        self._inject_pub.publish(JointState(name=[joint]))
-        if not self._spin_until(lambda: joint in self.sim.locked):
-            raise TimeoutError(f"the sim did not lock {joint} within 5 s of the injection")
+        self._publish_failure(self._inject_pub, joint, lambda: joint in self.sim.locked)
         self.record.injected_at = self.sim.t
+
+    def _publish_failure(self, publisher, joint: str, done) -> None:
+        publisher.publish(JointState(name=[joint]))
+        if not self._spin_until(done):
+            raise TimeoutError(f"the sim did not take the failure of {joint} within 5 s")
 
     def distance(self, index: int) -> float:
         """Position distance (m) of the tool from task point `index`."""
@@ -284,9 +287,7 @@ class Scenario:
 
     def inject_free_swing(self, joint: str) -> None:
         """`joint` loses its torque (`ft/inject_free_swing`); returns once the sim has it."""
-        self._swing_pub.publish(JointState(name=[joint]))
-        if not self._spin_until(lambda: joint in self.sim.swinging):
-            raise TimeoutError(f"the sim did not free {joint} within 5 s of the injection")
+        self._publish_failure(self._swing_pub, joint, lambda: joint in self.sim.swinging)
 
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant."""
