@@ -125,8 +125,8 @@ class FakePlant:
         return spin_until(self.executor, fresh, timeout)
 
     def run(self, steps: int, each=None) -> None:
-        """`steps` steps, calling `each(plant)` before every one."""
-        for _ in range(steps):
+        """`steps` steps, calling `each(plant)` before every one; each must get its command."""
+        for step in range(steps):
             if each is not None:
                 each(self)
-            self.step()
+            assert self.step(), f"no fresh command at step {step} of {steps}"

@@ -63,12 +63,15 @@ class Loop:
             measured = self.monitor._q
             self.q_at_command = None if measured is None else measured.copy()
             command(self)
-            spin_until(self.executor, lambda: len(self.commands) > before, 2.0)
+            assert spin_until(self.executor, lambda: len(self.commands) > before, 2.0), (
+                "no command from the monitor within 2 s")
             # The sim has the monitor's output once its buffer holds it.
-            spin_until(self.executor, lambda: self.sim.command_time >= self.sim.t, 2.0)
+            assert spin_until(self.executor, lambda: self.sim.command_time >= self.sim.t, 2.0), (
+                "the sim did not receive the monitor's command within 2 s")
         self.sim.step()
-        spin_until(self.executor,
-                   lambda: self.monitor.detector.latest_time >= self.sim.t - 1e-9, 2.0)
+        assert spin_until(self.executor,
+                          lambda: self.monitor.detector.latest_time >= self.sim.t - 1e-9, 2.0), (
+            "the monitor did not take the sim's joint state within 2 s")
 
     def diagnostics_after(self, time: float, command: Callable[[Loop], None] | None = None,
                           ) -> DiagnosticStatus:
