@@ -77,7 +77,8 @@ def controller_status(plant: FakePlant):
 
 
 def all_finite(plant: FakePlant) -> bool:
-    return (all(np.all(np.isfinite(c.velocity)) for c in plant.commands)
+    """Commands arrived, and every command and metric was finite."""
+    return (bool(plant.commands) and all(np.all(np.isfinite(c.velocity)) for c in plant.commands)
             and all(np.all(np.isfinite(m.data)) for m in plant.metrics))
 
 
@@ -221,7 +222,7 @@ def test_errors_show_in_diagnostics() -> None:
         status = controller_status(plant)
         assert status.level == diagnostics.ERROR and "joint_states" in status.message
         joints = [s for s in plant.diagnostics[-1].status if "joint" in s.name]
-        assert len(joints) == 7 or not joints
+        assert joints == []  # no per-joint status without a fresh state to judge
 
 
 @pytest.mark.parametrize("executor_type", [SingleThreadedExecutor, EventsExecutor])
@@ -338,7 +339,7 @@ def test_critical_points_become_soft_limits() -> None:
 
 
 @pytest.mark.parametrize(("name", "value", "reason"), [
-    ("kfm_gain", -1.0, ""),
+    ("kfm_gain", -1.0, "out of range"),
     ("resolution", "fastest", "resolution"),
     ("soft_limits.lower", [0.0, 1.0], "soft_limits"),
     ("failure_probabilities", [1.0, -1.0, 1.0, 1.0, 1.0, 1.0, 1.0], "probabilit"),
