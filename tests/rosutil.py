@@ -31,10 +31,7 @@ def ros_context(shared: bool = False, executor_type: type[Executor] = SingleThre
     ROS_DOMAIN_ID instead, to talk with nodes in subprocesses. `executor_type` is
     rclpy's SingleThreadedExecutor or the EventsExecutor the executables spin.
     """
-    session = int(os.environ["ROS_DOMAIN_ID"])
-    domain = session
-    while not shared and domain == session:
-        domain = (session + next(_contexts)) % 100 + 1
+    domain = int(os.environ["ROS_DOMAIN_ID"]) if shared else fresh_domain()
     context = Context()
     rclpy.init(context=context, domain_id=domain)
     executor = executor_type(context=context)
@@ -43,6 +40,15 @@ def ros_context(shared: bool = False, executor_type: type[Executor] = SingleThre
     finally:
         executor.shutdown()
         rclpy.shutdown(context=context)
+
+
+def fresh_domain() -> int:
+    """A DDS domain for one test context: never the session's, a new one each call."""
+    session = int(os.environ["ROS_DOMAIN_ID"])
+    domain = session
+    while domain == session:
+        domain = (session + next(_contexts)) % 100 + 1
+    return domain
 
 
 def spin_until(executor: Executor, condition: Callable[[], bool],

@@ -10,6 +10,7 @@ from ft_core import engine, robots
 from ft_core.observability import OBSERVED_SPEED, Excursions, ObservabilityConfig
 from ft_sim.scenario import TASK_POINTS, Scenario, ScenarioConfig
 from rclpy.parameter import Parameter
+from rosutil import fresh_domain
 
 PANDA = robots.load("panda", task_space="position")
 
@@ -97,7 +98,7 @@ def test_a_lock_on_a_joint_the_task_never_moves_is_found_by_the_excursions(
     config = ScenarioConfig(points=(TASK_POINTS["panda"][0],), soft_limits=False, rate=125.0,
                             noise=0.0, command_latency=0.02, response_time=0.03,
                             hold_last_command=True)
-    scenario = Scenario(config, domain_id=88 if enabled else 89)
+    scenario = Scenario(config, domain_id=fresh_domain())
     try:
         scenario.controller.set_parameters([
             Parameter("observability.enabled", value=enabled),
@@ -131,7 +132,7 @@ def test_the_controller_refuses_bad_observability_parameters() -> None:
     from rclpy.context import Context
 
     context = Context()
-    rclpy.init(context=context, domain_id=87)
+    rclpy.init(context=context, domain_id=fresh_domain())
     try:
         node = ControllerNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"), Parameter("task_space", value="position")])

@@ -11,6 +11,7 @@ from ft_sim import campaign, demo
 from ft_sim.scenario import ScenarioConfig, run
 from models import chain_urdf
 from paths import PANDA_URDF, REPO
+from rosutil import fresh_domain
 
 
 def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> None:
@@ -85,7 +86,7 @@ def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
 
 def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     config = ScenarioConfig(lock_joint="panda_joint2", lock_time=3.0, duration=12.0)
-    summary = demo.summarise(config, run(config, domain_id=95))
+    summary = demo.summarise(config, run(config, domain_id=fresh_domain()))
     assert summary["detected"] == ["panda_joint2"]
     assert summary["error_before"] < 1e-9
     assert summary["error_during"] > 10 * summary["error_after"]
@@ -98,7 +99,7 @@ def test_a_campaign_run(soft: bool) -> None:
     """One run per condition on the real-world Panda URDF and a realistic plant."""
     design = campaign.design_of(str(PANDA_URDF), "", "", {
         "command_latency": 0.02, "response_time": 0.02, "hold_last_command": True})
-    result = campaign.one_run(campaign.Task(3, "blend", soft, 96 if soft else 97, design))
+    result = campaign.one_run(campaign.Task(3, "blend", soft, fresh_domain(), design))
     assert result["false_locks"] == []
     assert result["correct_detection"] and result["non_finite"] == 0
     assert len(result["waypoint_visits"]) >= 2  # it wandered before the lock

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from ft_core import robots, swing
 from paths import PANDA_URDF
+from rosutil import fresh_domain
 
 #: In a vertical plane: joints about z, gravity along -y.
 DOWN_Y = (0.0, -9.81, 0.0)
@@ -140,7 +141,7 @@ def test_the_monitor_reports_a_free_swinging_joint_and_can_brake_it(brake: bool)
     config = ScenarioConfig(robot=str(PANDA_URDF), points=(TASK_POINTS["panda"][0],),
                             soft_limits=False, rate=125.0, command_latency=0.02,
                             response_time=0.03, hold_last_command=True)
-    scenario = Scenario(config, domain_id=84 if brake else 83)
+    scenario = Scenario(config, domain_id=fresh_domain())
     try:
         scenario.monitor.set_parameters([Parameter("brake_free_swinging", value=brake)])
         scenario.start()

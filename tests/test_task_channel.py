@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from ft_core import robots, selfmotion
 from ft_core.task_channel import TaskChannel, TaskChannelConfig
+from rosutil import fresh_domain
 
 PLANAR = robots.load("planar3r")
 DT = 0.005
@@ -106,7 +107,7 @@ def test_the_controller_suspects_and_the_monitor_confirms_a_lock_it_could_not_se
                             soft_limits=False, resolution="least_norm", rate=125.0,
                             start=tuple(float(v) for v in stuck), command_latency=0.02,
                             response_time=0.03, hold_last_command=True)
-    scenario = Scenario(config, domain_id=82)
+    scenario = Scenario(config, domain_id=fresh_domain())
     try:
         scenario.start()
         scenario.inject("joint1")
@@ -135,7 +136,7 @@ def test_the_monitor_refuses_a_suspect_its_measurements_contradict() -> None:
 
     config = ScenarioConfig(points=TASK_POINTS["panda"][:2], soft_limits=False, rate=125.0,
                             command_latency=0.02, response_time=0.03)
-    scenario = Scenario(config, domain_id=81)
+    scenario = Scenario(config, domain_id=fresh_domain())
     try:
         suspect = scenario.driver.create_publisher(JointState, names.SUSPECTED_FAILURE,
                                                    qos.RELIABLE)
