@@ -114,3 +114,12 @@ def test_recurring_problems_are_counted_not_logged_again() -> None:
                          ("info", "frame: recovered"),
                          ("error", "twist: twist has non-finite values")]
     assert episodes.active == {"twist": "twist has non-finite values"}
+
+
+def test_array_vectors_are_put_in_chain_order_and_checked() -> None:
+    np.testing.assert_array_equal(convert.array_vector([1.0, 2.0, 3.0], [2, 0, 1]),
+                                  [2.0, 3.0, 1.0])
+    with pytest.raises(convert.MessageError, match="2 values for 3 joints"):
+        convert.array_vector([1.0, 2.0], [0, 1, 2])
+    with pytest.raises(convert.MessageError, match="non-finite"):
+        convert.array_vector([1.0, float("nan"), 3.0], [0, 1, 2])

@@ -299,10 +299,30 @@ class MonitorNode(SuiteNode):
                 raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
             qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
         except convert.MessageError as error:
-            self.problems.report("ft/command_raw", f"{error}: commanding zeros")
-            self._publish_command(np.zeros(self.robot.n), msg.header.stamp)
+            self._refuse("ft/command_raw", error, msg.header.stamp)
             return
-        self.problems.report("ft/command_raw", None)
+        self._forward("ft/command_raw", qd, msg.header.stamp, now)
+
+    def _on_array(self, msg: Float64MultiArray) -> None:
+        """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
+        if self.robot is None:
+            return
+        stamp = self.get_clock().now().to_msg()
+        try:
+            qd = convert.array_vector(msg.data, self._order)
+        except convert.MessageError as error:
+            self._refuse("ft/command_raw_array", error, stamp)
+            return
+        self._forward("ft/command_raw_array", qd, stamp, self.now())
+
+    def _refuse(self, topic: str, error: convert.MessageError, stamp) -> None:
+        """A malformed command: reported, and replaced by explicit zeros."""
+        self.problems.report(topic, f"{error}: commanding zeros")
+        self._publish_command(np.zeros(self.robot.n), stamp)
+
+    def _forward(self, topic: str, qd: np.ndarray, stamp, now: float) -> None:
+        """A good command (chain order): locked joints zeroed or remapped, then published."""
+        self.problems.report(topic, None)
         self._last_command = now
         self._last_command_steady = time.monotonic()
         locked = sorted(self.detector.locked)
@@ -315,15 +335,7 @@ class MonitorNode(SuiteNode):
             qd = remap.within_limits(qd, limits)
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(self.robot.n)
-        self._publish_command(qd, msg.header.stamp)
-
-    def _on_array(self, msg: Float64MultiArray) -> None:
-        """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output)."""
-        if self.robot is None:
-            return
-        command = convert.joint_state(self.command_joints, self.get_clock().now().to_msg())
-        command.velocity = list(msg.data)  # a wrong length is caught as a malformed command
-        self._on_command(command)
+        self._publish_command(qd, stamp)
 
     # ----------------------------------------------------------------- outputs
     def _publish_command(self, qd_chain: np.ndarray, stamp) -> None:

@@ -80,6 +80,23 @@ def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position"
     return vector
 
 
+def array_vector(values: Sequence[float], order: Sequence[int]) -> np.ndarray:
+    """Values given in command order (a Float64MultiArray's data), put in chain order.
+
+    `order[k]` is the chain index of command entry k. Raises MessageError for a wrong
+    length or non-finite values.
+    """
+    order = np.asarray(order, dtype=int)
+    if len(values) != order.size:
+        raise MessageError(f"array has {len(values)} values for {order.size} joints")
+    data = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(data)):
+        raise MessageError(f"non-finite values at {np.flatnonzero(~np.isfinite(data))[:10]}")
+    vector = np.empty(order.size)
+    vector[order] = data
+    return vector
+
+
 def joint_state(joints: Sequence[str], stamp: Time, position: Sequence[float] | None = None,
                 velocity: Sequence[float] | None = None) -> JointState:
     """A JointState with the given names, stamp and (optional) positions and velocities."""
