@@ -45,6 +45,12 @@ def assert_observed_healthy_motion(g: Graph) -> None:
     assert monitor[-1].get("plant_model") == "identified", monitor[-1]
 
 
+def observing(g: Graph) -> None:
+    """Wait until the monitor says it observes (it has seen the plant follow)."""
+    g.wait(lambda: any(v.get("observing") == "yes" for v in g.values("/monitor")[-2:]), 20.0,
+           "the monitor observing the plant")
+
+
 def test_a_healthy_minute_with_command_pauses(tmp_path: Path) -> None:
     with graph(tmp_path, parameters(tmp_path, WATCHDOG_PLANT)) as g:
         g.spin(40.0, goal_period=1.5)
@@ -184,8 +190,12 @@ def test_observability_motion_finds_a_lock_the_task_never_reveals(tmp_path: Path
     params = parameters(tmp_path, HOLDING_PLANT)
     params["controller"] |= {"observability.enabled": True, "observability.idle_time": 2.0}
     with graph(tmp_path, params) as g:
-        g.send_goal()
-        g.spin(8.0)
+        # Moving goals first (a goal sent before the controller subscribed would be lost,
+        # and the monitor decides nothing until it has seen the plant follow), then the
+        # last goal held.
+        g.spin(6.0, goal_period=1.5)
+        observing(g)
+        g.spin(6.0)
         assert g.ever_locked() == set()
         g.inject("panda_joint7")
         g.wait(lambda: g.locked_names() == ["panda_joint7"], 25.0,
@@ -202,8 +212,9 @@ def test_a_free_swinging_joint_is_reported_not_locked(tmp_path: Path) -> None:
 
     params = parameters(tmp_path, WATCHDOG_PLANT, robot_model=str(PANDA_URDF))
     with graph(tmp_path, params) as g:
-        g.send_goal()
-        g.spin(6.0)
+        g.spin(6.0, goal_period=1.5)
+        observing(g)
+        g.spin(2.0)
         g.inject_free_swing("panda_joint2")
         g.wait(lambda: any(v.get("free_swinging_joints") == "[panda_joint2]"
                            for v in g.values("/monitor")[-2:]), 15.0,
