@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from ft_core import bounds, robots, selfmotion
+from ft_core import bounds, cli, robots, selfmotion
 
 
 def run(tmp_path: Path, *args: str) -> tuple[int, Path]:
@@ -104,7 +104,7 @@ def test_without_points_it_chooses_them_around_the_seed_and_says_which(
     assert "no --points: chose 3 around the seed: --points " in out
     chosen = out.split("--points ")[1].split("\n")[0].strip('"')
     params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
-    np.testing.assert_allclose(params["critical_points"], bounds.parse_points(chosen),
+    np.testing.assert_allclose(params["critical_points"], cli.parse_points(chosen),
                                atol=1e-4)
     robot = robots.load(str(PANDA_URDF), task_space="position")
     start = selfmotion.bent_configuration(robot)

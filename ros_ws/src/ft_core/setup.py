@@ -20,6 +20,9 @@ setup(
     entry_points={
         "console_scripts": [
             "bounds = ft_core.bounds:main",
+            "design = ft_core.design:main",
+            "map = ft_core.placement:main",
+            "plan = ft_core.planning:main",
         ],
     },
 )

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ft_core import robots, selfmotion
+from ft_core import cli, selfmotion
 
 #: Stand-in for "no soft limit" on a joint without position limits (YAML has no inf
 #: that every ROS 2 parameter parser accepts).
@@ -57,19 +57,6 @@ class _Progress:
             self.stream.write("\r" + " " * 40 + "\r")
 
 
-def _numbers(text: str) -> list[float]:
-    return [float(v) for v in text.replace(",", " ").split()]
-
-
-def parse_points(text: str) -> list[float]:
-    """'x1,y1,z1;x2,y2,z2' -> the flat list [x1, y1, z1, x2, y2, z2]."""
-    flat: list[float] = []
-    for chunk in text.split(";"):
-        if chunk.strip():
-            flat += _numbers(chunk)
-    return flat
-
-
 def _fmt(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:7.3f}" for v in values) + "]"
 
@@ -94,22 +81,19 @@ def parameters(args: argparse.Namespace, lower: np.ndarray, upper: np.ndarray,
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     parser = argparse.ArgumentParser(prog="ft-bounds", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", required=True, help="built-in name or URDF file")
-    parser.add_argument("--task", default="position", choices=sorted(robots.TASK_DIMENSIONS))
+    cli.add_model_arguments(parser, task="position")
     parser.add_argument("--points", help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: "
                         "x,y,z,qx,qy,qz,qw); default: three points around the seed")
     parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing "
                         "(default: the built-in's home, else a bent configuration)")
-    parser.add_argument("--base-link")
-    parser.add_argument("--tip-link")
     parser.add_argument("--step", type=float, default=selfmotion.STEP,
                         help="tracing step (rad), default %(default)s")
     parser.add_argument("--output", "-o", type=Path, default=Path("ft_bounds.yaml"),
                         help="parameters file to write, default %(default)s")
     args = parser.parse_args(argv)
     try:
-        robot = robots.load(args.robot, args.base_link, args.tip_link, args.task)
-        seed = None if args.seed is None else np.array(_numbers(args.seed))
+        robot = cli.load_robot(args)
+        seed = None if args.seed is None else np.array(cli.numbers(args.seed))
         if seed is not None and seed.shape != (robot.n,):
             raise ValueError(f"--seed needs {robot.n} joint values, got {seed.size}")
         # Without --seed: the built-in's home, else a bent configuration (the all-zero pose
@@ -118,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.points is None:
             flat = selfmotion.flat_from_targets(robot, selfmotion.points_around(robot, around))
         else:
-            flat = parse_points(args.points)
+            flat = cli.parse_points(args.points)
         targets = selfmotion.targets_from_flat(robot, flat)
         if not (args.step > 0):
             raise ValueError("--step must be positive")
