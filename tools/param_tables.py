@@ -1,0 +1,216 @@
+"""Write the nodes' parameter tables into docs/*.md from the parameter declarations.
+
+A page asks for a node's table with two marker comments; everything between them
+is generated::
+
+    <!-- parameters: ft_controller.controller_node -->
+    ...
+    <!-- parameters: end -->
+
+The rows come from what the node module declares: its module-level `PARAMETERS`
+dict (name -> (default, description, extra descriptor fields)) or, for a node
+that declares a literal dict inline (`parameters.declare(self, {...})`), that
+dict, evaluated in the module's namespace. Importing a node module does not start
+ROS, and neither does this script.
+
+Usage (from the repository root)::
+
+    .venv/bin/python tools/param_tables.py --write   # regenerate the tables
+    .venv/bin/python tools/param_tables.py --check   # exit 1 with a diff if stale
+
+`tests/test_docs.py` runs the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import difflib
+import importlib
+import inspect
+import re
+import sys
+from pathlib import Path
+
+from rclpy.parameter import Parameter
+
+REPO = Path(__file__).resolve().parents[1]
+DOCS = REPO / "docs"
+#: The node modules whose parameters must be documented somewhere in docs/.
+NODES = (
+    "ft_controller.controller_node",
+    "ft_monitor.monitor_node",
+    "ft_sim.sim_node",
+    "ft_sim.fault_injector_node",
+)
+COMMAND = ".venv/bin/python tools/param_tables.py --write"
+BEGIN = re.compile(r"^<!-- parameters: (?!end -->)([\w.]+) -->\n", re.MULTILINE)
+END = "<!-- parameters: end -->\n"
+
+_TYPE_NAMES = {
+    Parameter.Type.BOOL: "bool",
+    Parameter.Type.INTEGER: "integer",
+    Parameter.Type.DOUBLE: "double",
+    Parameter.Type.STRING: "string",
+    Parameter.Type.BYTE_ARRAY: "byte[]",
+    Parameter.Type.BOOL_ARRAY: "bool[]",
+    Parameter.Type.INTEGER_ARRAY: "integer[]",
+    Parameter.Type.DOUBLE_ARRAY: "double[]",
+    Parameter.Type.STRING_ARRAY: "string[]",
+}
+
+
+def declared_parameters(module_name: str) -> dict[str, tuple[object, str, dict]]:
+    """The parameters a node module declares.
+
+    Args:
+        module_name: a node module, such as `ft_sim.sim_node`.
+
+    Returns:
+        name -> (default, description, extra descriptor fields), in declaration
+        order: the module's `PARAMETERS`, or else the literal dicts it passes to
+        `parameters.declare`.
+
+    Raises:
+        LookupError: the module declares neither.
+    """
+    module = importlib.import_module(module_name)
+    if hasattr(module, "PARAMETERS"):
+        return dict(module.PARAMETERS)
+    found: dict[str, tuple[object, str, dict]] = {}
+    for node in ast.walk(ast.parse(inspect.getsource(module))):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr == "declare" and len(node.args) == 2
+                and isinstance(node.args[1], ast.Dict)):
+            expression = ast.Expression(node.args[1])
+            code = compile(ast.fix_missing_locations(expression), module_name, "eval")
+            found.update(eval(code, vars(module)))  # the module's own literal, in its namespace
+    if not found:
+        raise LookupError(f"{module_name} declares no PARAMETERS and no literal dict")
+    return found
+
+
+def _type(default: object) -> Parameter.Type:
+    if isinstance(default, Parameter.Type):
+        return default
+    return Parameter.Type.from_parameter_value(default)
+
+
+def _default(default: object) -> str:
+    if isinstance(default, Parameter.Type):
+        return "`[]`"
+    if isinstance(default, bool):
+        return f"`{str(default).lower()}`"
+    if isinstance(default, str):
+        return f'`"{default}"`'
+    if isinstance(default, list):
+        return "`[" + ", ".join(_number(v) for v in default) + "]`"
+    return f"`{_number(default)}`"
+
+
+def _number(value: object) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _range(extra: dict) -> str:
+    ranges = extra.get("floating_point_range") or extra.get("integer_range") or []
+    if not ranges:
+        return ""
+    bounds = ranges[0]
+    text = f"{_number(bounds.from_value)} to {_number(bounds.to_value)}"
+    step = getattr(bounds, "step", 0)
+    return text + (f", step {_number(step)}" if step else "")
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def table(declared: dict[str, tuple[object, str, dict]]) -> str:
+    """A Markdown table of declared parameters.
+
+    Args:
+        declared: name -> (default, description, extra descriptor fields).
+
+    Returns:
+        The table, one row per parameter in declaration order, ending in a newline.
+    """
+    lines = ["| parameter | type | default | range | at run time | description |",
+             "|---|---|---|---|---|---|"]
+    for name, (default, description, extra) in declared.items():
+        changeable = "read-only" if extra.get("read_only") else "settable"
+        lines.append(f"| `{name}` | {_TYPE_NAMES[_type(default)]} | {_default(default)} | "
+                     f"{_range(extra)} | {changeable} | {_cell(description)} |")
+    return "\n".join(lines) + "\n"
+
+
+def render(text: str) -> str:
+    """A page's text with every marked table regenerated.
+
+    Args:
+        text: a Markdown page.
+
+    Returns:
+        The page with the text between each pair of markers replaced.
+
+    Raises:
+        ValueError: a begin marker without its end marker.
+    """
+    out, position = [], 0
+    for match in BEGIN.finditer(text):
+        if match.start() < position:
+            raise ValueError(f"nested parameter markers at {match.group(0).strip()}")
+        end = text.find(END, match.end())
+        if end < 0:
+            raise ValueError(f"{match.group(0).strip()} has no {END.strip()}")
+        out += [text[position:match.end()], table(declared_parameters(match.group(1)))]
+        position = end
+    out.append(text[position:])
+    return "".join(out)
+
+
+def documented_nodes(pages: list[Path]) -> set[str]:
+    """The node modules whose tables the pages ask for."""
+    return {m.group(1) for page in pages for m in BEGIN.finditer(page.read_text())}
+
+
+def stale(pages: list[Path]) -> dict[Path, str]:
+    """Pages whose tables are not current, with a unified diff for each."""
+    diffs = {}
+    for page in pages:
+        text = page.read_text()
+        fresh = render(text)
+        if fresh != text:
+            diffs[page] = "".join(difflib.unified_diff(
+                text.splitlines(keepends=True), fresh.splitlines(keepends=True),
+                f"{page.relative_to(REPO)} (committed)", f"{page.relative_to(REPO)} (generated)"))
+    return diffs
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Regenerate (`--write`) or check (`--check`) the tables of docs/*.md."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    mode = parser.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--write", action="store_true", help="rewrite stale tables")
+    mode.add_argument("--check", action="store_true", help="exit 1 if a table is stale")
+    args = parser.parse_args(argv)
+    pages = sorted(DOCS.glob("*.md"))
+    missing = set(NODES) - documented_nodes(pages)
+    if missing:
+        print(f"no page in docs/ has a parameter table for {sorted(missing)}", file=sys.stderr)
+        return 1
+    diffs = stale(pages)
+    for page, diff in diffs.items():
+        if args.write:
+            page.write_text(render(page.read_text()))
+            print(f"rewrote {page.relative_to(REPO)}")
+        else:
+            sys.stdout.write(diff)
+    if args.check and diffs:
+        print(f"parameter tables are stale; regenerate with: {COMMAND}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
