@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import limits, measures, resolution, robots
+from ft_core import limits, measures, robots, velocity_jump
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
 from ft_core.pseudoinverse import Damping, damped_pinv
 from hypothesis import given, settings
@@ -247,7 +247,7 @@ def simulate_panda(mode: str) -> dict[str, float]:
         assert result.status == "ok"
         assert in_bounds(robot, q, result.qd, dt)
         J = robot.jacobian(q)
-        here = resolution.jump_index(J, np.linalg.pinv(J) @ xd, xd)
+        here = velocity_jump.jump_index(J, np.linalg.pinv(J) @ xd, xd)
         excess = max(excess, result.jump_index - here)
         kfm.append(result.kfm)
         jump.append(result.jump_index)
@@ -294,7 +294,7 @@ def test_compiled_cycle_equals_the_svd_reference_composition(robot: robots.Robot
         dJ = robot.scale_task(dJ)[np.ix_(healthy, np.arange(robot.m), healthy)]
         x = robot.task_scale * xd
         weights = np.full(healthy.size, 1.0 / healthy.size)
-        reduced = resolution.reduced_velocities(J, x, config.damping)
+        reduced = velocity_jump.post_failure_velocities(J, x, config.damping)
         z = (config.kfm_gain * measures.kfm_gradient(J, dJ, temperature=config.kfm_temperature)
              + config.jump_gain * weights @ reduced)
         pinv = damped_pinv(J, config.damping)
@@ -307,7 +307,7 @@ def test_compiled_cycle_equals_the_svd_reference_composition(robot: robots.Robot
         np.testing.assert_allclose(result.post_failure_sigmas[healthy],
                                    measures.post_failure_sigmas(J), atol=1e-7)
         assert result.jump_index == pytest.approx(
-            resolution.jump_index(J, qd, x, damping=config.damping), rel=1e-6)
+            velocity_jump.jump_index(J, qd, x, damping=config.damping), rel=1e-6)
     assert checked >= 20
 
 

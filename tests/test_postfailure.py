@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from ft_core import measures, postfailure, robots
 from ft_core.pseudoinverse import Damping, damped_pinv
-from ft_core.resolution import reduced_velocities
+from ft_core.velocity_jump import post_failure_velocities
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,13 +30,13 @@ def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
         np.linalg.svd(J, compute_uv=False)[-1], abs=1e-7)
     np.testing.assert_allclose(postfailure.damped_inverse(columns, L, V, *DAMPING_ARGS),
                                damped_pinv(J, DAMPING), atol=1e-8)
-    scale = 1 + np.abs(reduced_velocities(J, xd, DAMPING)).max()
+    scale = 1 + np.abs(post_failure_velocities(J, xd, DAMPING)).max()
     np.testing.assert_allclose(
-        postfailure.reduced_velocities(columns, xd, L, V, sigmas, *DAMPING_ARGS),
-        reduced_velocities(J, xd, DAMPING), atol=1e-9 * scale)
+        postfailure.downdated_velocities(columns, xd, L, V, sigmas, *DAMPING_ARGS),
+        post_failure_velocities(J, xd, DAMPING), atol=1e-9 * scale)
     reference, grads = measures.post_failure_sigma_gradients(J, dJ)
     clear = reference > 1e-5  # gradients of singular values near 0 are ill-conditioned
-    np.testing.assert_allclose(postfailure.sigma_gradients(J, dJ, sigmas, vectors)[clear],
+    np.testing.assert_allclose(postfailure.downdated_sigma_gradients(J, dJ, sigmas, vectors)[clear],
                                grads[clear], atol=1e-6)
 
 
@@ -45,10 +45,10 @@ def test_exactly_singular_post_failure_jacobians_stay_finite() -> None:
     L, V, columns, sigmas, vectors = postfailure.analyse(J)
     assert sigmas[0] == pytest.approx(0.0, abs=1e-8)
     np.testing.assert_allclose(sigmas[1:], measures.post_failure_sigmas(J)[1:], atol=1e-12)
-    reduced = postfailure.reduced_velocities(columns, np.array([1.0, 0.5, 0.2]), L, V, sigmas,
+    reduced = postfailure.downdated_velocities(columns, np.array([1.0, 0.5, 0.2]), L, V, sigmas,
                                              *DAMPING_ARGS)
     assert np.all(np.isfinite(reduced))
-    gradients = postfailure.sigma_gradients(J, np.zeros((4, 3, 4)), sigmas, vectors)
+    gradients = postfailure.downdated_sigma_gradients(J, np.zeros((4, 3, 4)), sigmas, vectors)
     assert np.all(np.isfinite(gradients))
 
 

@@ -204,7 +204,7 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
     reduced = np.zeros((0, 0))
     if nh > m:
-        reduced = postfailure.reduced_velocities(columns, x, L, V, sigmas, threshold,
+        reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas, threshold,
                                                      max_damping)
         if use_jump:
             z += jump_gain * (weights @ reduced)
@@ -214,7 +214,7 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
                 for a in range(m):
                     for j in range(nh):
                         dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
-            grads = postfailure.sigma_gradients(Js, dJs, sigmas, vectors)
+            grads = postfailure.downdated_sigma_gradients(Js, dJs, sigmas, vectors)
             ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
             z += kfm_gain * (ascent @ grads)
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)

@@ -81,7 +81,7 @@ def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
 
     Returns (L, V, columns, sigmas, vectors): eigenvalues (m,) ascending and
     eigenvectors (m, m) of A; J's columns in that eigenbasis, J^T V (n, m), which
-    `damped_inverse` and `reduced_velocities` reuse; s_i = sigma_m(iJ) (n,); u_i, the
+    `damped_inverse` and `downdated_velocities` reuse; s_i = sigma_m(iJ) (n,); u_i, the
     left singular vector of s_i, as row i of vectors (n, m).
     """
     m, n = J.shape
@@ -144,7 +144,7 @@ def smallest_singular_value(L: np.ndarray) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
+def downdated_sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
                     vectors: np.ndarray) -> np.ndarray:
     """G[i, k] = ds_i/dq_k = u_i^T dJ[k] v_i with v_i = iJ^T u_i / s_i (seed 002 eq 8).
 
@@ -190,7 +190,7 @@ def damped_inverse(columns: np.ndarray, L: np.ndarray, V: np.ndarray, threshold:
 
 
 @njit(cache=True, error_model="numpy")
-def reduced_velocities(columns: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
+def downdated_velocities(columns: np.ndarray, xd: np.ndarray, L: np.ndarray, V: np.ndarray,
                        sigmas: np.ndarray, threshold: float, max_damping: float) -> np.ndarray:
     """Row i: iqd' = (iJ)# xd with the damped inverse of iJ, 0 at joint i (n, n).
 

@@ -40,7 +40,7 @@ def _task_velocity(xd: np.ndarray, m: int) -> np.ndarray:
     return xd
 
 
-def reduced_velocities(J: np.ndarray, xd: np.ndarray,
+def post_failure_velocities(J: np.ndarray, xd: np.ndarray,
                        damping: Damping | None = None) -> np.ndarray:
     """Row i: the velocity iqd' = (iJ)+ xd the robot would have if joint i locked (n, n).
 
@@ -59,7 +59,7 @@ def min_jump_velocity(J: np.ndarray, xd: np.ndarray,
     xd = _task_velocity(xd, J.shape[0])
     n = J.shape[1]
     pinv = _pinv(J, damping)
-    mean = failure_weights(probabilities, n) @ reduced_velocities(J, xd, damping)
+    mean = failure_weights(probabilities, n) @ post_failure_velocities(J, xd, damping)
     return pinv @ xd + mean - pinv @ (J @ mean)
 
 
@@ -72,11 +72,11 @@ def jump_index(J: np.ndarray, qd: np.ndarray, xd: np.ndarray,
     n = J.shape[1]
     if qd.shape != (n,):
         raise ValueError(f"qd must have shape ({n},), got {qd.shape}")
-    jumps = reduced_velocities(J, xd, damping) - qd
+    jumps = post_failure_velocities(J, xd, damping) - qd
     return float(n * failure_weights(probabilities, n) @ np.sum(jumps**2, axis=1))
 
 
 def joint_velocity_jumps(J: np.ndarray, qd: np.ndarray, xd: np.ndarray,
                          damping: Damping | None = None) -> np.ndarray:
     """Per-joint jumps |iqd'_j - qd_j| (n, n): row i for a lock of joint i (seed 004 eq 1)."""
-    return np.abs(reduced_velocities(J, xd, damping) - np.asarray(qd, dtype=float))
+    return np.abs(post_failure_velocities(J, xd, damping) - np.asarray(qd, dtype=float))

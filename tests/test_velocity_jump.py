@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import measures, resolution
+from ft_core import measures, velocity_jump
 from ft_core.engine import EngineConfig, ResolutionEngine
 from models import planar_arm
 
@@ -17,9 +17,9 @@ def random_problem(m: int = 3, n: int = 5) -> tuple[np.ndarray, np.ndarray]:
     return RNG.normal(size=(m, n)), RNG.normal(size=m)
 
 
-def test_reduced_velocities_lock_their_joint_and_track_the_task() -> None:
+def test_post_failure_velocities_lock_their_joint_and_track_the_task() -> None:
     J, xd = random_problem()
-    reduced = resolution.reduced_velocities(J, xd)
+    reduced = velocity_jump.post_failure_velocities(J, xd)
     np.testing.assert_allclose(np.diag(reduced), 0.0, atol=1e-12)
     np.testing.assert_allclose(reduced @ J.T, np.tile(xd, (5, 1)), atol=1e-10)
     for i in range(5):  # least norm among the velocities of the reduced robot (eq 2)
@@ -30,12 +30,12 @@ def test_reduced_velocities_lock_their_joint_and_track_the_task() -> None:
 @pytest.mark.parametrize(("m", "n"), [(2, 3), (3, 4), (3, 7), (6, 7)])
 def test_min_jump_tracks_and_beats_least_norm_by_eq_14(m: int, n: int) -> None:
     J, xd = random_problem(m, n)
-    optimal = resolution.min_jump_velocity(J, xd)
+    optimal = velocity_jump.min_jump_velocity(J, xd)
     least_norm = np.linalg.pinv(J) @ xd
     np.testing.assert_allclose(J @ optimal, xd, atol=1e-10)
     homogeneous = optimal - least_norm
     np.testing.assert_allclose(J @ homogeneous, 0.0, atol=1e-10)
-    delta = resolution.jump_index(J, least_norm, xd) - resolution.jump_index(J, optimal, xd)
+    delta = velocity_jump.jump_index(J, least_norm, xd) - velocity_jump.jump_index(J, optimal, xd)
     assert delta == pytest.approx(n * homogeneous @ homogeneous, rel=1e-9, abs=1e-12)
     assert delta > 0
 
@@ -45,37 +45,37 @@ def test_only_joint_k_may_fail_so_it_stays_still(k: int) -> None:
     J, xd = random_problem(3, 4)
     p = np.zeros(4)
     p[k] = 1.0
-    qd = resolution.min_jump_velocity(J, xd, p)
+    qd = velocity_jump.min_jump_velocity(J, xd, p)
     assert qd[k] == pytest.approx(0.0, abs=1e-10)  # seed 004 eq 8
     np.testing.assert_allclose(J @ qd, xd, atol=1e-10)
-    assert resolution.jump_index(J, qd, xd, p) == pytest.approx(0.0, abs=1e-18)
+    assert velocity_jump.jump_index(J, qd, xd, p) == pytest.approx(0.0, abs=1e-18)
 
 
 def test_min_jump_is_the_weighted_optimum() -> None:
     J, xd = random_problem(3, 6)
     p = np.array([0.1, 0.3, 0.05, 0.2, 0.25, 0.1])
-    optimal = resolution.min_jump_velocity(J, xd, p)
-    best = resolution.jump_index(J, optimal, xd, p)
+    optimal = velocity_jump.min_jump_velocity(J, xd, p)
+    best = velocity_jump.jump_index(J, optimal, xd, p)
     null = measures.null_space_basis(J)
     for _ in range(100):  # any other velocity that tracks xd jumps more
         other = optimal + null @ RNG.normal(scale=0.3, size=null.shape[1])
-        assert resolution.jump_index(J, other, xd, p) >= best
+        assert velocity_jump.jump_index(J, other, xd, p) >= best
 
 
 def test_per_joint_jumps_follow_eq_1() -> None:
     J, xd = random_problem(2, 3)
     qd = np.linalg.pinv(J) @ xd
-    jumps = resolution.joint_velocity_jumps(J, qd, xd)
+    jumps = velocity_jump.joint_velocity_jumps(J, qd, xd)
     np.testing.assert_allclose(np.diag(jumps), np.abs(qd))  # a locked joint jumps to 0
-    assert np.sum(jumps**2) == pytest.approx(resolution.jump_index(J, qd, xd))
+    assert np.sum(jumps**2) == pytest.approx(velocity_jump.jump_index(J, qd, xd))
 
 
 def test_bad_task_velocities_are_rejected() -> None:
     J, _ = random_problem()
     with pytest.raises(ValueError, match="xd"):
-        resolution.min_jump_velocity(J, np.ones(2))
+        velocity_jump.min_jump_velocity(J, np.ones(2))
     with pytest.raises(ValueError, match="non-finite"):
-        resolution.jump_index(J, np.zeros(5), np.array([0.0, np.nan, 0.0]))
+        velocity_jump.jump_index(J, np.zeros(5), np.array([0.0, np.nan, 0.0]))
 
 
 def simulate_004(resolution_mode: str, probabilities: tuple = ()) -> dict[str, float]:
@@ -92,7 +92,7 @@ def simulate_004(resolution_mode: str, probabilities: tuple = ()) -> dict[str, f
         result = engine.step(q, xd)
         J = arm.jacobian(q)
         np.testing.assert_allclose(J @ result.qd, xd, atol=1e-9)
-        jumps.append(resolution.jump_index(J, result.qd, xd, probabilities or None))
+        jumps.append(velocity_jump.jump_index(J, result.qd, xd, probabilities or None))
         conditions.append(np.sum(measures.reduced_condition_numbers(J) ** 2))
         q = q + result.qd * 0.001
     # The circle closes: after one period the tool is back at the start.
