@@ -36,21 +36,21 @@ UNBOUNDED = 1.0e9
 
 
 class _Progress:
-    """A one-line progress bar on a terminal, plain lines otherwise."""
+    """Per point a line, and while tracing a one-line status on a terminal."""
 
-    def __init__(self, total: int, stream=sys.stderr):
-        self.total, self.stream = total, stream
+    def __init__(self, total: int, targets: Sequence[np.ndarray], stream=sys.stderr):
+        self.total, self.targets, self.stream = total, targets, stream
         self.tty = stream.isatty()
 
-    def point(self, index: int, text: str) -> None:
-        self.index = index
-        self.stream.write(f"[{index + 1}/{self.total}] {text}\n")
-        self.stream.flush()
-
-    def step(self, text: str) -> None:
-        if self.tty:
+    def __call__(self, index: int, text: str) -> None:
+        if not text:
+            target = self.targets[index]
+            label = np.round(target[:3, 3] if target.ndim == 2 else target, 4).tolist()
+            self.done()
+            self.stream.write(f"[{index + 1}/{self.total}] point {label}\n")
+        elif self.tty:
             self.stream.write(f"\r    tracing: {text:<24}")
-            self.stream.flush()
+        self.stream.flush()
 
     def done(self) -> None:
         if self.tty:
@@ -115,44 +115,35 @@ def main(argv: list[str] | None = None) -> int:
         chosen = ";".join(",".join(f"{v:.4f}" for v in flat[i:i + size])
                           for i in range(0, len(flat), size))
         print(f"no --points: chose {len(targets)} around the seed: --points \"{chosen}\"")
-    progress = _Progress(len(targets))
-    boxes = []
-    for index, target in enumerate(targets):
-        label = np.round(target[:3, 3] if target.ndim == 2 else target, 4).tolist()
-        progress.point(index, f"point {label}")
-        try:
-            start = selfmotion.find_seed(robot, target, around)
-            manifold = selfmotion.trace(robot, target, start, step=args.step,
-                                        progress=progress.step)
-        except selfmotion.UnreachableError as error:
-            progress.done()
-            print(f"ft-bounds: point {index + 1} {label}: {error}", file=sys.stderr)
-            return 3
+    progress = _Progress(len(targets), targets)
+    try:
+        boxes = selfmotion.critical_boxes(robot, targets, around, args.step, progress)
+    except selfmotion.UnreachableError as error:
         progress.done()
+        print(f"ft-bounds: {error}", file=sys.stderr)
+        return 3
+    progress.done()
+    for index, manifold in enumerate(boxes.manifolds):
         lower, upper = manifold.box
-        boxes.append((lower, upper))
         print(f"  point {index + 1}: lower {_fmt(lower)}\n"
               f"           upper {_fmt(upper)}\n"
               f"           volume {selfmotion.box_volume(robot, lower, upper):.4g} "
               f"({manifold.method}, {len(manifold.samples)} samples)")
-    lower, upper = selfmotion.intersect(boxes)
+    lower, upper = boxes.lower, boxes.upper
     print(f"intersection: lower {_fmt(lower)}\n              upper {_fmt(upper)}")
-    empty = selfmotion.empty_joints((lower, upper))
-    if empty:
-        names = [robot.joint_names[j] for j in empty]
+    if boxes.empty:
+        names = [robot.joint_names[j] for j in boxes.empty]
         print(f"ft-bounds: the boxes do not intersect on {names}: no soft limits keep every "
               "point reachable after a failure. Try --seed with a configuration that reaches "
               "the points from one posture (each point's self-motion component is traced "
               "from the one nearest the seed), or fewer or closer points", file=sys.stderr)
         return 4
     print(f"  volume {selfmotion.box_volume(robot, lower, upper):.4g}")
-    unreachable = [i + 1 for i, q in enumerate(selfmotion.reachability(
-        robot, targets, lower, upper, around)) if q is None]
-    if unreachable:
-        print(f"ft-bounds: points {unreachable} cannot be reached inside the intersection: "
-              "try fewer or closer points (a pose task's self-motion is a curve, so its "
-              "boxes are thin), or --seed with a configuration that reaches them all from "
-              "one posture", file=sys.stderr)
+    if boxes.unreachable:
+        print(f"ft-bounds: points {list(boxes.unreachable)} cannot be reached inside the "
+              "intersection: try fewer or closer points (a pose task's self-motion is a "
+              "curve, so its boxes are thin), or --seed with a configuration that reaches "
+              "them all from one posture", file=sys.stderr)
         return 4
     print("every point is reachable inside the intersection")
     args.output.write_text("# Soft limits from ft-bounds (seed 000 sec. III).\n" + yaml.safe_dump(

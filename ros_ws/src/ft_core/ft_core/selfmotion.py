@@ -603,27 +603,71 @@ def flat_from_targets(robot: Robot, targets: Sequence[np.ndarray]) -> list[float
     return flat
 
 
+@dataclass(frozen=True)
+class CriticalBoxes:
+    """The bounding boxes of critical points and their intersection (seed 000 sec. III).
+
+    Attributes:
+        manifolds: each point's traced component (steps 1-2).
+        lower: the intersection's lower bounds (rad, step 3).
+        upper: the intersection's upper bounds (rad).
+        empty: joints on which the boxes do not intersect.
+        unreachable: 1-based numbers of the points that cannot be reached inside the
+            intersection (steps 4-5; not checked when `empty`).
+    """
+
+    manifolds: tuple[Manifold, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    empty: tuple[int, ...]
+    unreachable: tuple[int, ...]
+
+
+def critical_boxes(robot: Robot, targets: Sequence[np.ndarray], q: np.ndarray,
+                   step: float = STEP,
+                   progress: Callable[[int, str], None] | None = None) -> CriticalBoxes:
+    """Trace each critical point from the configuration nearest q, box, intersect, check.
+
+    The pipeline of seed 000 sec. III shared by the controller and `ft-bounds`.
+    `progress(point index, text)` is called before each point ("") and while tracing.
+    Raises UnreachableError ("point k: ...") when a point is out of reach.
+    """
+    manifolds = []
+    for index, target in enumerate(targets):
+        if progress:
+            progress(index, "")
+        report = None if progress is None else (lambda text, i=index: progress(i, text))
+        try:
+            manifolds.append(trace(robot, target, find_seed(robot, target, q), step,
+                                   progress=report))
+        except UnreachableError as error:
+            raise UnreachableError(f"point {index + 1}: {error}") from error
+    lower, upper = intersect(m.box for m in manifolds)
+    empty = tuple(empty_joints((lower, upper)))
+    unreachable = () if empty else tuple(
+        i + 1 for i, found in enumerate(reachability(robot, targets, lower, upper, q))
+        if found is None)
+    return CriticalBoxes(tuple(manifolds), lower, upper, empty, unreachable)
+
+
 def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
-                            ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+                ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
     """Critical points -> intersected self-motion boxes -> (soft limits, number of points).
 
-    Seed 000 sec. III. Raises UnreachableError when the boxes do not intersect or a
-    point cannot be reached inside the intersection. Slow (0.1 to a few seconds):
-    run it off the control loop: `soft_limits_for_model` in another process.
+    Seed 000 sec. III (`critical_boxes`). Raises UnreachableError when a point is out
+    of reach, the boxes do not intersect or a point cannot be reached inside the
+    intersection. Slow (0.1 to a few seconds): run it off the control loop:
+    `soft_limits_for_model` in another process.
     """
     targets = targets_from_flat(robot, flat)
-    boxes = [trace(robot, t, find_seed(robot, t, q)).box for t in targets]
-    box = intersect(boxes)
-    empty = empty_joints(box)
-    if empty:
+    boxes = critical_boxes(robot, targets, q)
+    if boxes.empty:
         raise UnreachableError(
-            f"the boxes do not intersect on {[robot.joint_names[j] for j in empty]}")
-    unreachable = [i + 1 for i, found in enumerate(
-        reachability(robot, targets, *box, q)) if found is None]
-    if unreachable:
-        raise UnreachableError(
-            f"critical points {unreachable} cannot be reached inside the intersection")
-    return box, len(targets)
+            f"the boxes do not intersect on {[robot.joint_names[j] for j in boxes.empty]}")
+    if boxes.unreachable:
+        raise UnreachableError(f"critical points {list(boxes.unreachable)} cannot be reached "
+                               "inside the intersection")
+    return (boxes.lower, boxes.upper), len(targets)
 
 
 def soft_limits_for_model(spec: str, chain: Sequence, flat: list[float], q: np.ndarray,
