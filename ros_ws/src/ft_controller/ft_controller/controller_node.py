@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
-from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
+from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, Status
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.robots import Robot, RobotModelError
 from ft_core.targets import (
@@ -600,7 +600,7 @@ class ControllerNode(SuiteNode):
             level, message = diagnostics.ERROR, self.problems.summary()
         elif self._last is None:
             level, message = diagnostics.WARN, "waiting for joint states"
-        elif self._last.status == "infeasible":
+        elif self._last.status == Status.INFEASIBLE:
             level, message = diagnostics.WARN, "task infeasible with the remaining joints"
         else:
             level, message = diagnostics.OK, self._last.status

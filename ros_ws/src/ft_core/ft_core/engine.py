@@ -35,9 +35,11 @@ velocity scaled into the bounds and reports the task infeasible.
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -54,8 +56,44 @@ RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
 ABSURD_POSITION = 1.0
 ABSURD_TASK_SPEED = 1e3
 
-#: Cycle status values, from best to worst.
-OK, NEAR_SINGULARITY, LIMITED, INFEASIBLE = "ok", "near_singularity", "limited", "infeasible"
+
+
+class Status(enum.StrEnum):
+    """What a cycle achieved, from best to worst (published as its string value)."""
+
+    OK = "ok"
+    NEAR_SINGULARITY = "near_singularity"
+    LIMITED = "limited"  # the task was scaled down to keep the joints within their bounds
+    INFEASIBLE = "infeasible"  # fewer healthy joints than task coordinates
+
+
+class Gains(NamedTuple):
+    """The scalar settings of the compiled cycle (`EngineConfig`'s, by name)."""
+
+    kfm: float
+    jump: float
+    limit: float
+    kfm_temperature: float
+    limit_buffer: float
+    dt: float
+    damping_threshold: float
+    max_damping: float
+
+
+class CycleArrays(NamedTuple):
+    """What the compiled cycle returns, for the healthy joints."""
+
+    J: np.ndarray  # task-scaled Jacobian (m, nh)
+    xd: np.ndarray  # task-scaled task velocity (m,)
+    z: np.ndarray  # null-space preference (nh,)
+    lo: np.ndarray  # velocity bounds (nh,), rad/s
+    hi: np.ndarray
+    pinv: np.ndarray  # damped inverse (nh, m)
+    sigmas: np.ndarray  # post-failure sigmas (nh,)
+    sigma_min: float
+    reduced: np.ndarray  # reduced velocities if each joint locked (nh, nh); 0 x 0 if none
+    qd: np.ndarray  # the command before saturation (nh,), rad/s
+    fits: bool  # qd is within [lo, hi]
 
 #: Distance (rad or m) within which a joint counts as at a limit.
 AT_LIMIT = 1e-3
@@ -121,7 +159,7 @@ class CycleResult:
 
     Attributes:
         qd: joint velocities (n,), rad/s; exactly 0 for locked joints.
-        status: "ok", "near_singularity", "limited" (task scaled) or "infeasible".
+        status: what the cycle achieved (`Status`).
         kfm: K of the reduced robot for the next failure (m/s per rad/s, scaled J).
         sigma_min: smallest singular value of the reduced, scaled Jacobian.
         post_failure_sigmas: s_i per joint (n,), nan for locked joints.
@@ -134,7 +172,7 @@ class CycleResult:
     """
 
     qd: np.ndarray
-    status: str
+    status: Status
     kfm: float
     sigma_min: float
     post_failure_sigmas: np.ndarray
@@ -179,21 +217,16 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
 @njit(cache=True, error_model="numpy")
 def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
            task_scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray,
-           weights: np.ndarray, gains: np.ndarray, use_kfm: bool, use_jump: bool,
-           probabilities: bool, bias: np.ndarray):
+           weights: np.ndarray, gains: Gains, use_kfm: bool, use_jump: bool,
+           probabilities: bool, bias: np.ndarray) -> CycleArrays:
     """The arithmetic of `ResolutionEngine.step` for m <= healthy joints, compiled.
 
-    `gains` = (kfm_gain, jump_gain, limit_gain, kfm_temperature, limit_buffer, dt,
-    damping threshold, max_damping); `bias` (healthy joints) is added to z. Returns,
-    for the healthy joints: the scaled Jacobian, the scaled task velocity, z, lo, hi,
-    the damped inverse, post-failure sigmas, sigma_min, the reduced velocities (0 x 0
-    without a next failure), and
+    `bias` (healthy joints) is added to z. Returns `CycleArrays`, with
     qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1] that keeps it within
     [lo, hi] (`limits.preference_scale`), and whether it is; if not, the caller runs
     the rest of `limits.saturate_in_null_space`, which starts the same way.
     """
     m, nh = task_scale.size, healthy.size
-    kfm_gain, jump_gain, limit_gain, temperature, buffer, dt, threshold, max_damping = gains
     Js = np.empty((m, nh))
     for a in range(m):
         for j in range(nh):
@@ -201,13 +234,13 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     x = task_scale * xd
     qh = q[healthy]
     L, V, columns, sigmas, vectors = postfailure.analyse(Js)
-    z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
+    z = gains.limit * limits.avoidance(qh, lower, upper, gains.limit_buffer) + bias
     reduced = np.zeros((0, 0))
     if nh > m:
-        reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas, threshold,
-                                                     max_damping)
+        reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas,
+                                                   gains.damping_threshold, gains.max_damping)
         if use_jump:
-            z += jump_gain * (weights @ reduced)
+            z += gains.jump * (weights @ reduced)
         if use_kfm:
             dJs = np.empty((nh, m, nh))
             for k in range(nh):
@@ -215,10 +248,12 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
                     for j in range(nh):
                         dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
             grads = postfailure.downdated_sigma_gradients(Js, dJs, sigmas, vectors)
-            ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
-            z += kfm_gain * (ascent @ grads)
-    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
-    pinv = postfailure.damped_inverse(columns, L, V, threshold, max_damping)
+            ascent = weights if probabilities else measures.kfm_weights(sigmas,
+                                                                       gains.kfm_temperature)
+            z += gains.kfm * (ascent @ grads)
+    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, gains.dt)
+    pinv = postfailure.damped_inverse(columns, L, V, gains.damping_threshold,
+                                      gains.max_damping)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
     qd = task + null_motion
@@ -226,8 +261,8 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     if not fits:  # SNS's first step, the common case: shrink the preference beside the task
         qd = task + limits.preference_scale(task, null_motion, lo, hi) * null_motion
         fits = limits.within(qd, lo, hi)
-    return (Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L), reduced,
-            qd, fits)
+    return CycleArrays(Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L),
+                       reduced, qd, fits)
 
 
 @njit(cache=True, error_model="numpy")
@@ -271,9 +306,10 @@ class ResolutionEngine:
             if np.any(lower > upper):
                 raise ValueError("a soft lower limit is above its upper limit")
             self._soft = (lower, upper)
-        self._gains = np.array([cfg.kfm_gain, cfg.jump_gain, cfg.limit_gain, cfg.kfm_temperature,
-                                cfg.limit_buffer, cfg.dt, cfg.damping.threshold,
-                                cfg.damping.max_damping])
+        self._gains = Gains(kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
+                            kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer,
+                            dt=cfg.dt, damping_threshold=cfg.damping.threshold,
+                            max_damping=cfg.damping.max_damping)
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
         self.step(robot.home(), np.zeros(robot.m))
 
@@ -376,13 +412,15 @@ class ResolutionEngine:
             J, dJ = robot.jacobian(q), _NO_DERIVATIVES
         jump, sigma_min = 0.0, 0.0
         if nh >= m:
-            Js, x, z, lo, hi, pinv, sigmas_h, sigma_min, reduced, qd_h, fits = _cycle(
-                J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper, view.velocity,
-                view.weights, self._gains, view.use_kfm, view.use_jump,
-                self._probabilities is not None, self._swing_descent(q, index))
+            cycle = _cycle(J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper,
+                           view.velocity, view.weights, self._gains, view.use_kfm, view.use_jump,
+                           self._probabilities is not None, self._swing_descent(q, index))
+            Js, x, sigmas_h, sigma_min = cycle.J, cycle.xd, cycle.sigmas, cycle.sigma_min
+            qd_h, reduced = cycle.qd, cycle.reduced
             scale, saturated_h = 1.0, np.zeros(nh, dtype=bool)
-            if not fits:
-                result = limits.saturate_in_null_space(Js, x, z, lo, hi, cfg.damping, pinv)
+            if not cycle.fits:
+                result = limits.saturate_in_null_space(Js, x, cycle.z, cycle.lo, cycle.hi,
+                                                       cfg.damping, cycle.pinv)
                 qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
             if reduced.size:
                 jump = _jump_index(reduced, qd_h, scale, view.weights)
@@ -401,13 +439,13 @@ class ResolutionEngine:
         margin, at_soft, at_hard = _limit_report(q, robot.lower, robot.upper, *self._soft,
                                                  view.soft)
         if nh < m:
-            status = INFEASIBLE
+            status = Status.INFEASIBLE
         elif scale < 1.0:
-            status = LIMITED
+            status = Status.LIMITED
         elif sigma_min < cfg.damping.threshold:
-            status = NEAR_SINGULARITY
+            status = Status.NEAR_SINGULARITY
         else:
-            status = OK
+            status = Status.OK
         return CycleResult(
             qd=qd, status=status, kfm=float(sigmas_h.min()) if nh else 0.0,
             sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
