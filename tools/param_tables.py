@@ -8,10 +8,9 @@ is generated::
     <!-- parameters: end -->
 
 The rows come from what the node module declares: its module-level `PARAMETERS`
-dict (name -> (default, description, extra descriptor fields)) or, for a node
-that declares a literal dict inline (`parameters.declare(self, {...})`), that
-dict, evaluated in the module's namespace. Importing a node module does not start
-ROS, and neither does this script.
+dict (name -> (default, description, extra descriptor fields)), the one it passes
+to `parameters.declare`. Importing a node module does not start ROS, and neither
+does this script.
 
 Usage (from the repository root)::
 
@@ -24,10 +23,8 @@ Usage (from the repository root)::
 from __future__ import annotations
 
 import argparse
-import ast
 import difflib
 import importlib
-import inspect
 import re
 import sys
 from pathlib import Path
@@ -68,26 +65,15 @@ def declared_parameters(module_name: str) -> dict[str, tuple[object, str, dict]]
 
     Returns:
         name -> (default, description, extra descriptor fields), in declaration
-        order: the module's `PARAMETERS`, or else the literal dicts it passes to
-        `parameters.declare`.
+        order: the module's `PARAMETERS`.
 
     Raises:
-        LookupError: the module declares neither.
+        LookupError: the module has no `PARAMETERS`.
     """
     module = importlib.import_module(module_name)
-    if hasattr(module, "PARAMETERS"):
-        return dict(module.PARAMETERS)
-    found: dict[str, tuple[object, str, dict]] = {}
-    for node in ast.walk(ast.parse(inspect.getsource(module))):
-        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                and node.func.attr == "declare" and len(node.args) == 2
-                and isinstance(node.args[1], ast.Dict)):
-            expression = ast.Expression(node.args[1])
-            code = compile(ast.fix_missing_locations(expression), module_name, "eval")
-            found.update(eval(code, vars(module)))  # the module's own literal, in its namespace
-    if not found:
-        raise LookupError(f"{module_name} declares no PARAMETERS and no literal dict")
-    return found
+    if not hasattr(module, "PARAMETERS"):
+        raise LookupError(f"{module_name} declares no module-level PARAMETERS")
+    return dict(module.PARAMETERS)
 
 
 def _type(default: object) -> Parameter.Type:

@@ -40,7 +40,7 @@ from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, sp
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from rcl_interfaces.msg import FloatingPointRange, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -53,23 +53,19 @@ ABSURD_DISTANCE = 1e3
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
 WATCHDOG_PERIOD = 0.05
 
-def _floats(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high)]
-
-
 #: name -> (default, description, extra descriptor fields)
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
     "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
-                 {"floating_point_range": _floats(0.0, 1e4)}),
+                 parameters.float_range(0.0, 1e4)),
     "swing_gain": (0.0, "swing-measure descent for free-swinging failures, rad/s per rad "
                    "(0: off; needs the URDF's inertias)",
-                   {"floating_point_range": _floats(0.0, 100.0)}),
+                   parameters.float_range(0.0, 100.0)),
     "jump_gain": (1.0, "minimum-jump term (1 = exact)",
-                  {"floating_point_range": _floats(0.0, 100.0)}),
+                  parameters.float_range(0.0, 100.0)),
     "limit_gain": (1.0, "soft/hard limit avoidance, rad/s at a box edge",
-                   {"floating_point_range": _floats(0.0, 100.0)}),
+                   parameters.float_range(0.0, 100.0)),
     "failure_probabilities": (Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` order "
                               "(empty: equal)", {}),
     "soft_limits.lower": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
@@ -78,19 +74,19 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                         "qx qy qz qw); their intersected self-motion boxes become soft limits",
                         {}),
     "release_soft_limits_on_failure": (True, "drop the soft limits once a joint is locked", {}),
-    "control_rate": (250.0, "Hz", {"floating_point_range": _floats(1.0, 2000.0)}),
+    "control_rate": (250.0, "Hz", parameters.float_range(1.0, 2000.0)),
     "target_timeout": (0.5, "s; an older twist decays to 0 over one more timeout",
-                       {"floating_point_range": _floats(0.001, 60.0)}),
+                       parameters.float_range(0.001, 60.0)),
     "state_timeout": (0.1, "s; older joint states stop the arm",
-                      {"floating_point_range": _floats(0.001, 60.0)}),
+                      parameters.float_range(0.001, 60.0)),
     "position_gain": (2.0, "1/s, pose-goal tracking",
-                      {"floating_point_range": _floats(0.01, 100.0)}),
+                      parameters.float_range(0.01, 100.0)),
     "max_linear_speed": (0.25, "m/s, pose-goal tracking",
-                         {"floating_point_range": _floats(0.001, 10.0)}),
+                         parameters.float_range(0.001, 10.0)),
     "max_angular_speed": (0.5, "rad/s, pose-goal tracking",
-                          {"floating_point_range": _floats(0.001, 10.0)}),
+                          parameters.float_range(0.001, 10.0)),
     "velocity_scale": (0.5, "fraction of the URDF velocity limits",
-                       {"floating_point_range": _floats(0.01, 1.0)}),
+                       parameters.float_range(0.01, 1.0)),
     "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
                      "in this namespace (empty: any single publisher)", {"read_only": True}),
     "idle_null_space_motion": (False, "with no target, allow null-space motion (kfm ascent, "
@@ -98,11 +94,11 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "observability.enabled": (False, "null-space excursions of joints not commanded for "
                               "observability.idle_time, so that a lock on them shows up", {}),
     "observability.idle_time": (5.0, "s a joint may go uncommanded before an excursion",
-                                {"floating_point_range": _floats(0.01, 3600.0)}),
+                                parameters.float_range(0.01, 3600.0)),
     "observability.speed": (0.3, "rad/s, peak joint velocity of an excursion",
-                            {"floating_point_range": _floats(0.06, 10.0)}),
+                            parameters.float_range(0.06, 10.0)),
     "observability.duration": (1.0, "s, one excursion (out and back)",
-                               {"floating_point_range": _floats(0.01, 60.0)}),
+                               parameters.float_range(0.01, 60.0)),
 }
 
 
@@ -177,7 +173,7 @@ class ControllerNode(SuiteNode):
     def _set_model(self, spec: str, source: str) -> None:
         try:
             robot = robots.load(spec, *parameters.chain_arguments(self))
-            order = self._command_order(robot, list(self.param("joints") or []))
+            order = parameters.joint_order(self, robot.joint_names)
             engine = ResolutionEngine(robot, self._engine_config(robot, order, {}))
         except (RobotModelError, ValueError) as error:
             self.problems.report("model", f"cannot use the model from {source}: {error}")
@@ -197,14 +193,6 @@ class ControllerNode(SuiteNode):
     def command_joints(self) -> list[str]:
         """Joint names in command order."""
         return [self.robot.joint_names[i] for i in self._order]
-
-    @staticmethod
-    def _command_order(robot: Robot, joints: list[str]) -> np.ndarray:
-        if not joints:
-            return np.arange(robot.n)
-        if sorted(joints) != sorted(robot.joint_names) or len(set(joints)) != len(joints):
-            raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)} once")
-        return np.array([robot.joint_names.index(j) for j in joints])
 
     def _chain(self, values: list[float], order: np.ndarray, what: str) -> np.ndarray:
         """Per-joint values given in command order, put in chain order."""

@@ -40,7 +40,6 @@ from ft_core import locked_set, remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
-from rcl_interfaces.msg import FloatingPointRange
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
@@ -49,40 +48,36 @@ from std_srvs.srv import Trigger
 DIAGNOSTICS_PERIOD = 0.5
 
 
-def _floats(low: float, high: float) -> dict:
-    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
-
-
 _DETECTION = DetectorConfig()
 #: Detector parameters whose negative value means "identified online" (None in the config).
 _IDENTIFIED = ("detection.latency", "detection.response_time")
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     "detection.window": (_DETECTION.window, "s, sliding window of the comparison",
-                         _floats(0.005, 10.0)),
+                         parameters.float_range(0.005, 10.0)),
     "detection.min_command": (_DETECTION.min_command, "rad/s; smaller predicted motion is "
-                              "unobservable (no decision)", _floats(0.0, 10.0)),
+                              "unobservable (no decision)", parameters.float_range(0.0, 10.0)),
     "detection.latency": (-1.0, "s from a command to its effect on the measurements; "
-                          "negative: identified online", _floats(-1.0, 1.0)),
+                          "negative: identified online", parameters.float_range(-1.0, 1.0)),
     "detection.response_time": (-1.0, "s, first-order time constant of the plant's "
                                 "velocity loop; negative: identified online",
-                                _floats(-1.0, 1.0)),
+                                parameters.float_range(-1.0, 1.0)),
     "detection.persistence": (_DETECTION.persistence, "s the lock evidence must hold",
-                              _floats(0.0, 10.0)),
+                              parameters.float_range(0.0, 10.0)),
     "detection.ratio": (_DETECTION.ratio, "measured over predicted velocity below which a "
-                        "joint looks locked", _floats(0.01, 0.99)),
+                        "joint looks locked", parameters.float_range(0.01, 0.99)),
     "detection.confidence": (_DETECTION.confidence, "separation in standard errors",
-                             _floats(0.5, 50.0)),
+                             parameters.float_range(0.5, 50.0)),
     "detection.follow_time": (_DETECTION.follow_time, "s the plant must be seen following "
-                              "commands before any decision", _floats(0.0, 10.0)),
+                              "commands before any decision", parameters.float_range(0.0, 10.0)),
     "brake_free_swinging": (False, "declare a free-swinging joint locked where it is (ask "
                             "for its brake) instead of only reporting it", {}),
     "remap_commands": (True, "remap commands through the reduced Jacobian once joints lock",
                        {}),
     "command_timeout": (0.2, "s without a command before the watchdog publishes zeros",
-                        _floats(0.001, 60.0)),
+                        parameters.float_range(0.001, 60.0)),
     "velocity_scale": (1.0, "fraction of the URDF velocity limits for remapped commands",
-                       _floats(0.01, 1.0)),
+                       parameters.float_range(0.01, 1.0)),
     "state_directory": ("", "directory of the persisted locked set (empty: "
                         "$ROS_HOME/ft_arms, or ~/.ros/ft_arms)", {"read_only": True}),
 }
@@ -146,14 +141,13 @@ class MonitorNode(SuiteNode):
     def _set_model(self, spec: str, source: str) -> None:
         try:
             robot = robots.load(spec, *parameters.chain_arguments(self))
-            joints = [str(j) for j in self.param("joints") or robot.joint_names]
-            if sorted(joints) != sorted(robot.joint_names):
-                raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
+            order = parameters.joint_order(self, robot.joint_names)
         except (robots.RobotModelError, ValueError) as error:
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self.robot = robot
-        self._order = [robot.joint_names.index(j) for j in joints]
+        self._order = order.tolist()
+        joints = [robot.joint_names[i] for i in self._order]
         self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")

@@ -10,8 +10,9 @@ They are read-only once the node runs.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
+import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
@@ -20,6 +21,12 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ft_msgs_py import names, qos
+
+
+def float_range(low: float, high: float) -> dict:
+    """Descriptor fields for a floating-point parameter allowed in [low, high]."""
+    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
+
 
 #: name -> (default, description, extra descriptor fields)
 MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
@@ -33,8 +40,7 @@ MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "task_space": ("", "pose, position or planar (empty: the model's default)",
                    {"read_only": True}),
     "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
-                              {"read_only": True, "floating_point_range": [
-                                  FloatingPointRange(from_value=0.0, to_value=100.0)]}),
+                              {"read_only": True, **float_range(0.0, 100.0)}),
 }
 
 
@@ -135,6 +141,20 @@ def request_model(node: Node, use: Callable[[str, str], None]) -> None:
         node.get_logger().info("no robot_description or robot_model parameter: waiting for "
                                f"the '{names.ROBOT_DESCRIPTION}' topic")
         node.create_subscription(String, names.ROBOT_DESCRIPTION, on_description, qos.LATCHED)
+
+
+def joint_order(node: Node, chain: Sequence[str]) -> np.ndarray:
+    """Chain index of each name of the `joints` parameter (command order).
+
+    Empty `joints`: the chain's own order. Raises ValueError unless `joints` lists
+    each of the chain's joints exactly once.
+    """
+    joints = [str(j) for j in value(node, "joints")]
+    if not joints:
+        return np.arange(len(chain))
+    if sorted(joints) != sorted(chain):
+        raise ValueError(f"joints {joints} must list each of {list(chain)} once")
+    return np.array([list(chain).index(j) for j in joints])
 
 
 def chain_arguments(node: Node) -> tuple[str | None, str | None, str | None, float | None]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 from ft_msgs_py import convert, names, parameters, qos, spin
-from rclpy.node import Node
+from ft_msgs_py.node import SuiteNode
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -27,15 +27,20 @@ OUTPUT_COMMAND = "faulty/command"
 OUTPUT_COMMAND_ARRAY = "faulty/command_array"
 
 
-class FaultInjectorNode(Node):
+#: name -> (default, description, extra descriptor fields)
+PARAMETERS: dict[str, tuple[object, str, dict]] = {
+    "joints": (Parameter.Type.STRING_ARRAY, "joint order of ft/command_array (needed only for "
+               "the array)", {"read_only": True}),
+}
+
+
+class FaultInjectorNode(SuiteNode):
     """The command-path proxy; see the module docstring."""
 
     def __init__(self, **kwargs):
         super().__init__("fault_injector", **kwargs)
-        parameters.declare(self, {"joints": (
-            Parameter.Type.STRING_ARRAY, "joint order of ft/command_array (needed only for "
-            "the array)", {"read_only": True})})
-        self.joints = [str(j) for j in parameters.value(self, "joints")]
+        parameters.declare(self, PARAMETERS)
+        self.joints = [str(j) for j in self.param("joints")]
         self.locked: set[str] = set()
         self._out = self.create_publisher(JointState, OUTPUT_COMMAND, qos.RELIABLE)
         self._out_array = self.create_publisher(Float64MultiArray, OUTPUT_COMMAND_ARRAY,

@@ -37,32 +37,27 @@ import numpy as np
 from ft_core import robots, swing
 from ft_core.plant import Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
-from rcl_interfaces.msg import FloatingPointRange
+from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-
-def _floats(low: float, high: float) -> dict:
-    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
-
-
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     "initial_positions": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: the "
                           "model's home configuration)", {"read_only": True}),
-    "rate": (500.0, "Hz, integration and joint_states rate", {"read_only": True,
-                                                             **_floats(1.0, 10000.0)}),
+    "rate": (500.0, "Hz, integration and joint_states rate",
+             {"read_only": True, **parameters.float_range(1.0, 10000.0)}),
     "position_noise": (0.0, "rad, standard deviation of the published positions",
-                       _floats(0.0, 1.0)),
-    "command_latency": (0.0, "s from a command's arrival to its effect", _floats(0.0, 10.0)),
+                       parameters.float_range(0.0, 1.0)),
+    "command_latency": (0.0, "s from a command's arrival to its effect",
+                        parameters.float_range(0.0, 10.0)),
     "command_timeout": (0.1, "s; older commands are dropped (the arm stops)",
-                        _floats(0.001, 60.0)),
+                        parameters.float_range(0.001, 60.0)),
     "response_time": (0.0, "s, first-order time constant of the velocity loop (0: instant)",
-                      _floats(0.0, 10.0)),
+                      parameters.float_range(0.0, 10.0)),
     "acceleration_limit": ([0.0], "rad/s^2, one for all joints or one per joint (0: none)",
                            {}),
     "hold_last_command": (False, "execute the last command forever (ros2_control) instead "
@@ -74,7 +69,7 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
 }
 
 
-class SimNode(Node):
+class SimNode(SuiteNode):
     """The kinematic plant; see the module docstring."""
 
     def __init__(self, **kwargs):
@@ -82,10 +77,10 @@ class SimNode(Node):
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
         self.plant: Plant | None = None
-        self._rng = np.random.default_rng(self.get_parameter("seed").value)
-        self._own_clock = self.get_parameter("publish_clock").value
-        self.period = 1.0 / self.get_parameter("rate").value
-        self._start = 0.0 if self._own_clock else self._node_time()
+        self._rng = np.random.default_rng(self.param("seed"))
+        self._own_clock = self.param("publish_clock")
+        self.period = 1.0 / self.param("rate")
+        self._start = 0.0 if self._own_clock else self.now()
         self._state_pub = self.create_publisher(JointState, names.JOINT_STATES, qos.RELIABLE)
         self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
                            if self._own_clock else None)
@@ -101,11 +96,8 @@ class SimNode(Node):
                                        clock=Clock(clock_type=ClockType.STEADY_TIME)
                                        if self._own_clock else None)
 
-    def _node_time(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
     def _plant_config(self, changes: dict | None = None) -> PlantConfig:
-        value = {k: self.get_parameter(k).value for k in
+        value = {k: self.param(k) for k in
                  ("command_latency", "response_time", "acceleration_limit", "command_timeout",
                   "hold_last_command")}
         value.update(changes or {})
@@ -150,12 +142,8 @@ class SimNode(Node):
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
-            robot = robots.load(spec, self.get_parameter("base_link").value or None,
-                                self.get_parameter("tip_link").value or None,
-                                self.get_parameter("task_space").value or None)
-            joints = list(parameters.value(self, "joints") or robot.joint_names)
-            if sorted(joints) != sorted(robot.joint_names):
-                raise ValueError(f"joints {joints} must list each of {list(robot.joint_names)}")
+            robot = robots.load(spec, *parameters.chain_arguments(self))
+            joints = [robot.joint_names[i] for i in parameters.joint_order(self, robot.joint_names)]
             initial = list(parameters.value(self, "initial_positions"))
             q = robot.home()
             if initial:
@@ -241,15 +229,15 @@ class SimNode(Node):
         if self.robot is None:
             return
         robot, plant = self.robot, self.plant
-        plant.step(self.t + self.period if self._own_clock else self._node_time())
-        scheduled = self.get_parameter("failure.joint").value
-        if scheduled and 0 <= self.get_parameter("failure.time").value <= self.t:
+        plant.step(self.t + self.period if self._own_clock else self.now())
+        scheduled = self.param("failure.joint")
+        if scheduled and 0 <= self.param("failure.time") <= self.t:
             self.lock([scheduled])
             self.set_parameters([Parameter("failure.joint", value="")])
         stamp = convert.stamp_from_nanoseconds(round(self.t * 1e9))
         if self._clock_pub is not None:
             self._clock_pub.publish(ClockMessage(clock=stamp))
-        noise = self.get_parameter("position_noise").value
+        noise = self.param("position_noise")
         measured = plant.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
         self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured,
                                                     plant.qd))
