@@ -1,16 +1,27 @@
-"""Design tools: optimally fault tolerant null spaces and Jacobians (seed 001, ch. 3).
+"""Design tools: optimally fault tolerant null spaces and Jacobians (seed 001, ch. 2-3).
 
 Given failure probabilities p (weights w = p / sum p, seed 001 eq 3.4), the
 isotropic Jacobian that maximises the weighted fault tolerance F_w has a null
 vector with |n_i| = w_i / |w| (eq 3.15); its post-failure singular values are then
 s_i = sigma |n_i| (eq 3.12). `optimal_jacobian` builds it with the triangular
 construction of eq 3.18, which for equal weights is the canonical optimal
-Jacobian (seed 001 eq 2.6, seed 002 eq 10).
+Jacobian (seed 001 eq 2.6, seed 002 eq 10). `redundant_optimal_jacobian` extends it
+to several degrees of redundancy (eqs 3.26-3.29).
+
+The command line `ft-design` (`main`) runs these and the tools of `ft_core.dh`
+(DH parameters and the 7! designs, sec. 2.3), `ft_core.design7r` (7R-realisable
+optima, eqs 3.20-3.24) and `ft_core.multicase` (eq 3.30), writing JSON and a figure.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
+import sys
 from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,6 +86,399 @@ def optimal_jacobian(probabilities: Iterable[float], m: int) -> np.ndarray:
     return unsorted
 
 
+def projection_with_diagonal(diagonal: Iterable[float], rank: int) -> np.ndarray:
+    """Orthogonal Q (n x n) whose first `rank` columns have row norms sqrt(diagonal).
+
+    Q diag(1, .., 1, 0, .., 0) Q^T is the orthogonal projection of that rank with the
+    given diagonal (Schur-Horn: exists iff 0 <= d_i <= 1 and sum d = rank). Built
+    with at most n - 1 plane rotations, each moving diagonal mass between two
+    entries (the T-transforms of Marshall and Olkin, Lemma 2.B.1, done as Givens
+    rotations), so the loop is bounded by n.
+
+    Raises:
+        ValueError: the diagonal is outside [0, 1] or does not sum to `rank`.
+    """
+    d = np.asarray(list(diagonal), dtype=float)
+    n = d.size
+    if not 0 <= rank <= n or np.any(d < -1e-12) or np.any(d > 1 + 1e-12) \
+            or abs(d.sum() - rank) > 1e-9 * max(1, n):
+        raise ValueError(f"no rank-{rank} projection has diagonal {d}: need entries in [0, 1]"
+                         f" summing to {rank}")
+    order = np.argsort(-d, kind="stable")
+    target = d[order]
+    A = np.diag((np.arange(n) < rank).astype(float))
+    Q = np.eye(n)
+    for _ in range(n):  # each pass fixes one more diagonal entry
+        current = np.diag(A)
+        above = np.flatnonzero(current > target + 1e-14)
+        below = np.flatnonzero(current < target - 1e-14)
+        if above.size == 0 or below.size == 0:
+            break
+        j = int(above[-1])
+        k = int(below[below > j][0]) if np.any(below > j) else int(below[0])
+        value = current[j] - min(current[j] - target[j], target[k] - current[k])
+        G = _rotation_setting_diagonal(A, j, k, value)
+        A = G @ A @ G.T
+        Q = G @ Q
+    unsorted = np.empty_like(Q)
+    unsorted[order] = Q
+    return unsorted
+
+
+def _rotation_setting_diagonal(A: np.ndarray, j: int, k: int, value: float) -> np.ndarray:
+    """Givens rotation G in the (j, k) plane with (G A G^T)_jj = value.
+
+    value must lie between A_jj and A_kk: f(phi) = a cos^2 + 2 b sin cos + c sin^2
+    runs from A_jj (phi = 0) to A_kk (phi = pi / 2).
+    """
+    a, b, c = A[j, j], A[j, k], A[k, k]
+    half, mean = (a - c) / 2.0, (a + c) / 2.0
+    radius = float(np.hypot(half, b))
+    phase = float(np.arctan2(b, half))
+    ratio = 1.0 if radius == 0 else float(np.clip((value - mean) / radius, -1.0, 1.0))
+    phi = (phase + np.arccos(ratio)) / 2.0
+    if abs(mean + half * np.cos(2 * phi) + b * np.sin(2 * phi) - value) > 1e-9:
+        phi = (phase - np.arccos(ratio)) / 2.0
+    G = np.eye(A.shape[0])
+    G[j, j] = G[k, k] = np.cos(phi)
+    G[j, k], G[k, j] = np.sin(phi), -np.sin(phi)
+    return G
+
+
+def redundant_optimal_jacobian(probabilities: Iterable[float], m: int,
+                               sigma: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Isotropic m x n Jacobian maximising F_w with n - m >= 1 degrees of redundancy.
+
+    Seed 001 eqs 3.25-3.29: J = sigma U_1 with U = [U_1; U_2] orthogonal, and the
+    post-failure singular values are sigma |n_i| (eq 3.27) with |n_i| the row norms
+    of the null-space basis U_2^T, so the optimum has the norms of eq 3.29
+    (`optimal_null_space_norms`). A null-space basis with those row norms is built
+    by `projection_with_diagonal`; for n - m = 1 it is the null vector of eq 3.15.
+
+    Args:
+        probabilities: n failure probabilities (eq 3.4).
+        m: task dimension, 1 <= m < n.
+        sigma: the singular value (m/s per rad/s, or 1 for the unit design).
+
+    Returns:
+        (J, N): J (m, n) with J J^T = sigma^2 I, and N (n, n - m) an orthonormal
+        basis of its null space with row norms `optimal_null_space_norms`.
+    """
+    norms = optimal_null_space_norms(probabilities, m)
+    n = norms.size
+    Q = projection_with_diagonal(norms**2, n - m)
+    return sigma * Q[:, n - m:].T, Q[:, :n - m]
+
+
 def _check_task_dimension(m: int, n: int) -> None:
     if not 1 <= m < n:
         raise ValueError(f"task dimension m must satisfy 1 <= m < n = {n}, got {m}")
+
+
+# ---------------------------------------------------------------- command line
+
+
+def _dh_report(J: np.ndarray, verify: bool, workers: int) -> dict[str, Any]:
+    from ft_core import dh
+
+    family = dh.organise_permutations(J)
+    good = family.match_pairs(dh.GOOD_PAIRS)
+    report: dict[str, Any] = {
+        "designs": len(family.permutations),
+        "reverse_pairs": int(np.sum(family.reverse > np.arange(len(family.reverse)))),
+        "tree_choices": family.tree_choices(),
+        "pairs": [{"columns": [i + 1, k + 1], "alpha": float(al), "a": float(a)}
+                  for (i, k), al, a in zip(family.pairs, family.pair_alpha, family.pair_a,
+                                           strict=True)],
+        "triples": len(family.triples),
+        "d_range": [float(family.triple_d.min()), float(family.triple_d.max())],
+        "alpha_gap": [float(family.pair_alpha[family.pair_alpha < 0].max()),
+                      float(family.pair_alpha[family.pair_alpha > 0].min())],
+        "a_range": [float(family.pair_a.min()), float(family.pair_a.max())],
+        "good_pairs": [{"columns": [family.pairs[g][0] + 1, family.pairs[g][1] + 1],
+                        "alpha": float(family.pair_alpha[g]), "a": float(family.pair_a[g])}
+                       for g in good],
+        "good_pair_groups": family.group_sizes(good),
+        "identity_design": dh.dh_from_jacobian(J).as_rows(),
+    }
+    if verify:
+        report["verified_designs"] = _verify_all(J, family, workers)
+    report["_family"] = family
+    return report
+
+
+def _verify_chunk(args: tuple[np.ndarray, list[int]]) -> int:
+    from ft_core import dh
+
+    J, designs = args
+    return dh.verify_family(J, dh.organise_permutations(J), designs)
+
+
+def _verify_all(J: np.ndarray, family: Any, workers: int) -> int:
+    """Recompute every design's DH table (about 7 s on one core): tqdm and a spawn pool."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tqdm import tqdm
+
+    chunks = [c.tolist() for c in np.array_split(np.arange(len(family.permutations)), 40)]
+    done = 0
+    with tqdm(total=len(family.permutations), desc="verify designs", unit="design",
+              file=sys.stderr) as bar:
+        if workers == 1:
+            for chunk in chunks:
+                done += _verify_chunk((J, chunk))
+                bar.update(len(chunk))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(workers, mp_context=context) as pool:
+                for count in pool.map(_verify_chunk, [(J, c) for c in chunks]):
+                    done += count
+                    bar.update(count)
+    return done
+
+
+def _plot_dh(report: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    family = report["_family"]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.5))
+    left.scatter(family.pair_alpha, family.pair_a, c="tab:blue")
+    for (i, k), al, a in zip(family.pairs, family.pair_alpha, family.pair_a, strict=True):
+        left.annotate(f"{i + 1}{k + 1}", (al, a), fontsize=7, xytext=(3, 3),
+                      textcoords="offset points")
+    for pair in report["good_pairs"]:
+        left.scatter(pair["alpha"], pair["a"], s=120, facecolors="none", edgecolors="tab:red")
+    left.set(xlabel="alpha (rad)", ylabel="a", title=f"{len(family.pairs)} {{alpha, a}} pairs"
+             " (Fig. 2.2a, c); red: good pairs")
+    right.scatter(family.triple_theta, family.triple_d, s=8, c="tab:green")
+    right.set(xlabel="theta (rad)", ylabel="d",
+              title=f"{len(family.triples)} {{d, theta}} pairs (Fig. 2.2b)")
+    for axis in (left, right):
+        axis.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _r7_report(args: argparse.Namespace) -> dict[str, Any]:
+    from ft_core import design7r, dh, measures
+
+    start = design7r.J_324 if args.start == "3.24" else None
+    design = design7r.realisable_design(args.probabilities, free_weights=not args.fixed_weights,
+                                        start=start, restarts=args.restarts, seed=args.seed)
+    J = design.jacobian
+    return {
+        "realisable": design.realisable,
+        "residual": design.residual,
+        "target_weights": design.target.tolist(),
+        "weights": design.weights.tolist(),
+        "jacobian": J.tolist(),
+        "singular_values": np.linalg.svd(J, compute_uv=False).tolist(),
+        "post_failure_sigmas": measures.post_failure_sigmas(J).tolist(),
+        "weighted_fault_tolerance": measures.weighted_fault_tolerance(J, design.weights),
+        "dh": dh.dh_from_jacobian(J).as_rows(),
+        "max_distance_from_start": (None if start is None
+                                    else float(np.abs(J - start).max())),
+    }
+
+
+def _plot_r7(report: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axis = plt.subplots(figsize=(6, 4))
+    joints = np.arange(1, 8)
+    axis.bar(joints - 0.2, report["target_weights"], 0.4, label="requested w")
+    axis.bar(joints + 0.2, report["weights"], 0.4, label="realisable w")
+    axis.set(xlabel="joint", ylabel="failure weight",
+             title=f"7R design (eqs 3.20-3.24), residual {report['residual']:.1e}")
+    axis.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _redundant_report(args: argparse.Namespace) -> dict[str, Any]:
+    from ft_core import measures
+
+    J, N = redundant_optimal_jacobian(args.probabilities, args.m, args.sigma)
+    return {
+        "jacobian": J.tolist(),
+        "null_space": N.tolist(),
+        "null_space_norms": optimal_null_space_norms(args.probabilities, args.m).tolist(),
+        "post_failure_sigmas": measures.post_failure_sigmas(J).tolist(),
+        "weighted_fault_tolerance": measures.weighted_fault_tolerance(J, args.probabilities),
+    }
+
+
+def _plot_redundant(report: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axis = plt.subplots(figsize=(6, 4))
+    joints = np.arange(1, len(report["null_space_norms"]) + 1)
+    axis.bar(joints - 0.2, report["null_space_norms"], 0.4, label="|n_i| (eq 3.29)")
+    axis.bar(joints + 0.2, report["post_failure_sigmas"], 0.4, label="i_sigma_m (eq 3.27)")
+    axis.set(xlabel="joint", title="several degrees of redundancy")
+    axis.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _multicase_report(args: argparse.Namespace) -> dict[str, Any]:
+    from tqdm import tqdm
+
+    from ft_core import multicase
+
+    grid = multicase.link_grid(args.step)
+    with tqdm(total=len(grid), desc="eq 3.30 designs", unit="design", file=sys.stderr) as bar:
+        scores = multicase.score_grid(grid, args.radii, args.samples, args.workers, bar.update)
+    family = multicase.optimal_family(scores, args.family_tolerance)
+    balanced = multicase.balanced_design(family)
+    best = max(scores, key=lambda s: s.objective)
+
+    def entry(s: Any) -> dict[str, Any]:
+        return {"lengths": list(s.lengths), "objective": s.objective,
+                "unconstrained": s.unconstrained, "radius": s.radius,
+                "components": dict(zip(multicase.COMPONENTS, s.maxima.tolist(), strict=True)),
+                "configurations_deg": dict(zip(multicase.COMPONENTS,
+                                               np.degrees(s.configurations).tolist(),
+                                               strict=True))}
+
+    return {"designs": len(scores), "best": entry(best), "balanced": entry(balanced),
+            "family": [entry(s) for s in family],
+            "family_l3": sorted({round(s.lengths[2], 6) for s in family}),
+            "_scores": scores}
+
+
+def _plot_multicase(report: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scores = report["_scores"]
+    l1 = [s.lengths[0] for s in scores]
+    l2 = [s.lengths[1] for s in scores]
+    fig, axis = plt.subplots(figsize=(6, 5))
+    points = axis.scatter(l1, l2, c=[s.objective for s in scores], s=14, cmap="viridis")
+    fig.colorbar(points, label="F (eq 3.30)")
+    best = report["balanced"]["lengths"]
+    axis.plot([0, 0.6], [0.6, 0], "r--", lw=1, label="l3 = 0.4")
+    axis.scatter([best[0]], [best[1]], marker="*", s=150, c="red", label="balanced design")
+    axis.set(xlabel="l1", ylabel="l2", title="planar 3R, total length 1 (Fig. 3.4)")
+    axis.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _load_jacobian(path: Path | None) -> np.ndarray:
+    from ft_core import dh
+
+    if path is None:
+        return dh.J_STAR
+    data = json.loads(path.read_text())
+    J = np.asarray(data["jacobian"] if isinstance(data, dict) else data, dtype=float)
+    if J.ndim != 2 or J.shape[0] != 6:
+        raise ValueError(f"{path}: need a 6 x n Jacobian, got shape {J.shape}")
+    return J
+
+
+def _probabilities(text: str) -> list[float]:
+    from ft_core.cli import numbers
+
+    try:
+        return numbers(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"not a list of numbers: {text!r}") from error
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ft-design", description="Design tools of seed 001 ch. 2-3: DH parameters and the"
+        " 7! designs, 7R-realisable optima, several degrees of redundancy, eq 3.30.")
+    commands = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--output", "-o", type=Path, required=True, help="JSON file to write")
+    common.add_argument("--figure", type=Path, help="PNG figure to write (optional)")
+    workers = argparse.ArgumentParser(add_help=False)
+    workers.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                         help="processes for long computations (default: all cores)")
+
+    dh_cmd = commands.add_parser("dh", parents=[common, workers],
+                                 help="DH parameters of the 7! column orders (sec. 2.3)")
+    dh_cmd.add_argument("--jacobian", type=Path, help="JSON 6 x n matrix (default: eq 2.7)")
+    dh_cmd.add_argument("--verify", action="store_true",
+                        help="recompute every design's DH table from its own axes")
+
+    r7 = commands.add_parser("r7", parents=[common],
+                             help="7R-realisable optimal Jacobian (eqs 3.20-3.24)")
+    r7.add_argument("--probabilities", type=_probabilities, default=None,
+                    help="7 failure probabilities (default: equal)")
+    r7.add_argument("--start", choices=["3.24", "random"], default="random",
+                    help="polish eq 3.24 (with its weights) or start at random")
+    r7.add_argument("--fixed-weights", action="store_true",
+                    help="keep the weights fixed (usually not realisable)")
+    r7.add_argument("--restarts", type=int, default=8, help="random starts (default 8)")
+    r7.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+    red = commands.add_parser("redundant", parents=[common],
+                              help="Jacobian with several degrees of redundancy (3.26-3.29)")
+    red.add_argument("--probabilities", type=_probabilities, required=True,
+                     help="n failure probabilities")
+    red.add_argument("--m", type=int, required=True, help="task dimension m < n")
+    red.add_argument("--sigma", type=float, default=1.0, help="singular value (default 1)")
+
+    multi = commands.add_parser("multicase", parents=[common, workers],
+                                help="planar 3R design for several cases (eq 3.30)")
+    multi.add_argument("--step", type=float, default=0.02, help="link-length step (0.02)")
+    multi.add_argument("--radii", type=int, default=100, help="task-point distances (100)")
+    multi.add_argument("--samples", type=int, default=360, help="points per manifold (360)")
+    multi.add_argument("--family-tolerance", type=float, default=2e-3,
+                       help="relative tolerance of the optimal family (default 2e-3)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run `ft-design`; return the exit status (0 ok, 1 bad input, 2 bad arguments)."""
+    args = _parser().parse_args(argv)
+    try:
+        if getattr(args, "workers", 1) < 1:
+            raise ValueError("--workers must be >= 1")
+        if args.command == "dh":
+            report, plot = _dh_report(_load_jacobian(args.jacobian), args.verify,
+                                      args.workers), _plot_dh
+        elif args.command == "r7":
+            if args.start == "3.24" and args.probabilities is None:
+                from ft_core.design7r import W_324
+
+                args.probabilities = W_324.tolist()
+            report, plot = _r7_report(args), _plot_r7
+        elif args.command == "redundant":
+            report, plot = _redundant_report(args), _plot_redundant
+        else:
+            if args.radii < 1 or args.samples < 4:
+                raise ValueError("--radii must be >= 1 and --samples >= 4")
+            report, plot = _multicase_report(args), _plot_multicase
+    except (ValueError, OSError, KeyError) as error:
+        print(f"ft-design: {error}", file=sys.stderr)
+        return 1
+    public = {key: value for key, value in report.items() if not key.startswith("_")}
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps({"command": args.command, **public}, indent=1) + "\n")
+    if args.figure is not None:
+        args.figure.parent.mkdir(parents=True, exist_ok=True)
+        plot(report, args.figure)
+    print(f"ft-design {args.command}: wrote {args.output}"
+          + (f" and {args.figure}" if args.figure else ""))
+    return 0
