@@ -36,6 +36,7 @@ build: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 test: build lint
 	$(BIN)/python -m pytest

@@ -278,3 +278,14 @@ def test_a_lone_gripper_joint_after_the_arm_is_not_taken_into_the_chain() -> Non
     assert robot.tip_link == "link06"
     with_gripper = robots.load(urdf, tip_link="gripperTip")
     assert with_gripper.joint_names[-1] == "jointGripper"
+
+
+def test_a_changed_pinocchio_hessian_layout_fails_loudly(monkeypatch) -> None:
+    robots.check_hessian_layout()  # the installed Pinocchio's layout is the one we read
+
+    def transposed(flat, n, a, j, k):  # what a row-major (6, n, n) layout would hold
+        return flat[a * n * n + j * n + k]
+
+    monkeypatch.setattr(robots, "hessian_entry", transposed)
+    with pytest.raises(RuntimeError, match="Hessian"):
+        robots.check_hessian_layout()

@@ -185,6 +185,8 @@ class _Buffers:
     """
 
     NAMES: tuple[str, ...] = ()
+    start: int = 0
+    end: int = 0
 
     def __len__(self) -> int:
         return self.end - self.start
@@ -514,7 +516,7 @@ class LockDetector:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return []
-        for j in np.flatnonzero(on_its_own):
+        for j in np.flatnonzero(on_its_own).tolist():
             evidence = self.joints[j]
             if evidence.swinging_at is not None:
                 continue
@@ -523,8 +525,8 @@ class LockDetector:
             if now - evidence.swing_since >= cfg.persistence:
                 # A joint declared locked that moves was never locked: it swings.
                 evidence.swinging_at, evidence.locked_at = now, None
-                self.newly_swinging.append(int(j))
-        for j in np.flatnonzero(~on_its_own):
+                self.newly_swinging.append(j)
+        for j in np.flatnonzero(~on_its_own).tolist():
             self.joints[j].swing_since = None
         newly = []
         for j, evidence in enumerate(self.joints):

@@ -148,9 +148,8 @@ def score(lengths: Sequence[float], radii: int = 100, samples: int = 360) -> Des
         near = v_k[:, c] >= v_k[:, c].max() - _TIE
         gap = np.abs(np.angle(np.exp(1j * (q_k[near] - first)))).sum(axis=1)
         configurations.append(q_k[near][np.argmin(gap)])
-    configurations = np.array(configurations)
     return DesignScore(lengths, float(sums[k]), float(best[reached].max(axis=0).sum()),
-                       float(r[k]), best[k], configurations)
+                       float(r[k]), best[k], np.array(configurations))
 
 
 def _score_chunk(args: tuple[np.ndarray, int, int]) -> list[DesignScore]:

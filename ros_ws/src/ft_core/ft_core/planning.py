@@ -125,7 +125,7 @@ def _candidates(point: TaskPoint) -> np.ndarray:
     return samples[:: max(1, int(np.ceil(samples.shape[0] / CANDIDATES)))]
 
 
-def plan(points: Sequence[TaskPoint], start: np.ndarray, rates: Sequence[float],
+def plan(points: Sequence[TaskPoint], start: np.ndarray, rates: reliability.Rates,
          speed: float) -> Plan:
     """The trajectory through the points, in order, of least single-lock task failure.
 

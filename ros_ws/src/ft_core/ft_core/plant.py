@@ -157,12 +157,14 @@ class Plant:
     def _swing(self, q: np.ndarray, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The free-swinging joints over dt, from where they were (1 ms substeps)."""
         free = sorted(self.swinging)
+        acceleration = self.free_swing_acceleration
+        assert acceleration is not None  # swing() refuses a plant without it
         q, v = q.copy(), v.copy()
         q[free], v[free] = self.q[free], self.qd[free]
         steps = max(1, math.ceil(dt / 0.001))
         h = dt / steps
         for _ in range(steps):
-            v[free] += h * self.free_swing_acceleration(q, v)[free]
+            v[free] += h * acceleration(q, v)[free]
             q[free] += h * v[free]
             at_limit = (q < self.lower) | (q > self.upper)
             q = np.clip(q, self.lower, self.upper)

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Failure rates (1/s): one for all joints, or one per joint.
+Rates = Sequence[float] | np.ndarray
 #: Tolerance (rad) of the box edges: a lock exactly on an edge is survived (002 fn. 3).
 EDGE = 1e-9
 #: Segments the trajectory is divided into for the second-failure terms (sec. 4.2.3).
@@ -223,8 +225,7 @@ def _pieces(points: Sequence[TaskPoint], trajectory: Trajectory, segments: int,
             s = np.full(delta.shape, -1.0)
             s[moving] = (bound[moving] - q[w][moving]) / delta[moving]
             cuts += [t0 + v * (t1 - t0) for v in s if 0.0 < v < 1.0]
-        cuts = np.unique(cuts)
-        for a, b in itertools.pairwise(cuts):
+        for a, b in itertools.pairwise(np.unique(cuts)):
             count = max(1, int(np.ceil((b - a) / longest - 1e-9)))
             edges = np.linspace(a, b, count + 1)
             pieces += [(float(c), float(d), first) for c, d in itertools.pairwise(edges)]
@@ -232,7 +233,7 @@ def _pieces(points: Sequence[TaskPoint], trajectory: Trajectory, segments: int,
 
 
 def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory,
-                             rates: Sequence[float], speed: float,
+                             rates: Rates, speed: float,
                              second_failures: bool = True, segments: int = SEGMENTS) -> float:
     """Probability that a lock makes the task fail along the trajectory (sec. 4.2.3).
 
@@ -269,7 +270,7 @@ def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory
     return total
 
 
-def monte_carlo(points: Sequence[TaskPoint], trajectory: Trajectory, rates: Sequence[float],
+def monte_carlo(points: Sequence[TaskPoint], trajectory: Trajectory, rates: Rates,
                 speed: float, samples: int, rng: np.random.Generator,
                 second_failures: bool = True) -> tuple[int, int]:
     """Simulate exponential joint failures along the trajectory: (task failures, samples).
@@ -299,7 +300,7 @@ def monte_carlo(points: Sequence[TaskPoint], trajectory: Trajectory, rates: Sequ
     return failures, samples
 
 
-def check_rates(rates: Sequence[float], n: int) -> np.ndarray:
+def check_rates(rates: Rates, n: int) -> np.ndarray:
     """Failure rates (1/s) as an (n,) array: one value for all joints, or n (ValueError)."""
     lam = np.asarray(rates, dtype=float).reshape(-1)
     if lam.size == 1:

@@ -63,14 +63,23 @@ def _cross(a: np.ndarray | tuple, b: np.ndarray | tuple) -> tuple[float, float, 
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
+@njit(cache=True)
+def hessian_entry(flat: np.ndarray, n: int, a: int, j: int, k: int) -> float:
+    """Entry (a, j, k) = d J_last[a, j] / dq_k of a joint kinematic Hessian's flat memory.
+
+    Pinocchio 4.1 hands the (6, n, n) tensor over column-major while flagging it
+    C-contiguous: the entry sits at a + 6 j + 6 n k. `_task_jacobians` reads it so.
+    """
+    return flat[a + 6 * j + 6 * n * k]
+
+
 @njit(cache=True, error_model="numpy")
 def _task_jacobians(J: np.ndarray, w: np.ndarray, hessian: np.ndarray, r: np.ndarray,
                     rotate: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """Task rows of the tool Jacobian and its derivatives (m, n), (n, m, n), in the base frame.
 
-    `hessian` is the flat memory of the last joint's kinematic Hessian (6, n, n):
-    Pinocchio 4.1 hands it over column-major while flagged C-contiguous, so entry
-    (a, j, k) = d J_last[a, j] / dq_k sits at a + 6 j + 6 n k. The tool point sits
+    `hessian` is the flat memory of the last joint's kinematic Hessian (6, n, n), read
+    as `hessian_entry` does (checked at import by `check_hessian_layout`). The tool point sits
     at r from the last joint's origin, rigidly attached to the last link, so the
     tool's linear column j is v_j + w_j x r and its derivative over q_k is
     dv_j + dw_j x r + w_j x (w_k x r). `rotate` (6, 6) maps world to base axes.
@@ -82,7 +91,7 @@ def _task_jacobians(J: np.ndarray, w: np.ndarray, hessian: np.ndarray, r: np.nda
         dr = _cross(w[:, k], r)  # dr/dq_k
         for j in range(n):
             for a in range(6):
-                world[k, a, j] = hessian[a + 6 * j + 6 * n * k]
+                world[k, a, j] = hessian_entry(hessian, n, a, j, k)
             a_x, a_y, a_z = _cross(world[k, 3:, j], r)
             b_x, b_y, b_z = _cross(w[:, j], dr)
             world[k, 0, j] += a_x + b_x
@@ -97,6 +106,50 @@ def _task_jacobians(J: np.ndarray, w: np.ndarray, hessian: np.ndarray, r: np.nda
                 for k in range(n):
                     base_dJ[k, a] += rotate[a, b] * world[k, b]
     return base_J, base_dJ
+
+
+def check_hessian_layout() -> None:
+    """Fail loudly if Pinocchio's kinematic Hessian is not laid out as `hessian_entry` reads it.
+
+    A three-joint arm with different axes (an asymmetric Hessian, so a transposed or
+    reordered layout shows) is differentiated by central differences of its joint
+    Jacobian and compared with the Hessian read through `hessian_entry`. Run at
+    import: a Pinocchio update that changes the layout would otherwise give silently
+    wrong kfm gradients.
+
+    Raises:
+        RuntimeError: the layout differs.
+    """
+    model = pin.Model()
+    parent = 0
+    for axis, offset in zip(("Z", "Y", "X"), ((0.0, 0.0, 0.3), (0.4, 0.0, 0.0),
+                                               (0.0, 0.3, 0.1)), strict=True):
+        joint = getattr(pin, f"JointModelR{axis}")()
+        parent = model.addJoint(parent, joint, pin.SE3(np.eye(3), np.array(offset)), axis)
+    data = model.createData()
+    n, q, h = model.nv, np.array([0.3, -0.7, 1.1]), 1e-6
+
+    def jacobian(at: np.ndarray) -> np.ndarray:
+        pin.computeJointJacobians(model, data, at)
+        return pin.getJointJacobian(model, data, n, pin.LOCAL_WORLD_ALIGNED).copy()
+
+    pin.computeJointJacobians(model, data, q)
+    pin.computeJointKinematicHessians(model, data)
+    flat = pin.getJointKinematicHessian(model, data, n, pin.LOCAL_WORLD_ALIGNED).ravel(order="C")
+    for k in range(n):
+        step = np.zeros(n)
+        step[k] = h
+        numeric = (jacobian(q + step) - jacobian(q - step)) / (2 * h)
+        for a in range(6):
+            for j in range(n):
+                if abs(hessian_entry(flat, n, a, j, k) - numeric[a, j]) > 1e-6:
+                    raise RuntimeError(
+                        f"Pinocchio {pin.__version__} lays out the joint kinematic Hessian "
+                        "differently from what ft_core.robots.hessian_entry reads (Pinocchio "
+                        "4.1's column-major memory): update hessian_entry and _task_jacobians")
+
+
+check_hessian_layout()
 
 
 class RobotModelError(ValueError):
@@ -153,14 +206,14 @@ def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
         raise RobotModelError(f"URDF does not parse: {exc}") from exc
     if root.tag != "robot":
         raise RobotModelError(f"URDF root element is <{root.tag}>, expected <robot>")
-    links = {link.get("name") for link in root.findall("link")}
+    links = {link.get("name", "") for link in root.findall("link")}
     by_child: dict[str, _UrdfJoint] = {}
     for element in root.findall("joint"):
         parent, child = element.find("parent"), element.find("child")
         if parent is None or child is None:
             raise RobotModelError(f"URDF joint {element.get('name')!r} lacks <parent> or <child>")
-        joint = _UrdfJoint(element.get("name"), element.get("type"), parent.get("link"),
-                           child.get("link"))
+        joint = _UrdfJoint(element.get("name", ""), element.get("type", ""),
+                           parent.get("link", ""), child.get("link", ""))
         if joint.child in by_child:
             raise RobotModelError(f"URDF link {joint.child!r} has two parent joints")
         by_child[joint.child] = joint
@@ -261,8 +314,8 @@ def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray,
         elif limit is None or limit.get("lower") is None or limit.get("upper") is None:
             raise RobotModelError(f"URDF joint {name!r} has no position <limit>")
         else:
-            lo, hi = float(limit.get("lower")), float(limit.get("upper"))
-        vel = float(limit.get("velocity")) if limit is not None and limit.get("velocity") else 0.0
+            lo, hi = float(limit.get("lower", "")), float(limit.get("upper", ""))
+        vel = float(limit.get("velocity", "0") or 0.0) if limit is not None else 0.0
         if not lo <= hi:
             raise RobotModelError(f"URDF joint {name!r} has lower limit {lo} above upper {hi}")
         lower.append(lo)
@@ -280,7 +333,7 @@ def _as_revolute(root: ET.Element, names: list[str]) -> str:
     The wide placeholder limits written here are never used: `_limits` reports them
     as infinite.
     """
-    links = {link.get("name") for link in root.findall("link")}
+    links = {link.get("name", "") for link in root.findall("link")}
     for joint in root.findall("joint"):
         if joint.get("name") in links and joint.get("name") not in names:
             # A joint named like a link (Unitree Z1) makes Pinocchio's frame lookups by

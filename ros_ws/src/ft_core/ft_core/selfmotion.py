@@ -425,17 +425,18 @@ def trace(robot: Robot, target: np.ndarray, q_seed: np.ndarray | None = None,
     if q_seed is None:
         seed = find_seed(robot, target)
     else:
-        seed = project(robot, target, np.asarray(q_seed, dtype=float))
-        if seed is None:
+        projected = project(robot, target, np.asarray(q_seed, dtype=float))
+        if projected is None:
             raise UnreachableError("the seed configuration does not reach the target")
+        seed = projected
     walker = _Walker(robot, target)
     r = robot.n - robot.m
     if r <= 0:
         return Manifold(robot, target, seed, (seed[None],), "point", step)
     if r == 1:
-        paths, closed = _curve(walker, seed, step, max_steps)
-        paths = _branches(walker, paths, step, max_steps)
-        return Manifold(robot, target, seed, tuple(paths), "curve", step, closed)
+        curve, closed = _curve(walker, seed, step, max_steps)
+        return Manifold(robot, target, seed, tuple(_branches(walker, curve, step, max_steps)),
+                        "curve", step, closed)
     paths: list[np.ndarray] = []
     method = "extremal"
     if r == 2:
@@ -565,9 +566,9 @@ def point_size(robot: Robot) -> int:
     return 7 if robot.task_space == "pose" else robot.m
 
 
-def targets_from_flat(robot: Robot, values: Sequence[float]) -> list[np.ndarray]:
+def targets_from_flat(robot: Robot, flat: Sequence[float]) -> list[np.ndarray]:
     """Critical points from a flat list (the controller's `critical_points` parameter)."""
-    values = np.asarray(values, dtype=float)
+    values = np.asarray(flat, dtype=float)
     size = point_size(robot)
     if values.ndim != 1 or values.size % size:
         raise ValueError(f"critical points for a {robot.task_space} task need a multiple of "

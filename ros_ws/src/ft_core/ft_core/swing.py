@@ -75,7 +75,7 @@ def swing_measure(robot: Robot, q: np.ndarray, weights: Sequence[float] | None =
     return float(theta @ (w * theta))
 
 
-def swing_gradient(robot: Robot, q: np.ndarray, weights: Sequence[float] | None = None,
+def swing_gradient(robot: Robot, q: np.ndarray, weights: Sequence[float] | np.ndarray | None = None,
                    gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray:
     """dh/dq (rad^2 per rad, (n,)), analytic (see the module notes)."""
     w = np.ones(robot.n) if weights is None else np.asarray(weights, dtype=float)

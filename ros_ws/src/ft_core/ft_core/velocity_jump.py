@@ -41,14 +41,15 @@ def _task_velocity(xd: np.ndarray, m: int) -> np.ndarray:
 
 
 def post_failure_velocities(J: np.ndarray, xd: np.ndarray,
-                       damping: Damping | None = None) -> np.ndarray:
+                            damping: Damping | None = None) -> np.ndarray:
     """Row i: the velocity iqd' = (iJ)+ xd the robot would have if joint i locked (n, n).
 
     Entry (i, i) is 0 (seed 004 eqs 2 and 6).
     """
     J = as_matrix(J)
     xd = _task_velocity(xd, J.shape[0])
-    return pseudo_inverse_from_svd(*post_failure_svd(J), damping) @ xd
+    U, S, Vt = post_failure_svd(J)
+    return pseudo_inverse_from_svd(U, S, Vt, damping) @ xd
 
 
 def min_jump_velocity(J: np.ndarray, xd: np.ndarray,

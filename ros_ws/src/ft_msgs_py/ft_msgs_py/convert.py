@@ -86,14 +86,14 @@ def array_vector(values: Sequence[float], order: Sequence[int]) -> np.ndarray:
     `order[k]` is the chain index of command entry k. Raises MessageError for a wrong
     length or non-finite values.
     """
-    order = np.asarray(order, dtype=int)
-    if len(values) != order.size:
-        raise MessageError(f"array has {len(values)} values for {order.size} joints")
+    indices = np.asarray(order, dtype=int)
+    if len(values) != indices.size:
+        raise MessageError(f"array has {len(values)} values for {indices.size} joints")
     data = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(data)):
         raise MessageError(f"non-finite values at {np.flatnonzero(~np.isfinite(data))[:10]}")
-    vector = np.empty(order.size)
-    vector[order] = data
+    vector = np.empty(indices.size)
+    vector[indices] = data
     return vector
 
 

@@ -126,7 +126,8 @@ def request_model(node: Node, use: Callable[[str, str], None]) -> None:
         elif state["newest"] is None or state["newest"] == state["accepted"]:
             response.success, response.message = True, "already using the newest description"
         elif adopt(state["newest"], "the robot_description topic (reload)"):
-            response.success, response.message = True, f"now using {node.robot.name}"
+            robot = getattr(node, "robot", None)
+            response.success, response.message = True, f"now using {getattr(robot, 'name', '?')}"
         else:
             response.success, response.message = False, ("the newest description cannot be "
                                                          "used (see the log): model kept")
@@ -162,5 +163,6 @@ def chain_arguments(node: Node) -> tuple[str | None, str | None, str | None, flo
 
     Each is None where the parameter holds its "use the model's own" value.
     """
-    return tuple(value(node, name) or None for name in
-                 ("base_link", "tip_link", "task_space", "characteristic_length"))
+    base, tip, task, length = (value(node, name) or None for name in
+                               ("base_link", "tip_link", "task_space", "characteristic_length"))
+    return base, tip, task, length
