@@ -70,11 +70,15 @@ def test_metrics_are_labelled_and_always_finite() -> None:
     assert labels[:5] == ["kfm", "sigma_min", "jump_index", "task_scale", "soft_limit_margin"]
     assert labels[5:] == ["s_a", "s_b", "s_c"]
     values = {label: float(i) for i, label in enumerate(labels)}
-    msg = metrics.message(labels, values)
+    msg = metrics.template(labels)
     assert msg.layout.dim[0].label == ",".join(labels)
+    metrics.fill(msg, list(values.values()))
     assert metrics.values(msg) == values
-    with pytest.raises(ValueError, match="non-finite"):
-        metrics.message(labels, {**values, "kfm": math.nan})
+    with pytest.raises(ValueError, match=r"non-finite metrics \['kfm'\]"):
+        metrics.fill(msg, [math.nan, *list(values.values())[1:]])
+    with pytest.raises(ValueError, match="8 labels"):
+        metrics.fill(msg, [0.0])
+    assert metrics.values(msg) == values  # a refused fill leaves the message as it was
 
 
 def test_diagnostic_statuses_carry_key_values() -> None:

@@ -23,6 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, Status
@@ -121,7 +122,11 @@ class ControllerNode(SuiteNode):
         self.engine: ResolutionEngine | None = None
         self.tracking = PoseTracking()
         self._order: np.ndarray | None = None  # command index -> chain index
+        self.command_joints: list[str] = []  #: joint names in command order
         self._labels: list[str] = []
+        # Built once per model, refilled each cycle (`_publish`).
+        self._command_msg = JointState()
+        self._metrics_msg = Float64MultiArray()
         self._q: np.ndarray | None = None
         self._target: _Target | None = None
         self._locked: dict[str, float] = {}
@@ -139,6 +144,7 @@ class ControllerNode(SuiteNode):
         self._suspect_sent = -math.inf
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
+        self._read_cycle_parameters()
         self._rate_window = (0, self.now())
         self._rate = 0.0
 
@@ -182,17 +188,15 @@ class ControllerNode(SuiteNode):
         self._excursions = self._observability(robot, {})
         self._channel = TaskChannel(robot) if robot.task_space != "pose" else None
         self._model_source = (spec, parameters.chain_arguments(self))
+        self.command_joints = [robot.joint_names[i] for i in order]
         self._labels = metrics.labels(self.command_joints)
+        self._command_msg = convert.joint_state(self.command_joints, Time())
+        self._metrics_msg = metrics.template(self._labels)
         self._boxes_dirty = len(self.param("critical_points")) > 0
         self.problems.report("model", None)
         self.get_logger().info(
             f"model from {source}: {robot.name}, {robot.base_link} -> {robot.tip_link}, "
             f"{robot.task_space} task, joints {self.command_joints}")
-
-    @property
-    def command_joints(self) -> list[str]:
-        """Joint names in command order."""
-        return [self.robot.joint_names[i] for i in self._order]
 
     def _chain(self, values: list[float], order: np.ndarray, what: str) -> np.ndarray:
         """Per-joint values given in command order, put in chain order."""
@@ -246,8 +250,15 @@ class ControllerNode(SuiteNode):
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
+    def _read_cycle_parameters(self) -> None:
+        """The parameters the control cycle reads, read once per change, not per cycle."""
+        self._state_timeout = self.param("state_timeout")
+        self._target_timeout = self.param("target_timeout")
+        self._idle_null_space_motion = self.param("idle_null_space_motion")
+
     def _apply(self, parameters: list[Parameter]) -> None:
         changed = {p.name for p in parameters}
+        self._read_cycle_parameters()
         self.tracking = PoseTracking(self.param("position_gain"), self.param("max_linear_speed"),
                                      self.param("max_angular_speed"))
         if "control_rate" in changed:
@@ -447,15 +458,16 @@ class ControllerNode(SuiteNode):
         robot = self.robot
         if robot is None:
             return
-        now = self.now()
+        clock = self.get_clock().now()
+        now, stamp = clock.nanoseconds * 1e-9, clock.to_msg()
         q = self._q
-        if q is not None and now - self.state_stamp > self.param("state_timeout"):
+        if q is not None and now - self.state_stamp > self._state_timeout:
             self.problems.report("joint_states",
                                  f"no joint state for {now - self.state_stamp:.3f} s")
             q = None
         if q is None:
             self._last = None
-            self._publish(np.zeros(robot.n))
+            self._publish(np.zeros(robot.n), stamp)
             return
         if self._boxes_job is not None:
             self._take_boxes()
@@ -468,18 +480,18 @@ class ControllerNode(SuiteNode):
         except ValueError as error:  # physically absurd state or target
             self.problems.report("engine", f"{error}: commanding zeros")
             self._last = None
-            self._publish(np.zeros(robot.n))
+            self._publish(np.zeros(robot.n), stamp)
             return
         self.problems.report("engine", None)
         qd = result.qd
-        if idle and not self.param("idle_null_space_motion"):
+        if idle and not self._idle_null_space_motion:
             qd = np.zeros(robot.n)
             result.jump_index = 0.0
         qd = self._excite(q, qd, locked, now)
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(robot.n)
         self._last = result
-        self._publish(qd, result)
+        self._publish(qd, stamp, result)
         self._watch_task(q, qd, locked, now)
 
     def _watch_task(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> None:
@@ -526,24 +538,23 @@ class ControllerNode(SuiteNode):
         if target.kind == "pose":
             xd, reached = pose_velocity(robot, target.value, q, self.tracking)
             return xd, reached
-        scale = staleness_scale(now - target.stamp, self.param("target_timeout"))
+        scale = staleness_scale(now - target.stamp, self._target_timeout)
         return scale * target.value, scale == 0.0
 
-    def _publish(self, qd_chain: np.ndarray, result=None) -> None:
-        stamp = self.get_clock().now().to_msg()
-        self._command_pub.publish(convert.joint_state(
-            self.command_joints, stamp, velocity=qd_chain[self._order]))
+    def _publish(self, qd_chain: np.ndarray, stamp: Time | None = None, result=None) -> None:
+        """The command (and with a cycle's result, the metrics), in preallocated messages."""
+        msg = self._command_msg
+        msg.header.stamp = self.get_clock().now().to_msg() if stamp is None else stamp
+        msg.velocity = qd_chain[self._order].tolist()
+        self._command_pub.publish(msg)
         if result is None:
             return
-        values = {"kfm": result.kfm, "sigma_min": result.sigma_min,
-                  "jump_index": result.jump_index, "task_scale": result.task_scale,
-                  "soft_limit_margin": (result.soft_limit_margin
-                                        if math.isfinite(result.soft_limit_margin)
-                                        else metrics.NO_SOFT_BOX)}
-        for joint, i in zip(self.command_joints, self._order, strict=True):
-            s = result.post_failure_sigmas[i]
-            values[f"s_{joint}"] = s if math.isfinite(s) else metrics.LOCKED
-        self._metrics_pub.publish(metrics.message(self._labels, values))
+        sigmas = result.post_failure_sigmas[self._order]
+        metrics.fill(self._metrics_msg, [
+            result.kfm, result.sigma_min, result.jump_index, result.task_scale,
+            result.soft_limit_margin if math.isfinite(result.soft_limit_margin)
+            else metrics.NO_SOFT_BOX, *np.where(np.isfinite(sigmas), sigmas, metrics.LOCKED)])
+        self._metrics_pub.publish(self._metrics_msg)
 
     # ------------------------------------------------------------- diagnostics
     def _publish_diagnostics(self) -> None:

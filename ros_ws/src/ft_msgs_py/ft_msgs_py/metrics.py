@@ -10,7 +10,7 @@ active soft box as `NO_SOFT_BOX`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
@@ -26,17 +26,29 @@ def labels(joints: Sequence[str]) -> list[str]:
     return [*FIXED_LABELS, *(f"s_{joint}" for joint in joints)]
 
 
-def message(labels_: Sequence[str], values: Mapping[str, float]) -> Float64MultiArray:
-    """The array for `values` (by label); missing or non-finite values raise ValueError."""
-    data = [float(values[label]) for label in labels_]
-    bad = [label for label, v in zip(labels_, data, strict=True) if not math.isfinite(v)]
+def template(labels_: Sequence[str]) -> Float64MultiArray:
+    """An array with the labels' layout and zero data, built once and refilled by `fill`."""
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=",".join(labels_), size=len(labels_),
+                                          stride=len(labels_))]
+    msg.data = [0.0] * len(labels_)
+    return msg
+
+
+def fill(msg: Float64MultiArray, data: Sequence[float]) -> None:
+    """Put `data` (in label order) into a `template` message.
+
+    Raises:
+        ValueError: a wrong number of values, or non-finite ones (named by label).
+    """
+    labels_ = msg.layout.dim[0].label.split(",")
+    values = [float(v) for v in data]
+    if len(values) != len(labels_):
+        raise ValueError(f"{len(values)} metrics for {len(labels_)} labels")
+    bad = [label for label, v in zip(labels_, values, strict=True) if not math.isfinite(v)]
     if bad:
         raise ValueError(f"non-finite metrics {bad}")
-    msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=",".join(labels_), size=len(data),
-                                          stride=len(data))]
-    msg.data = data
-    return msg
+    msg.data = values
 
 
 def values(msg: Float64MultiArray) -> dict[str, float]:
