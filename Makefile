@@ -50,6 +50,7 @@ demo: $(STAMP)
 # README's longer ft-campaign command.
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
+	$(BIN)/python bench/engine_scaling.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 	$(BIN)/python bench/detection.py --out bench_out
 	$(BIN)/python bench/observability.py --out bench_out

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
+import numpy as np
+import pytest
+from ft_core import robots
+from ft_core.engine import Status
 from paths import REPO
 
 
@@ -20,9 +26,76 @@ def test_engine_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     table = (tmp_path / "engine_cycle.md").read_text()
     assert "pink" in table and "ft engine blend" in table
     figures = json.loads((tmp_path / "engine_cycle.json").read_text())
-    assert set(figures["results"]) >= {"ft engine least_norm", "ft engine blend"}
+    assert set(figures["results"]) == {
+        "ft engine least_norm", "ft engine max_kfm", "ft engine min_jump", "ft engine blend",
+        "pink (reused configuration, DAQP)", "mink (MuJoCo, DAQP)",
+        "numpy baseline (pinv + n SVDs)", "Pinocchio floor (frame Jacobian)",
+        "Pinocchio floor (J and kinematic Hessian)"}
     assert all(r["median_us"] > 0 for r in figures["results"].values())
-    assert figures["machine"]["cores"]
+    assert figures["machine"]["cores"] and figures["machine"]["mink"]
+
+
+def _bench_module(name: str) -> ModuleType:
+    """Import bench/<name>.py (the scripts import each other by name, from bench/)."""
+    if str(REPO / "bench") not in sys.path:
+        sys.path.insert(0, str(REPO / "bench"))
+    return importlib.import_module(name)
+
+
+def test_engine_benchmark_peers_are_asked_for_the_same_task_velocity() -> None:
+    # Where nothing limits it, every candidate's command achieves xd (pink and mink up to
+    # their small posture cost), and the numpy baseline is the engine's least-norm cycle.
+    bench = _bench_module("engine_cycle")
+    xml, robot = robots.builtin_urdf("panda"), robots.load("panda")
+    qs, xds = bench.workload(robot, 12, 0)
+    pink = bench.pink_call(xml, bench.TIP, qs, xds)
+    mink = bench.mink_call(robot, xml, bench.TIP, qs, xds)
+    baseline = bench.numpy_call(robot, xml, bench.TIP, qs, xds)
+    engine = bench.engine_call(robot, "least_norm", qs, xds)
+    checked = 0
+    for i, (q, xd) in enumerate(zip(qs, xds, strict=True)):
+        result = engine(i)
+        qd_pink, qd_mink, (qd_numpy, kfm) = pink(i), mink(i), baseline(i)
+        np.testing.assert_allclose(qd_mink, qd_pink, atol=1e-6)
+        assert kfm == pytest.approx(result.kfm, rel=1e-6, abs=1e-9)
+        assert bench.floor_call(xml, bench.TIP, qs)(i).shape == (6, 7)
+        assert bench.hessian_floor_call(xml, bench.TIP, qs)(i).shape == (6, 7, 7)
+        if result.status == Status.OK:
+            J = robot.jacobian(q)
+            np.testing.assert_allclose(J @ qd_pink, xd, atol=0.01 * np.linalg.norm(xd))
+            np.testing.assert_allclose(qd_numpy, result.qd, atol=1e-9)
+            checked += 1
+    assert checked >= 8
+
+
+def test_scaling_benchmark_writes_its_outputs(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "engine_scaling.py"), "--out", str(tmp_path),
+         "--sizes", "7", "9", "12", "--configurations", "3", "--repeats", "1"],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    figures = json.loads((tmp_path / "engine_scaling.json").read_text())
+    assert figures["sizes"] == [7, 9, 12]
+    for size in ("7", "9", "12"):
+        assert set(figures["results"][size]) == {
+            "ft engine blend", "ft engine least_norm", "pink (reused configuration, DAQP)",
+            "mink (MuJoCo, DAQP)"}
+        assert all(r["median_us"] > 0 for r in figures["results"][size].values())
+    assert all(np.isfinite(s["all"]) and np.isfinite(s["7-12"])
+               for s in figures["slopes"].values())
+    assert "| log-log slope, all sizes |" in (tmp_path / "engine_scaling.md").read_text()
+
+
+def test_scaling_benchmark_chain_is_the_serial_chain_it_describes() -> None:
+    bench = _bench_module("engine_scaling")
+    robot = robots.load(bench.chain_urdf(12))
+    assert robot.n == 12 and robot.m == 6 and robot.tip_link == bench.TOOL
+    np.testing.assert_allclose(robot.upper, bench.LIMIT)
+    np.testing.assert_allclose(robot.velocity_limits, bench.VELOCITY)
+    J = robot.jacobian(np.zeros(12))
+    np.testing.assert_allclose(J[3:, :4], [[0, 0, 0, 0], [0, 1, 0, 1], [1, 0, 1, 0]],
+                               atol=1e-12)  # axes z, y, z, y, ... at the straight pose
+    assert _bench_module("engine_cycle").mujoco_model(bench.chain_urdf(12)).njnt == 12
 
 
 def test_selfmotion_benchmark_writes_its_outputs(tmp_path: Path) -> None:
