@@ -36,8 +36,13 @@ def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
         post_failure_velocities(J, xd, DAMPING), atol=1e-9 * scale)
     reference, grads = measures.post_failure_sigma_gradients(J, dJ)
     clear = reference > 1e-5  # gradients of singular values near 0 are ill-conditioned
-    np.testing.assert_allclose(postfailure.downdated_sigma_gradients(J, dJ, sigmas, vectors)[clear],
-                               grads[clear], atol=1e-6)
+    for i in np.flatnonzero(clear):  # one joint's weight at a time: row i of every ds_i/dq
+        np.testing.assert_allclose(postfailure.weighted_sigma_gradient(
+            J, dJ, sigmas, vectors, np.eye(J.shape[1])[i]), grads[i], atol=1e-6)
+    weights = rng.uniform(size=J.shape[1]) * clear
+    np.testing.assert_allclose(postfailure.weighted_sigma_gradient(J, dJ, sigmas, vectors,
+                                                                   weights),
+                               weights @ grads, atol=1e-6)
 
 
 def test_exactly_singular_post_failure_jacobians_stay_finite() -> None:
@@ -48,8 +53,10 @@ def test_exactly_singular_post_failure_jacobians_stay_finite() -> None:
     reduced = postfailure.downdated_velocities(columns, np.array([1.0, 0.5, 0.2]), L, V, sigmas,
                                              *DAMPING_ARGS)
     assert np.all(np.isfinite(reduced))
-    gradients = postfailure.downdated_sigma_gradients(J, np.zeros((4, 3, 4)), sigmas, vectors)
-    assert np.all(np.isfinite(gradients))
+    gradient = postfailure.weighted_sigma_gradient(J, np.ones((4, 3, 4)), sigmas, vectors,
+                                                   np.ones(4))
+    assert np.all(np.isfinite(gradient))
+    assert np.any(gradient != 0)  # the other joints' terms are there
 
 
 def test_repeated_eigenvalues_and_zero_columns_need_no_special_case() -> None:

@@ -280,12 +280,27 @@ def test_a_lone_gripper_joint_after_the_arm_is_not_taken_into_the_chain() -> Non
     assert with_gripper.joint_names[-1] == "jointGripper"
 
 
-def test_a_changed_pinocchio_hessian_layout_fails_loudly(monkeypatch) -> None:
-    robots.check_hessian_layout()  # the installed Pinocchio's layout is the one we read
 
-    def transposed(flat, n, a, j, k):  # what a row-major (6, n, n) layout would hold
-        return flat[a * n * n + j * n + k]
-
-    monkeypatch.setattr(robots, "hessian_entry", transposed)
-    with pytest.raises(RuntimeError, match="Hessian"):
-        robots.check_hessian_layout()
+def test_derivatives_of_a_chain_with_prismatic_joints_and_turned_frames() -> None:
+    """The cross-product Hessian (`_task_jacobians`) holds for prismatic joints too."""
+    kinds = [("revolute", "0 0 1", "0.2 0.1 0.3"), ("prismatic", "1 0 0", "0.3 0 0"),
+             ("revolute", "0 1 0", "0 0.4 0"), ("prismatic", "0 0.6 0.8", "0.1 0.2 0.3"),
+             ("revolute", "1 0 0", "0 0 0.5"), ("revolute", "0 0 1", "0.2 0 0")]
+    parts = ['<robot name="mixed">', *(f'<link name="l{i}"/>' for i in range(len(kinds) + 1))]
+    for i, (kind, axis, rpy) in enumerate(kinds):
+        parts.append(f'<joint name="j{i}" type="{kind}"><parent link="l{i}"/>'
+                     f'<child link="l{i + 1}"/><origin xyz="0.1 0.05 0.2" rpy="{rpy}"/>'
+                     f'<axis xyz="{axis}"/><limit lower="-1" upper="1" velocity="1" '
+                     'effort="1"/></joint>')
+    urdf = "".join([*parts, "</robot>"])
+    for task in ("pose", "position"):
+        robot = robots.load(urdf, base_link="l1", task_space=task)  # a turned base
+        assert robot.n == 5 and not robot._base_aligned
+        rng = np.random.default_rng(RNG_SEED)
+        q = robot.random_configuration(rng)
+        numeric = np.stack([(robot.jacobian(q + EPS * e) - robot.jacobian(q - EPS * e))
+                            / (2 * EPS) for e in np.eye(robot.n)])
+        J, dJ = robot.jacobian_and_derivatives(q)
+        np.testing.assert_allclose(J, robot.jacobian(q), atol=1e-12)
+        assert np.abs(dJ).max() > 0.1
+        np.testing.assert_allclose(dJ, numeric, atol=1e-7)

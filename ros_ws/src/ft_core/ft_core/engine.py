@@ -247,10 +247,10 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
                 for a in range(m):
                     for j in range(nh):
                         dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
-            grads = postfailure.downdated_sigma_gradients(Js, dJs, sigmas, vectors)
             ascent = weights if probabilities else measures.kfm_weights(sigmas,
                                                                        gains.kfm_temperature)
-            z += gains.kfm * (ascent @ grads)
+            z += gains.kfm * postfailure.weighted_sigma_gradient(Js, dJs, sigmas, vectors,
+                                                                 ascent)
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, gains.dt)
     pinv = postfailure.damped_inverse(columns, L, V, gains.damping_threshold,
                                       gains.max_damping)

@@ -144,34 +144,39 @@ def smallest_singular_value(L: np.ndarray) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def downdated_sigma_gradients(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
-                    vectors: np.ndarray) -> np.ndarray:
-    """G[i, k] = ds_i/dq_k = u_i^T dJ[k] v_i with v_i = iJ^T u_i / s_i (seed 002 eq 8).
+def weighted_sigma_gradient(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
+                            vectors: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """g_k = sum_i w_i ds_i/dq_k, with ds_i/dq_k = u_i^T dJ[k] v_i (seed 002 eq 8).
 
-    dJ is (n, m, n), dJ[k] = dJ/dq_k. Rows with s_i below `GRADIENT_FLOOR` are 0
-    (a subgradient there).
+    v_i = iJ^T u_i / s_i. dJ is (n, m, n), dJ[k] = dJ/dq_k. Only the weighted sum is
+    needed (the kfm ascent), so it is formed as g_k = sum_ab dJ[k, a, b] M[a, b] with
+    M = sum_i w_i u_i v_i^T: O(n^2 m) instead of the O(n^3 m) of every ds_i/dq_k.
+    Joints with s_i below `GRADIENT_FLOOR` add nothing (a subgradient there).
     """
     m, n = J.shape
-    G = np.zeros((n, n))
+    M = np.zeros((m, n))
     for i in range(n):
-        if sigmas[i] <= GRADIENT_FLOOR:
+        if weights[i] == 0.0 or sigmas[i] <= GRADIENT_FLOOR:
             continue
         u = vectors[i]
-        v = np.zeros(n)  # iJ^T u_i / s_i
+        scale = weights[i] / sigmas[i]
         for b in range(n):
-            if b != i:
-                for a in range(m):
-                    v[b] += u[a] * J[a, b]
-                v[b] /= sigmas[i]
-        for k in range(n):
-            total = 0.0
+            if b == i:
+                continue
+            vb = 0.0
             for a in range(m):
-                row = 0.0
-                for b in range(n):
-                    row += dJ[k, a, b] * v[b]
-                total += u[a] * row
-            G[i, k] = total
-    return G
+                vb += u[a] * J[a, b]
+            vb *= scale  # w_i v_i[b]
+            for a in range(m):
+                M[a, b] += u[a] * vb
+    g = np.zeros(n)
+    for k in range(n):
+        total = 0.0
+        for a in range(m):
+            for b in range(n):
+                total += dJ[k, a, b] * M[a, b]
+        g[k] = total
+    return g
 
 
 @njit(cache=True, error_model="numpy")
