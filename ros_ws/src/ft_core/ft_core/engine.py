@@ -45,7 +45,6 @@ import numpy as np
 from numba import njit
 
 from ft_core import limits, measures, postfailure, swing
-from ft_core.checks import all_finite
 from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
@@ -197,6 +196,7 @@ class _LockedSet:
     velocity: np.ndarray  #: velocity limits of the healthy joints (rad/s)
     use_kfm: bool  #: whether the kfm gradient is part of the preference
     use_jump: bool  #: whether the minimum-jump term is part of the preference
+    zeros: np.ndarray  #: zeros for the healthy joints: the swing bias when it is off
 
 
 @njit(cache=True, error_model="numpy")
@@ -263,6 +263,29 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
         fits = limits.within(qd, lo, hi)
     return CycleArrays(Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L),
                        reduced, qd, fits)
+
+
+@njit(cache=True, error_model="numpy")
+def _input_problem(q: np.ndarray, xd: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
+    """0 when q and xd are usable; else 1 non-finite, 2 q absurd, 3 xd absurd (one pass)."""
+    for value in xd:
+        if not np.isfinite(value):
+            return 1
+        if abs(value) > ABSURD_TASK_SPEED:
+            return 3
+    for j in range(q.size):
+        if not np.isfinite(q[j]):
+            return 1
+        if q[j] < lower[j] - ABSURD_POSITION or q[j] > upper[j] + ABSURD_POSITION:
+            return 2
+    return 0
+
+
+_INPUT_PROBLEMS = {
+    1: "q and xd must be finite",
+    2: f"q is more than {ABSURD_POSITION} rad outside the joint limits",
+    3: f"xd exceeds {ABSURD_TASK_SPEED:g} (m/s, rad/s): no arm can do that",
+}
 
 
 @njit(cache=True, error_model="numpy")
@@ -341,13 +364,15 @@ class ResolutionEngine:
                 velocity=robot.velocity_limits[healthy] * cfg.velocity_scale,
                 use_kfm=(next_failure and cfg.resolution in ("max_kfm", "blend")
                          and cfg.kfm_gain > 0),
-                use_jump=next_failure and cfg.resolution in ("min_jump", "blend"))
+                use_jump=next_failure and cfg.resolution in ("min_jump", "blend"),
+                zeros=np.zeros(nh))
         return view
 
-    def _swing_descent(self, q: np.ndarray, healthy: np.ndarray) -> np.ndarray:
+    def _swing_descent(self, q: np.ndarray, view: _LockedSet) -> np.ndarray:
         """-swing_gain * grad h on the healthy joints (zeros when the gain is 0)."""
+        healthy = view.healthy
         if self.config.swing_gain == 0:
-            return np.zeros(healthy.size)
+            return view.zeros
         weights = np.zeros(self.robot.n)
         weights[healthy] = 1.0  # a locked joint is braked: it does not swing
         return -self.config.swing_gain * swing.swing_gradient(self.robot, q, weights)[healthy]
@@ -398,12 +423,9 @@ class ResolutionEngine:
             raise ValueError(f"q must have {n} entries, got shape {q.shape}")
         if xd.shape != (m,):
             raise ValueError(f"xd must have {m} entries, got shape {xd.shape}")
-        if not (all_finite(q) and all_finite(xd)):
-            raise ValueError("q and xd must be finite")
-        if np.any(q < robot.lower - ABSURD_POSITION) or np.any(q > robot.upper + ABSURD_POSITION):
-            raise ValueError(f"q is more than {ABSURD_POSITION} rad outside the joint limits")
-        if np.max(np.abs(xd)) > ABSURD_TASK_SPEED:
-            raise ValueError(f"xd exceeds {ABSURD_TASK_SPEED:g} (m/s, rad/s): no arm can do that")
+        problem = _input_problem(q, xd, robot.lower, robot.upper)
+        if problem:
+            raise ValueError(_INPUT_PROBLEMS[problem])
         view = self._locked_set(locked)
         index, nh = view.healthy, view.healthy.size
         if view.use_kfm:
@@ -414,7 +436,7 @@ class ResolutionEngine:
         if nh >= m:
             cycle = _cycle(J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper,
                            view.velocity, view.weights, self._gains, view.use_kfm, view.use_jump,
-                           self._probabilities is not None, self._swing_descent(q, index))
+                           self._probabilities is not None, self._swing_descent(q, view))
             Js, x, sigmas_h, sigma_min = cycle.J, cycle.xd, cycle.sigmas, cycle.sigma_min
             qd_h, reduced = cycle.qd, cycle.reduced
             scale, saturated_h = 1.0, np.zeros(nh, dtype=bool)
