@@ -58,6 +58,7 @@ bench: $(STAMP)
 	$(BIN)/ft-campaign --runs 20 --latency 0.02 --response-time 0.03 --hold-last-command \
 		--out bench_out
 	$(BIN)/python bench/nodes.py --out bench_out
+	$(BIN)/python bench/layouts.py --out bench_out
 
 clean:
 	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log

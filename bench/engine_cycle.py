@@ -22,8 +22,7 @@ authors recommend for a control loop:
   analysis (the smallest singular value of J without each column in turn: n SVDs
   in one batched call). No limits.
 * Pinocchio floor: Pinocchio's own frame Jacobian call alone, the irreducible part
-  every candidate pays in some form; and the Pinocchio calls behind J and dJ/dq
-  (kinematic Hessian), the irreducible part of `max_kfm` and `blend`.
+  every candidate pays in some form (the engine's dJ/dq comes from J's columns).
 
 Each figure is the median and 99th percentile over repeated passes after a warm-up
 pass, the candidates' passes interleaved.
@@ -57,7 +56,6 @@ PINK = "pink (reused configuration, DAQP)"
 MINK = "mink (MuJoCo, DAQP)"
 NUMPY = "numpy baseline (pinv + n SVDs)"
 FLOOR = "Pinocchio floor (frame Jacobian)"
-HESSIAN_FLOOR = "Pinocchio floor (J and kinematic Hessian)"
 
 
 def workload(robot: robots.Robot, count: int,
@@ -211,26 +209,6 @@ def floor_call(xml: str, tip: str, qs: list) -> Callable[[int], np.ndarray]:
                                               pin.LOCAL_WORLD_ALIGNED)
 
 
-def hessian_floor_call(xml: str, tip: str, qs: list) -> Callable[[int], np.ndarray]:
-    """Pinocchio's calls behind J and dJ/dq (what `max_kfm` and `blend` need) alone.
-
-    Joint Jacobians, frame placements, the tool's frame Jacobian and the last joint's
-    kinematic Hessian, as `Robot.jacobian_and_derivatives` calls them.
-    """
-    model = pin.buildModelFromXML(xml)
-    data, frame = model.createData(), model.getFrameId(tip)
-    last = model.frames[frame].parentJoint
-
-    def call(i: int) -> np.ndarray:
-        pin.computeJointJacobians(model, data, qs[i])
-        pin.updateFramePlacements(model, data)
-        pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
-        pin.computeJointKinematicHessians(model, data)
-        return pin.getJointKinematicHessian(model, data, last, pin.LOCAL_WORLD_ALIGNED)
-
-    return call
-
-
 def summary(seconds: np.ndarray) -> dict[str, float | int]:
     """Median and 99th percentile (us) and the sample count."""
     return {"median_us": float(np.median(seconds) * 1e6),
@@ -277,7 +255,6 @@ def main(argv: list[str] | None = None) -> int:
         notes.append(f"mink not measured: {exc}")
     calls[NUMPY] = numpy_call(robot, xml, TIP, qs, xds)
     calls[FLOOR] = floor_call(xml, TIP, qs)
-    calls[HESSIAN_FLOOR] = hessian_floor_call(xml, TIP, qs)
     results = {name: summary(seconds) for name, seconds
                in time_calls(calls, args.configurations, args.repeats).items()}
     pink_median = results[PINK]["median_us"]

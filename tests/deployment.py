@@ -28,7 +28,8 @@ from rosutil import ros_context, spin_until
 from sensor_msgs.msg import JointState
 
 EXECUTABLES = {"sim": ("ft_sim", "sim_node"), "controller": ("ft_controller", "controller_node"),
-               "monitor": ("ft_monitor", "monitor_node")}
+               "monitor": ("ft_monitor", "monitor_node"),
+               "stack": ("ft_sim", "stack")}  # controller and monitor in one process
 #: Pose goals visited in turn (Panda position task, m): reachable from the home pose.
 GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
 MODEL = {"robot_model": "panda", "task_space": "position"}
@@ -192,7 +193,8 @@ class Graph:
 
 
 @contextmanager
-def graph(tmp_path: Path, parameters: dict[str, dict], before_start=None) -> Iterator[Graph]:
+def graph(tmp_path: Path, parameters: dict[str, dict], before_start=None,
+          processes: tuple[str, ...] = ("sim", "monitor", "controller")) -> Iterator[Graph]:
     """A running graph on a DDS domain of its own; every process stopped afterwards.
 
     `before_start(graph)` runs once the probe exists, before any process starts.
@@ -202,7 +204,7 @@ def graph(tmp_path: Path, parameters: dict[str, dict], before_start=None) -> Ite
         try:
             if before_start is not None:
                 before_start(g)
-            for name in ("sim", "monitor", "controller"):
+            for name in processes:
                 g.start(name)
             g.wait(lambda: len(g.states) > 10, 60.0, "joint states from the sim")
             yield g

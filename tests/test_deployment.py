@@ -221,3 +221,22 @@ def test_a_free_swinging_joint_is_reported_not_locked(tmp_path: Path) -> None:
                "panda_joint2 reported free-swinging")
         assert g.ever_locked() == set()
         assert "free-swinging" in g.values("/monitor")[-1]["message"]
+
+
+def test_controller_and_monitor_as_one_process_find_a_lock(tmp_path: Path) -> None:
+    """`ft-stack` (both nodes on one executor) behind a lagging plant in its own process."""
+    settings = parameters(tmp_path, WATCHDOG_PLANT)
+    settings["stack"] = {**settings.pop("controller"), **settings.pop("monitor")}
+    with graph(tmp_path, settings, processes=("sim", "stack")) as g:
+        g.spin(8.0, goal_period=1.5)
+        observing(g)
+        assert g.ever_locked() == set(), g.log("stack")[-3000:]
+        assert g.values("/controller") and g.values("/monitor")  # both nodes, one process
+        g.inject("panda_joint4")
+        g.spin(1.5, goal_period=1.5)
+        g.wait(lambda: g.locked_names() == ["panda_joint4"], 6.0, "panda_joint4 detected")
+        g.spin(2.0, goal_period=1.5)
+        assert g.commands and all(c.velocity[3] == 0.0 for c in g.commands[-50:])
+        stack = g.processes["stack"]
+        g.close()
+        assert stack.returncode == 0, g.log("stack")[-3000:]

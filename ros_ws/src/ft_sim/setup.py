@@ -22,6 +22,7 @@ setup(
             "demo = ft_sim.demo:main",
             "campaign = ft_sim.campaign:main",
             "sim_node = ft_sim.sim_node:main",
+            "stack = ft_sim.stack:main",
             "fault_injector_node = ft_sim.fault_injector_node:main",
         ],
     },

@@ -24,7 +24,7 @@ from __future__ import annotations
 import gc
 import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.experimental.events_executor import EventsExecutor
@@ -48,23 +48,37 @@ def settle_heap() -> None:
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
     """Spin the node until SIGINT or SIGTERM; then its `stop()` (if any) and exit cleanly."""
+    run_nodes([make_node], args)
+
+
+def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = None) -> None:
+    """`run_node` for several nodes in one process, on one executor (a component container).
+
+    Messages between them still go through the middleware (the same topics, QoS and
+    remappings as in separate processes), but no process boundary: one interpreter,
+    one heap, no context switch between them. On SIGINT or SIGTERM every node's
+    `stop()` runs, in order.
+    """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = make_node()
+    nodes = [make() for make in makers]
     settle_heap()
     executor = EventsExecutor()
-    executor.add_node(node)
+    for node in nodes:
+        executor.add_node(node)
     try:
         while not stop_requested.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=CHECK_PERIOD)
     finally:
-        stop = getattr(node, "stop", None)
-        if stop is not None:
-            stop()
+        for node in nodes:
+            stop = getattr(node, "stop", None)
+            if stop is not None:
+                stop()
         executor.shutdown()
-        node.destroy_node()
+        for node in nodes:
+            node.destroy_node()
         rclpy.try_shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)

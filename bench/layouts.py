@@ -1,0 +1,140 @@
+"""`make bench`: what one arm costs in CPU, with the nodes as separate processes or as one.
+
+For each control rate (250 and 1000 Hz by default) and each layout, the installed
+console scripts run on the wall clock beside a probe streaming a twist target:
+
+- separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
+  `ros2 run` / launch-file layout);
+- one process: `ft-sim` and `ft-stack` (controller and monitor on one executor).
+
+After a warm-up, each process's CPU time (user + system, from /proc) is read
+before and after the timed run; the controller's achieved rate comes from its
+own `/diagnostics` (`loop_rate_hz`), and the probe times a `joint_states` message
+to the next `ft/command`. "Per arm" is the controller and the monitor (a real arm
+has a driver, not our sim); "arms on this machine" is the number of cores divided
+by that share of a core: an upper bound that ignores the driver and everything else
+the machine runs.
+
+Writes `<out>/layouts.md` and `<out>/layouts.json`. DDS domain `FT_BENCH_DOMAIN_LAYOUTS`
+(default 63).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from engine_cycle import machine
+from ft_msgs_py import qos
+from nodes import Probe, percentiles, spin_for
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+
+LAYOUTS = {
+    "separate processes": {"sim": "ft-sim", "controller": "ft-controller",
+                           "monitor": "ft-monitor"},
+    "one process (ft-stack)": {"sim": "ft-sim", "controller + monitor": "ft-stack"},
+}
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of a process so far (s)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
+
+
+def run(layout: str, rate: float, seconds: float, warm_up: float) -> dict:
+    """One layout at one rate: CPU per process, the controller's rate, latencies."""
+    domain = os.environ.get("FT_BENCH_DOMAIN_LAYOUTS", "63")
+    env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    bin_dir = Path(sys.executable).parent
+    common = ["-p", "robot_model:=panda", "-p", "task_space:=position", "-p", f"rate:={rate}",
+              "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
+    processes = {name: subprocess.Popen([str(bin_dir / script), "--ros-args", *common],
+                                        env=env, stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
+                 for name, script in LAYOUTS[layout].items()}
+    context = Context()
+    rclpy.init(context=context, domain_id=int(domain))
+    executor = SingleThreadedExecutor(context=context)
+    probe = Probe(context)
+    rates: list[float] = []
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == "/controller":
+                values = {kv.key: kv.value for kv in status.values}
+                if "loop_rate_hz" in values:
+                    rates.append(float(values["loop_rate_hz"]))
+
+    probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
+                                   qos.SENSOR_INPUT)
+    executor.add_node(probe.node)
+    try:
+        spin_for(executor, warm_up)
+        start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
+        probe.latencies.clear()
+        rates.clear()
+        elapsed = spin_for(executor, seconds)
+        used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
+        latencies = list(probe.latencies)
+    finally:
+        for p in processes.values():
+            p.terminate()
+        for p in processes.values():
+            p.wait(timeout=20)
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+    share = {name: value / elapsed for name, value in used.items()}
+    arm = sum(v for name, v in share.items() if name != "sim")
+    return {"rate_hz": rate, "seconds": elapsed, "cpu_share": share,
+            "arm_cpu_share": arm, "arm_cpu_ms_per_cycle": 1e3 * arm / rate,
+            "controller_rate_hz": float(np.median(rates)) if rates else float("nan"),
+            "arms_per_machine": int((os.cpu_count() or 1) // arm) if arm > 0 else 0,
+            "state_to_command_ms": percentiles(latencies)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run every layout at every rate; write the table and JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("bench_out"))
+    parser.add_argument("--rates", type=float, nargs="+", default=[250.0, 1000.0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="timed run of each")
+    parser.add_argument("--warm-up", type=float, default=10.0, help="discovery and warm-up")
+    args = parser.parse_args(argv)
+    results = [run(layout, rate, args.seconds, args.warm_up)
+               for rate in args.rates for layout in LAYOUTS]
+    info = machine()
+    lines = ["| rate | layout | controller rate (Hz) | CPU per arm (controller + monitor) | "
+             "CPU per cycle (ms) | sim's CPU | arms on this machine (bound) | "
+             "joint_states to ft/command p50 / p99 (ms) |",
+             "|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for r, (_, layout) in zip(results, [(rate, layout) for rate in args.rates
+                                         for layout in LAYOUTS], strict=True):
+        latency = r["state_to_command_ms"]
+        shown = (f"{latency['p50']:.2f} / {latency['p99']:.2f}" if latency["samples"]
+                 else "-")
+        lines.append(f"| {r['rate_hz']:.0f} Hz | {layout} | {r['controller_rate_hz']:.1f} | "
+                     f"{100 * r['arm_cpu_share']:.0f} % | {r['arm_cpu_ms_per_cycle']:.3f} | "
+                     f"{100 * r['cpu_share']['sim']:.0f} % | {r['arms_per_machine']} | "
+                     f"{shown} |")
+    lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up; "
+              f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, {info['date']}."]
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "layouts.md").write_text("\n".join(lines) + "\n")
+    (args.out / "layouts.json").write_text(json.dumps({"machine": info, "runs": results},
+                                                      indent=2) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

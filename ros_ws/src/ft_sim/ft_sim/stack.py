@@ -1,0 +1,41 @@
+"""ft-stack: the controller and the monitor (and optionally the sim) as nodes of one process.
+
+    ft-stack --ros-args --params-file arm.yaml
+    ft-stack --sim --ros-args -p robot_model:=panda -p task_space:=position
+
+Like a component container: one interpreter and one executor (rclpy's
+EventsExecutor) spin the nodes, which keep their names (`controller`, `monitor`,
+`sim`), topics, parameters and services. A parameters file addresses each by name
+(`controller:`, `monitor:`, `sim:`) or all with `/**:`; `-p name:=value` on the
+command line sets it in every node. Compared with one process per node, a command
+is handled without a process switch between controller and monitor, and the
+Python interpreter, Pinocchio and numba's code are loaded once (`make bench`
+measures both layouts: docs/benchmarks.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ft_controller.controller_node import ControllerNode
+from ft_monitor.monitor_node import MonitorNode
+from ft_msgs_py import spin
+from rclpy.utilities import remove_ros_args
+
+from ft_sim.sim_node import SimNode
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the nodes until SIGINT or SIGTERM; each commands zeros as it stops."""
+    argv = sys.argv if args is None else [sys.argv[0], *args]
+    parser = argparse.ArgumentParser(prog="ft-stack", description=__doc__.splitlines()[0])
+    parser.add_argument("--sim", action="store_true",
+                        help="also run the kinematic sim (for trials without hardware)")
+    own = parser.parse_args(remove_ros_args(args=argv)[1:])
+    makers = [ControllerNode, MonitorNode, *([SimNode] if own.sim else [])]
+    spin.run_nodes(makers, argv)
+
+
+if __name__ == "__main__":
+    main()
