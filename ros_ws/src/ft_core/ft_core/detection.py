@@ -73,6 +73,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 #: Candidate latencies (s) and response times (s) of the identified plant model.
 LATENCY_GRID = np.round(np.arange(0.0, 0.1501, 0.01), 3)
@@ -169,11 +170,49 @@ class PlantEstimate:
     excitation: float  #: s of informative data behind the estimate (with forgetting)
 
 
+@njit(cache=True, error_model="numpy")
 def _slope_error(values: np.ndarray, centred: np.ndarray, slope: np.ndarray,
                  spread: float) -> np.ndarray:
     """Standard error of least-squares slopes from the fit's residuals (per column)."""
-    fitted = values.mean(axis=0) + np.outer(centred, slope)
-    return np.sqrt(np.sum((values - fitted) ** 2, axis=0) / (values.shape[0] - 2) / spread)
+    count, n = values.shape
+    error = np.empty(n)
+    for j in range(n):
+        mean = values[:, j].mean()
+        total = 0.0
+        for s in range(count):
+            residual = values[s, j] - mean - centred[s] * slope[j]
+            total += residual * residual
+        error[j] = np.sqrt(total / (count - 2) / spread)
+    return error
+
+
+@njit(cache=True, error_model="numpy")
+def _window_fit(times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
+                models: np.ndarray, best: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least-squares slopes over the window (compiled: one call per joint state).
+
+    Returns the measured slopes (n,), the slopes of the models at indices `models`
+    (len(models), n) and the slopes' standard error (n,): the smaller of the residual
+    estimates of the measured positions and of the measured minus the best model's.
+    """
+    count, n = positions.shape
+    centred = times - times.mean()
+    spread = centred @ centred
+    measured = np.zeros(n)
+    best_slope = np.zeros(n)
+    slopes = np.zeros((models.size, n))
+    for s in range(count):
+        c = centred[s] / spread
+        for j in range(n):
+            measured[j] += c * positions[s, j]
+            best_slope[j] += c * predicted[s, best, j]
+        for i in range(models.size):
+            for j in range(n):
+                slopes[i, j] += c * predicted[s, models[i], j]
+    error = np.minimum(_slope_error(positions, centred, measured, spread),
+                       _slope_error(positions - predicted[:, best, :], centred,
+                                    measured - best_slope, spread))
+    return measured, slopes, error
 
 
 class _Buffers:
@@ -200,6 +239,66 @@ class _Buffers:
             new[:size] = old[self.start:self.end].copy()
             setattr(self, name, new)
         self.start, self.end = 0, size
+
+
+@njit(cache=True, error_model="numpy")
+def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
+              latest: np.ndarray, lower: np.ndarray, upper: np.ndarray, unlocked: np.ndarray,
+              undeclared: np.ndarray, min_command: float, confidence: float,
+              ratio: float, following_ratio: float, limit_margin: float,
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                         np.ndarray, np.ndarray]:
+    """Each joint's evidence at one update (the module's Decision rules), compiled.
+
+    Returns (weakest prediction, observable, following, stalled, pushing into a limit,
+    lock candidate, moving on its own), per joint.
+    """
+    n = measured.size
+    weakest = np.zeros(n)
+    flags = np.zeros((6, n), dtype=np.bool_)
+    observable, following, stalled, pushing, candidate, on_its_own = flags
+    for j in range(n):
+        low, high = plausible[:, j].min(), plausible[:, j].max()
+        if low > 0:
+            weakest[j] = low
+        elif high < 0:
+            weakest[j] = high
+        c, v, s = weakest[j], measured[j], error[j]
+        observable[j] = (unlocked[j] and abs(c) >= min_command
+                         and abs(c) >= 2 * confidence * s)
+        share = v / c if observable[j] else 0.0
+        stalled[j] = observable[j] and share < ratio and abs(v - c) > confidence * s
+        pushing[j] = ((c > 0 and latest[j] >= upper[j] - limit_margin)
+                      or (c < 0 and latest[j] <= lower[j] + limit_margin))
+        following[j] = observable[j] and share >= following_ratio
+        # A locked joint should not move at all: its healthy range is [0, 0].
+        healthy_low = min(low, 0.0) if unlocked[j] else 0.0
+        healthy_high = max(high, 0.0) if unlocked[j] else 0.0
+        outside = max(healthy_low - v, v - healthy_high)
+        on_its_own[j] = (undeclared[j] and abs(v) >= min_command
+                         and outside > max(confidence * s, min_command))
+        # A free-swinging joint is not a lock.
+        candidate[j] = stalled[j] and not pushing[j] and not on_its_own[j] and undeclared[j]
+    return weakest, observable, following, stalled, pushing, candidate, on_its_own
+
+
+@njit(cache=True, error_model="numpy")
+def _predicted_positions(starts: np.ndarray, values: np.ndarray, integrals: np.ndarray,
+                         lagged: np.ndarray, start: int, end: int, rate: np.ndarray,
+                         response_times: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """`CommandHistory.positions`, compiled (one call per joint state)."""
+    n, models = values.shape[1], response_times.size
+    out = np.empty((times.size, models, n))
+    for i in range(times.size):
+        k = max(int(np.searchsorted(starts[start:end], times[i], side="right")) - 1, 0) + start
+        h = max(times[i] - starts[k], 0.0)
+        for t in range(models):
+            decay = np.exp(-h * rate[t])
+            for j in range(n):
+                u = values[k, j]
+                following = u + (lagged[k, t, j] - u) * decay
+                out[i, t, j] = integrals[k, j] + h * u - response_times[t] * following
+    return out
 
 
 class CommandHistory(_Buffers):
@@ -256,14 +355,9 @@ class CommandHistory(_Buffers):
         Row i is U(t_i) - T y_T(t_i) for each response time T: the plant at rest
         before the first command. Each t_i is already shifted by its latency.
         """
-        k = np.searchsorted(self.times[self.start:self.end], times, side="right") - 1
-        k = np.maximum(k, 0) + self.start
-        h = np.maximum(times - self.times[k], 0.0)
-        u = self.values[k]
-        integral = self.integrals[k] + h[:, None] * u
-        decay = np.exp(-np.outer(h, self._rate))[:, :, None]
-        lagged = u[:, None, :] + (self.lagged[k] - u[:, None, :]) * decay
-        return integral[:, None, :] - self.response_times[None, :, None] * lagged
+        return _predicted_positions(self.times, self.values, self.integrals, self.lagged,
+                                    self.start, self.end, self._rate, self.response_times,
+                                    np.asarray(times, dtype=float))
 
 
 class Samples(_Buffers):
@@ -328,6 +422,7 @@ class LockDetector:
         self._seen_following = 0.0
         self._last_update = -math.inf
         self._plausible = np.ones(len(models), dtype=bool)
+        self._all_models = np.arange(len(models))
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
@@ -452,45 +547,24 @@ class LockDetector:
     def _update(self, now: float, dt: float) -> list[int]:
         cfg = self.config
         times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
-        centred = times - times.mean()
-        spread = centred @ centred
-        measured = centred @ positions / spread
         best = int(np.argmin(self._scores))  # always plausible
         # Identification (every model) at most every IDENTIFY_PERIOD; decisions need only
         # the plausible models, far fewer once identified.
         identify = now - self._last_identification_try >= IDENTIFY_PERIOD
         if identify:
             self._last_identification_try = now
-            slopes = np.tensordot(centred, predicted, axes=(0, 0)) / spread  # (models, n)
+            measured, slopes, error = _window_fit(times, positions, predicted,
+                                                  self._all_models, best)  # (models, n)
             plausible = slopes[self._plausible]
         else:
-            plausible = np.tensordot(centred, predicted[:, self._plausible, :],
-                                     axes=(0, 0)) / spread
-        best_slope = centred @ predicted[:, best, :] / spread
-        error = np.minimum(_slope_error(positions, centred, measured, spread),
-                           _slope_error(positions - predicted[:, best, :], centred,
-                                        measured - best_slope, spread))
-        weakest = np.where(np.all(plausible > 0, axis=0), plausible.min(axis=0),
-                           np.where(np.all(plausible < 0, axis=0), plausible.max(axis=0), 0.0))
+            measured, plausible, error = _window_fit(times, positions, predicted,
+                                                     np.flatnonzero(self._plausible), best)
         unlocked = np.array([e.locked_at is None for e in self.joints])
-        observable = (unlocked & (np.abs(weakest) >= cfg.min_command)
-                      & (np.abs(weakest) >= 2 * cfg.confidence * error))
-        ratio = np.divide(measured, weakest, out=np.zeros(self.n), where=observable)
-        stalled = observable & (ratio < cfg.ratio) & (
-            np.abs(measured - weakest) > cfg.confidence * error)
-        latest = positions[-1]
-        pushing = (((weakest > 0) & (latest >= self.upper - cfg.limit_margin))
-                   | ((weakest < 0) & (latest <= self.lower + cfg.limit_margin)))
-        candidates = stalled & ~pushing
-        following = observable & (ratio >= cfg.following_ratio)
-        # A locked joint should not move at all: its healthy range is [0, 0].
-        healthy_low = np.where(unlocked, np.minimum(plausible.min(axis=0), 0.0), 0.0)
-        healthy_high = np.where(unlocked, np.maximum(plausible.max(axis=0), 0.0), 0.0)
-        outside = np.maximum(healthy_low - measured, measured - healthy_high)
         undeclared = np.array([e.swinging_at is None for e in self.joints])
-        on_its_own = (undeclared & (np.abs(measured) >= cfg.min_command)
-                      & (outside > np.maximum(cfg.confidence * error, cfg.min_command)))
-        candidates &= ~on_its_own & undeclared  # a free-swinging joint is not a lock
+        latest = positions[-1]
+        weakest, observable, following, stalled, pushing, candidates, on_its_own = _classify(
+            measured, plausible, error, latest, self.lower, self.upper, unlocked, undeclared,
+            cfg.min_command, cfg.confidence, cfg.ratio, cfg.following_ratio, cfg.limit_margin)
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])

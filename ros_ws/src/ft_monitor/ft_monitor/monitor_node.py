@@ -35,6 +35,7 @@ import math
 import time
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import locked_set, remap, robots
 from ft_core.detection import DetectorConfig, LockDetector
@@ -42,7 +43,7 @@ from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
 from std_srvs.srv import Trigger
 
 DIAGNOSTICS_PERIOD = 0.5
@@ -93,6 +94,11 @@ class MonitorNode(SuiteNode):
         self.detector: LockDetector | None = None
         self._store = None  # path of the persisted locked set, once the model is known
         self._order: list[int] = []
+        self.command_joints: list[str] = []  #: joint names in command order
+        # Built once per model, refilled for every command (`_publish_command`).
+        self._command_msg = JointState()
+        self._array_msg = Float64MultiArray()
+        self._velocity_limits = np.zeros(0)
         self._q: np.ndarray | None = None
         self._last_command = -math.inf
         self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
@@ -112,6 +118,7 @@ class MonitorNode(SuiteNode):
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
                                  qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
+        self._read_command_parameters()
         parameters.on_change(self, self._detector_config, self._configure_detector)
         parameters.request_model(self, self._set_model)
         # On steady time: with use_sim_time and no /clock the watchdog must still run.
@@ -135,8 +142,16 @@ class MonitorNode(SuiteNode):
             follow_time=value["detection.follow_time"])
 
     def _configure_detector(self) -> None:
+        self._read_command_parameters()
         if self.detector is not None:
             self.detector.configure(self._detector_config())
+
+    def _read_command_parameters(self) -> None:
+        """The parameters every command reads, read once per change, not per command."""
+        self._command_timeout = self.param("command_timeout")
+        self._remap = self.param("remap_commands")
+        if self.robot is not None:
+            self._velocity_limits = self.robot.velocity_limits * self.param("velocity_scale")
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
@@ -147,7 +162,11 @@ class MonitorNode(SuiteNode):
             return
         self.robot = robot
         self._order = order.tolist()
-        joints = [robot.joint_names[i] for i in self._order]
+        joints = self.command_joints = [robot.joint_names[i] for i in self._order]
+        self._command_msg = convert.joint_state(joints, Time())
+        self._array_msg = Float64MultiArray(layout=MultiArrayLayout(dim=[MultiArrayDimension(
+            label="joints", size=len(joints), stride=len(joints))]))
+        self._read_command_parameters()
         self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
@@ -169,11 +188,6 @@ class MonitorNode(SuiteNode):
         if stored:
             self.get_logger().error(f"restored locked joints {sorted(stored)} from "
                                     f"{self._store} (call ~/reset after a repair)")
-
-    @property
-    def command_joints(self) -> list[str]:
-        """Joint names in command order."""
-        return [self.robot.joint_names[i] for i in self._order]
 
     @property
     def locked(self) -> dict[str, float]:
@@ -289,7 +303,7 @@ class MonitorNode(SuiteNode):
         try:
             if stamp is None:
                 raise convert.MessageError("stamp ahead of the clock")
-            if now - stamp > self.param("command_timeout"):
+            if now - stamp > self._command_timeout:
                 raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
             qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
         except convert.MessageError as error:
@@ -320,8 +334,8 @@ class MonitorNode(SuiteNode):
         self._last_command = now
         self._last_command_steady = time.monotonic()
         locked = sorted(self.detector.locked)
-        limits = self.robot.velocity_limits * self.param("velocity_scale")
-        if locked and self.param("remap_commands") and self._q is not None:
+        limits = self._velocity_limits
+        if locked and self._remap and self._q is not None:
             qd = remap.remap(self.robot, self._q, qd, locked, limits)
         else:
             qd = qd.copy()
@@ -329,19 +343,18 @@ class MonitorNode(SuiteNode):
             qd = remap.within_limits(qd, limits)
         if not np.all(np.isfinite(qd)):
             qd = np.zeros(self.robot.n)
-        self._publish_command(qd, stamp)
+        self._publish_command(qd, stamp, now)
 
     # ----------------------------------------------------------------- outputs
-    def _publish_command(self, qd_chain: np.ndarray, stamp) -> None:
-        """Publish a command and tell the detector it is in force from now (this clock)."""
-        ordered = qd_chain[self._order]
-        self._command_pub.publish(convert.joint_state(self.command_joints, stamp,
-                                                      velocity=ordered))
-        array = Float64MultiArray(data=[float(v) for v in ordered])
-        array.layout.dim = [MultiArrayDimension(label="joints", size=len(ordered),
-                                                stride=len(ordered))]
-        self._array_pub.publish(array)
-        self.detector.command(self.now(), qd_chain)
+    def _publish_command(self, qd_chain: np.ndarray, stamp, now: float | None = None) -> None:
+        """Publish a command and tell the detector it is in force from `now` (this clock)."""
+        ordered = qd_chain[self._order].tolist()
+        self._command_msg.header.stamp = stamp
+        self._command_msg.velocity = ordered
+        self._command_pub.publish(self._command_msg)
+        self._array_msg.data = ordered
+        self._array_pub.publish(self._array_msg)
+        self.detector.command(self.now() if now is None else now, qd_chain)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""
