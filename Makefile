@@ -45,9 +45,9 @@ demo: $(STAMP)
 	$(BIN)/ft-demo
 
 # Speed and detection-quality figures (not asserted in tests): writes bench_out/*.md and
-# *.json; about 50 minutes (the fault campaign on a realistic plant, 160 runs, and the
-# nodes' 10-minute memory run). The soft-limits study with 200 runs per condition is the
-# README's longer ft-campaign command.
+# *.json; about an hour (the fault campaign on a realistic plant, 160 runs, the nodes'
+# 10-minute memory run, the two layouts at two rates). The soft-limits study with 200 runs
+# per condition is docs/campaign.md's longer ft-campaign command.
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
 	$(BIN)/python bench/engine_scaling.py --out bench_out

@@ -205,7 +205,7 @@ def test_puma_first_task_point_compared_with_table_ii() -> None:
     the volume come from (i) the joint zero and sign conventions of the authors'
     PUMA model, which the DH table alone does not fix (our joint 2 range is shifted
     against theirs by about 0.4 rad), (ii) the garbled joint 2 lower limit
-    (we use -5 pi/4, see the README), and (iii) the spiral and the extremal polish
+    (we use -5 pi/4, see docs/robots.md), and (iii) the spiral and the extremal polish
     being local estimates of the bounds, which the paper also notes.
     """
     xml = robots.builtin_urdf("puma560").replace('name="puma_joint6" type="revolute"',

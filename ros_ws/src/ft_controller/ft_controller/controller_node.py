@@ -2,7 +2,7 @@
 
 Joint states plus an end-effector target (twist or pose) in, joint velocities out:
 one `ft_core.engine` cycle per timer tick at `control_rate`. Topics, parameters and
-reactions are listed in the README; the contract is shared/INTERFACE.md.
+reactions are listed in docs/controller.md; the contract is shared/INTERFACE.md.
 
 Safety: with no model, no joint state yet, a stale state (older than
 `state_timeout`), missing joints, non-finite values, stamps in the future or going
@@ -411,7 +411,7 @@ class ControllerNode(SuiteNode):
         named = sorted(f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in publishers)
         if len(publishers) > 1:
             return (f"{len(publishers)} publishers {named[:10]}: only the monitor may publish "
-                    "the locked set (see the README on SROS2); ignored")
+                    "the locked set (see docs/security.md on SROS2); ignored")
         if expected and publishers and publishers[0].node_name != expected:
             return f"published by {named[0]}, not by the monitor '{expected}'; ignored"
         return None

@@ -9,7 +9,7 @@ cannot happen, and the node always gets to run its `stop()` (e.g. command zeros)
 The executor is rclpy's EventsExecutor (`rclpy.experimental`, shipped with Jazzy):
 it queues ready entities in C++ instead of rebuilding a wait set in Python on
 every spin, which at 500 Hz is the difference between keeping the control rate and
-losing some 2 % of the cycles (`make bench`, README). Timers on simulated time
+losing some 2 % of the cycles (`make bench`, docs/benchmarks.md). Timers on simulated time
 (`use_sim_time`) fire as with the SingleThreadedExecutor: node tests run on both.
 
 Before spinning, the objects built at start-up (the robot model, numba's compiled
@@ -39,7 +39,7 @@ def settle_heap() -> None:
     """Collect start-up garbage, then exclude every live object from later collections.
 
     `gc.freeze()`: full collections then walk only what was allocated since, so
-    they take microseconds instead of tens of milliseconds (`make bench`, README).
+    they take microseconds instead of tens of milliseconds (`make bench`, docs/benchmarks.md).
     Frozen objects are still freed by reference counting.
     """
     gc.collect()
