@@ -33,7 +33,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine
 from ft_msgs_py import qos
-from nodes import Probe, percentiles, spin_for
+from ft_msgs_py.spin import spin_for
+from nodes import Probe, percentiles
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 

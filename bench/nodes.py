@@ -37,11 +37,11 @@ from ft_controller.controller_node import ControllerNode
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import qos
 from ft_msgs_py.loop import LoopAccounting
-from ft_msgs_py.spin import settle_heap
+from ft_msgs_py.spin import settle_heap, spin_for
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
 from rclpy.context import Context
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -88,14 +88,6 @@ def percentiles(samples: list[float] | np.ndarray, scale: float = 1e3) -> dict[s
     values = np.asarray(samples) * scale
     return {"p50": float(np.percentile(values, 50)), "p99": float(np.percentile(values, 99)),
             "samples": int(values.size)} if values.size else {"samples": 0}
-
-
-def spin_for(executor: Executor, seconds: float) -> float:
-    """Spin `executor` for `seconds` of wall clock; returns the time actually spun (s)."""
-    start = time.monotonic()
-    while time.monotonic() - start < seconds:
-        executor.spin_once(timeout_sec=0.01)
-    return time.monotonic() - start
 
 
 EXECUTORS = {"EventsExecutor": EventsExecutor, "SingleThreadedExecutor": SingleThreadedExecutor}

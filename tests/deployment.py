@@ -22,9 +22,10 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import convert, qos
+from ft_msgs_py.spin import spin_until
 from geometry_msgs.msg import PoseStamped
 from paths import INSTALL, PACKAGES
-from rosutil import ros_context, spin_until
+from rosutil import ros_context
 from sensor_msgs.msg import JointState
 
 EXECUTABLES = {"sim": ("ft_sim", "sim_node"), "controller": ("ft_controller", "controller_node"),

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import itertools
 import os
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import convert, qos
+from ft_msgs_py.spin import spin_until
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
@@ -49,17 +49,6 @@ def fresh_domain() -> int:
     while domain == session:
         domain = (session + next(_contexts)) % 100 + 1
     return domain
-
-
-def spin_until(executor: Executor, condition: Callable[[], bool],
-               timeout: float = 10.0) -> bool:
-    """Spin the executor until `condition()` is true or `timeout` seconds pass."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        executor.spin_once(timeout_sec=0.05)
-    return condition()
 
 
 class FakePlant:

@@ -18,12 +18,13 @@ import rclpy
 from ft_controller.controller_node import ControllerNode
 from ft_core import robots
 from ft_msgs_py import convert, diagnostics, metrics, qos
+from ft_msgs_py.spin import spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import INSTALL, PACKAGES
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter
-from rosutil import FakePlant, ros_context, spin_until
+from rosutil import FakePlant, ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 from std_srvs.srv import Trigger

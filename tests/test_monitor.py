@@ -15,9 +15,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, qos
+from ft_msgs_py.spin import spin_until
 from ft_sim.sim_node import SimNode
 from rclpy.parameter import Parameter
-from rosutil import ros_context, spin_until
+from rosutil import ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger

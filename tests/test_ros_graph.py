@@ -8,7 +8,8 @@ import textwrap
 
 import pytest
 import rclpy
-from rosutil import ros_context, spin_until
+from ft_msgs_py.spin import spin_until
+from rosutil import ros_context
 from sensor_msgs.msg import JointState
 
 

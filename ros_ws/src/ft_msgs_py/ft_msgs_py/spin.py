@@ -24,9 +24,11 @@ from __future__ import annotations
 import gc
 import signal
 import threading
+import time
 from collections.abc import Callable, Sequence
 
 import rclpy
+from rclpy.executors import Executor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -44,6 +46,29 @@ def settle_heap() -> None:
     """
     gc.collect()
     gc.freeze()
+
+
+def spin_until(executor: Executor, condition: Callable[[], bool],
+               timeout: float = 10.0) -> bool:
+    """Spin until `condition()` holds or `timeout` s of wall clock pass; whether it holds.
+
+    The one wait of the suite's harnesses (node tests, the scenario of the demo and the
+    campaign, the benchmarks): callers fail, with what they waited for, when it is False.
+    """
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            return condition()
+        executor.spin_once(timeout_sec=0.01)
+    return True
+
+
+def spin_for(executor: Executor, seconds: float) -> float:
+    """Spin for `seconds` of wall clock; returns the time actually spun (s)."""
+    start = time.monotonic()
+    while time.monotonic() - start < seconds:
+        executor.spin_once(timeout_sec=0.01)
+    return time.monotonic() - start
 
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> None:

@@ -28,7 +28,7 @@ import rclpy
 from ft_controller.controller_node import ControllerNode
 from ft_core import robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
-from ft_msgs_py import convert, metrics, names, qos
+from ft_msgs_py import convert, metrics, names, qos, spin
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -218,14 +218,6 @@ class Scenario:
             self.record.detected = list(msg.name)
 
     # ------------------------------------------------------------------- loop
-    def _spin_until(self, condition, timeout: float = 5.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while not condition():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=0.01)
-        return True
-
     @property
     def command(self) -> np.ndarray:
         """The controller's latest command (rad/s, chain order; zeros before the first)."""
@@ -252,7 +244,7 @@ class Scenario:
 
     def _publish_failure(self, publisher, joint: str, done) -> None:
         publisher.publish(JointState(name=[joint]))
-        if not self._spin_until(done):
+        if not spin.spin_until(self.executor, done, 5.0):
             raise TimeoutError(f"the sim did not take the failure of {joint} within 5 s")
 
     def distance(self, index: int) -> float:
@@ -293,13 +285,13 @@ class Scenario:
         """One period of the loop: the sim steps, then holds the command for the new instant."""
         self.sim.step()
         now = self.sim.t
-        if not self._spin_until(lambda: self.sim.command_time >= now):
+        if not spin.spin_until(self.executor, lambda: self.sim.command_time >= now, 5.0):
             raise TimeoutError(f"no command for simulated time {now:.3f} s within 5 s")
 
     def start(self) -> float:
         """Wait for the model and the soft limits (if any); the simulated start time (s)."""
-        if not self._spin_until(lambda: self.controller.robot is not None and
-                                self.monitor.robot is not None, 10.0):
+        if not spin.spin_until(self.executor, lambda: self.controller.robot is not None
+                               and self.monitor.robot is not None, 10.0):
             raise TimeoutError("the controller and the monitor did not load the model in 10 s")
         if self.config.soft_limits and self.critical:
             self._wait_for_soft_limits()
