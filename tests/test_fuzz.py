@@ -199,9 +199,7 @@ def sim():
     from ft_sim.sim_node import SimNode
 
     with ros_context() as (context, _):
-        node = SimNode(context=context, parameter_overrides=[
-            Parameter("robot_model", value="panda"), Parameter("publish_clock", value=True)])
-        node.timer.cancel()
+        node = SimNode.stepped_by_hand(context, {"robot_model": "panda"})
         node.step()  # the first step loads what it needs: not what is timed
         yield node
         node.destroy_node()

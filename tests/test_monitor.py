@@ -103,12 +103,9 @@ class Loop:
 def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
          sim_parameters: dict | None = None) -> Iterator[Loop]:
     with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
-        sim = SimNode(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in {
-                "robot_model": "panda", "publish_clock": True, "rate": 250.0,
-                "position_noise": noise, "initial_positions": START, "seed": 3,
-                **(sim_parameters or {})}.items()])
-        sim.timer.cancel()  # stepped by hand
+        sim = SimNode.stepped_by_hand(context, {
+            "robot_model": "panda", "rate": 250.0, "position_noise": noise,
+            "initial_positions": START, "seed": 3, **(sim_parameters or {})})
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {"robot_model": "panda", "use_sim_time": True,
                                                "state_directory": state,

@@ -162,12 +162,11 @@ class Scenario:
         critical = config.critical if config.critical is not None else range(len(config.points))
         self.critical = list(critical)
         flat = [v for i in self.critical for v in config.points[i]]
-        self.sim = SimNode(context=self.context, parameter_overrides=_params(
-            model, publish_clock=True, rate=config.rate, position_noise=config.noise,
-            seed=config.seed, command_latency=config.command_latency,
-            response_time=config.response_time, hold_last_command=config.hold_last_command,
-            initial_positions=[float(v) for v in start]))
-        self.sim.timer.cancel()  # stepped by hand
+        self.sim = SimNode.stepped_by_hand(self.context, {
+            **model, "rate": config.rate, "position_noise": config.noise, "seed": config.seed,
+            "command_latency": config.command_latency, "response_time": config.response_time,
+            "hold_last_command": config.hold_last_command,
+            "initial_positions": [float(v) for v in start]})
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
             **({"critical_points": flat} if config.soft_limits and flat else {})))
@@ -283,10 +282,7 @@ class Scenario:
 
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant."""
-        self.sim.step()
-        now = self.sim.t
-        if not spin.spin_until(self.executor, lambda: self.sim.command_time >= now, 5.0):
-            raise TimeoutError(f"no command for simulated time {now:.3f} s within 5 s")
+        self.sim.advance(self.executor)
 
     def start(self) -> float:
         """Wait for the model and the soft limits (if any); the simulated start time (s)."""

@@ -39,6 +39,7 @@ from ft_core.plant import Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
+from rclpy.executors import Executor
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
@@ -223,6 +224,29 @@ class SimNode(SuiteNode):
                     if self.plant is not None else [])
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
+
+    @classmethod
+    def stepped_by_hand(cls, context, values: dict) -> SimNode:
+        """A sim that owns the clock and moves only when `step` or `advance` is called.
+
+        The harness of the node tests, the demo and the campaign: simulated time, as
+        fast as the nodes answer. `values`: parameter name -> value.
+        """
+        sim = cls(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**values, "publish_clock": True}.items()])
+        sim.timer.cancel()
+        return sim
+
+    def advance(self, executor: Executor, timeout: float = 5.0) -> None:
+        """One `step`, then spin until a command for the new instant has arrived.
+
+        Raises:
+            TimeoutError: no such command within `timeout` s of wall clock.
+        """
+        self.step()
+        now = self.t
+        if not spin.spin_until(executor, lambda: self.command_time >= now, timeout):
+            raise TimeoutError(f"no command for simulated time {now:.3f} s within {timeout:g} s")
 
     def step(self) -> None:
         """Advance the plant by one period (or to the node clock) and publish."""
