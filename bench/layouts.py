@@ -24,19 +24,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine
 from ft_msgs_py import qos
 from ft_msgs_py.spin import spin_for
-from nodes import Probe, percentiles
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from nodes import installed, percentiles
 
 LAYOUTS = {
     "separate processes": {"sim": "ft-sim", "controller": "ft-controller",
@@ -54,19 +49,9 @@ def cpu_seconds(pid: int) -> float:
 
 def run(layout: str, rate: float, seconds: float, warm_up: float) -> dict:
     """One layout at one rate: CPU per process, the controller's rate, latencies."""
-    domain = os.environ.get("FT_BENCH_DOMAIN_LAYOUTS", "63")
-    env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
-    bin_dir = Path(sys.executable).parent
-    common = ["-p", "robot_model:=panda", "-p", "task_space:=position", "-p", f"rate:={rate}",
-              "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
-    processes = {name: subprocess.Popen([str(bin_dir / script), "--ros-args", *common],
-                                        env=env, stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.DEVNULL)
-                 for name, script in LAYOUTS[layout].items()}
-    context = Context()
-    rclpy.init(context=context, domain_id=int(domain))
-    executor = SingleThreadedExecutor(context=context)
-    probe = Probe(context)
+    common = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position",
+              "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
+    commands = {name: [script, *common] for name, script in LAYOUTS[layout].items()}
     rates: list[float] = []
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
@@ -76,10 +61,10 @@ def run(layout: str, rate: float, seconds: float, warm_up: float) -> dict:
                 if "loop_rate_hz" in values:
                     rates.append(float(values["loop_rate_hz"]))
 
-    probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
-                                   qos.SENSOR_INPUT)
-    executor.add_node(probe.node)
-    try:
+    domain = os.environ.get("FT_BENCH_DOMAIN_LAYOUTS", "63")
+    with installed(commands, domain) as (processes, executor, probe):
+        probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
+                                       qos.SENSOR_INPUT)
         spin_for(executor, warm_up)
         start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
         probe.latencies.clear()
@@ -87,13 +72,6 @@ def run(layout: str, rate: float, seconds: float, warm_up: float) -> dict:
         elapsed = spin_for(executor, seconds)
         used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
         latencies = list(probe.latencies)
-    finally:
-        for p in processes.values():
-            p.terminate()
-        for p in processes.values():
-            p.wait(timeout=20)
-        executor.shutdown()
-        rclpy.shutdown(context=context)
     share = {name: value / elapsed for name, value in used.items()}
     arm = sum(v for name, v in share.items() if name != "sim")
     return {"rate_hz": rate, "seconds": elapsed, "cpu_share": share,

@@ -28,6 +28,8 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +43,7 @@ from ft_msgs_py.spin import settle_heap, spin_for
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -219,34 +221,25 @@ def rss_kib(pid: int) -> int:
     return 0
 
 
-def separate_processes(seconds: float, memory_seconds: float) -> dict:
-    """Part B."""
-    domain = os.environ.get("FT_BENCH_DOMAIN_PROCESSES", "62")
+@contextmanager
+def installed(commands: dict[str, list[str]], domain: str,
+              ) -> Iterator[tuple[dict[str, subprocess.Popen], Executor, Probe]]:
+    """The installed console scripts (name -> arguments after the `ft-*` script) on `domain`.
+
+    Yields the processes, an executor and a probe on it; every process is stopped after.
+    """
     env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     bin_dir = Path(sys.executable).parent
-    model = ["-p", "robot_model:=panda", "-p", "task_space:=position"]
-    commands = {
-        "sim": [str(bin_dir / "ft-sim"), "--ros-args", *model, "-p", f"rate:={RATE}"],
-        "controller": [str(bin_dir / "ft-controller"), "--ros-args", *model,
-                       "-p", f"control_rate:={RATE}", "-p", "resolution:=blend"],
-        "monitor": [str(bin_dir / "ft-monitor"), "--ros-args", *model],
-    }
-    processes = {name: subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.DEVNULL)
-                 for name, cmd in commands.items()}
+    processes = {name: subprocess.Popen([str(bin_dir / argv[0]), *argv[1:]], env=env,
+                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                 for name, argv in commands.items()}
     context = Context()
     rclpy.init(context=context, domain_id=int(domain))
     executor = SingleThreadedExecutor(context=context)
     probe = Probe(context)
     executor.add_node(probe.node)
     try:
-        spin_for(executor, 10.0)  # discovery and warm-up
-        rss_start = {name: rss_kib(p.pid) for name, p in processes.items()}
-        probe.latencies.clear()
-        spin_for(executor, seconds)
-        latencies = list(probe.latencies)
-        spin_for(executor, memory_seconds - seconds)
-        rss_end = {name: rss_kib(p.pid) for name, p in processes.items()}
+        yield processes, executor, probe
     finally:
         for p in processes.values():
             p.terminate()
@@ -254,6 +247,26 @@ def separate_processes(seconds: float, memory_seconds: float) -> dict:
             p.wait(timeout=20)
         executor.shutdown()
         rclpy.shutdown(context=context)
+
+
+def separate_processes(seconds: float, memory_seconds: float) -> dict:
+    """Part B."""
+    model = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position"]
+    commands = {
+        "sim": ["ft-sim", *model, "-p", f"rate:={RATE}"],
+        "controller": ["ft-controller", *model, "-p", f"control_rate:={RATE}",
+                       "-p", "resolution:=blend"],
+        "monitor": ["ft-monitor", *model],
+    }
+    domain = os.environ.get("FT_BENCH_DOMAIN_PROCESSES", "62")
+    with installed(commands, domain) as (processes, executor, probe):
+        spin_for(executor, 10.0)  # discovery and warm-up
+        rss_start = {name: rss_kib(p.pid) for name, p in processes.items()}
+        probe.latencies.clear()
+        spin_for(executor, seconds)
+        latencies = list(probe.latencies)
+        spin_for(executor, memory_seconds - seconds)
+        rss_end = {name: rss_kib(p.pid) for name, p in processes.items()}
     return {"state_to_command_ms": percentiles(latencies),
             "rss_kib_after_warm_up": rss_start, "rss_kib_at_end": rss_end,
             "memory_seconds": memory_seconds}
