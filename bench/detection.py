@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +31,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fixed_latency_detector
-from engine_cycle import machine
+from engine_cycle import machine, report
 from ft_core import robots
 from ft_core.detection import LockDetector
 from ft_core.plant import Plant, PlantConfig
@@ -194,11 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     info = machine()
     lines += ["", f"Plant grid: latency {{0, 10, 30, 50}} ms x response time {{0, 20, 50}} ms; "
               f"{info['cpu']}, {info['date']}."]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "detection.md").write_text("\n".join(lines) + "\n")
-    (args.out / "detection.json").write_text(json.dumps(
-        {"machine": info, "false_locks": false_locks, "detection": delays}, indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "detection", lines,
+           {"machine": info, "false_locks": false_locks, "detection": delays})
     return 0
 
 

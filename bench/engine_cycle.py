@@ -215,6 +215,14 @@ def summary(seconds: np.ndarray) -> dict[str, float | int]:
             "p99_us": float(np.percentile(seconds, 99) * 1e6), "samples": int(seconds.size)}
 
 
+def report(out: Path, name: str, lines: list[str], figures: dict) -> None:
+    """Write `<out>/<name>.md` (the table lines) and `<out>/<name>.json`, and print the table."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    (out / f"{name}.json").write_text(json.dumps(figures, indent=2) + "\n")
+    print("\n".join(lines))
+
+
 def machine() -> dict[str, str]:
     """What the figures were measured on."""
     cpu = platform.processor()
@@ -271,12 +279,9 @@ def main(argv: list[str] | None = None) -> int:
                  f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, "
                  f"{info['date']}.")
     lines.extend(notes)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "engine_cycle.md").write_text("\n".join(lines) + "\n")
-    (args.out / "engine_cycle.json").write_text(json.dumps(
-        {"machine": info, "configurations": args.configurations, "repeats": args.repeats,
-         "seed": args.seed, "dt": DT, "results": results}, indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "engine_cycle", lines, {
+        "machine": info, "configurations": args.configurations, "repeats": args.repeats,
+        "seed": args.seed, "dt": DT, "results": results})
     return 0
 
 

@@ -20,7 +20,6 @@ Writes `<out>/engine_scaling.md` and `<out>/engine_scaling.json`.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +30,7 @@ from engine_cycle import (
     machine,
     mink_call,
     pink_call,
+    report,
     summary,
     time_calls,
     workload,
@@ -128,13 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     lines.append(f"Medians; {args.configurations} configurations x {args.repeats} passes per "
                  f"size; {info['cpu']}, {info['cores']} cores, Python {info['python']}, "
                  f"{info['date']}.")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "engine_scaling.md").write_text("\n".join(lines) + "\n")
-    (args.out / "engine_scaling.json").write_text(json.dumps(
-        {"machine": info, "sizes": sizes, "configurations": args.configurations,
-         "repeats": args.repeats, "seed": args.seed, "results": results, "slopes": slopes},
-        indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "engine_scaling", lines, {
+        "machine": info, "sizes": sizes, "configurations": args.configurations,
+        "repeats": args.repeats, "seed": args.seed, "results": results, "slopes": slopes})
     return 0
 
 

@@ -22,13 +22,12 @@ Writes `<out>/layouts.md` and `<out>/layouts.json`. DDS domain `FT_BENCH_DOMAIN_
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from engine_cycle import machine
+from engine_cycle import machine, report
 from ft_msgs_py import qos
 from ft_msgs_py.spin import spin_for
 from nodes import installed, percentiles
@@ -107,11 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                      f"{shown} |")
     lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up; "
               f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, {info['date']}."]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "layouts.md").write_text("\n".join(lines) + "\n")
-    (args.out / "layouts.json").write_text(json.dumps({"machine": info, "runs": results},
-                                                      indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "layouts", lines, {"machine": info, "runs": results})
     return 0
 
 

@@ -23,7 +23,6 @@ Writes `<out>/nodes.md` and `<out>/nodes.json`. Parts A and B use the DDS domain
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -34,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from engine_cycle import machine
+from engine_cycle import machine, report
 from ft_controller.controller_node import ControllerNode
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import qos
@@ -309,12 +308,7 @@ def main(argv: list[str] | None = None) -> int:
                      f" -> {b['rss_kib_at_end'][name] / 1024:.1f} MiB |")
     lines += ["", f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, "
               f"{info['date']}."]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "nodes.md").write_text("\n".join(lines) + "\n")
-    (args.out / "nodes.json").write_text(json.dumps(
-        {"machine": info, "one_process": a, "separate_processes": b},
-        indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "nodes", lines, {"machine": info, "one_process": a, "separate_processes": b})
     return 0
 
 

@@ -12,13 +12,12 @@ Each figure is the median over repeats after a warm-up run, written to
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from engine_cycle import machine
+from engine_cycle import machine, report
 from ft_core import robots, selfmotion
 
 
@@ -64,11 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     info = machine()
     lines += ["", f"{args.repeats} repeats; {info['cpu']}, Python {info['python']}, "
               f"{info['date']}."]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "selfmotion_trace.md").write_text("\n".join(lines) + "\n")
-    (args.out / "selfmotion_trace.json").write_text(
-        json.dumps({"machine": info, "results": results}, indent=2) + "\n")
-    print("\n".join(lines))
+    report(args.out, "selfmotion_trace", lines, {"machine": info, "results": results})
     return 0
 
 
