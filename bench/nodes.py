@@ -248,8 +248,8 @@ def installed(commands: dict[str, list[str]], domain: str,
         rclpy.shutdown(context=context)
 
 
-def separate_processes(seconds: float, memory_seconds: float) -> dict:
-    """Part B."""
+def separate_processes(seconds: float, memory_seconds: float, warm_up: float) -> dict:
+    """Part B: the processes start, run `warm_up` s, then are timed and measured."""
     model = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position"]
     commands = {
         "sim": ["ft-sim", *model, "-p", f"rate:={RATE}"],
@@ -259,7 +259,7 @@ def separate_processes(seconds: float, memory_seconds: float) -> dict:
     }
     domain = os.environ.get("FT_BENCH_DOMAIN_PROCESSES", "62")
     with installed(commands, domain) as (processes, executor, probe):
-        spin_for(executor, 10.0)  # discovery and warm-up
+        spin_for(executor, warm_up)  # discovery and warm-up
         rss_start = {name: rss_kib(p.pid) for name, p in processes.items()}
         probe.latencies.clear()
         spin_for(executor, seconds)
@@ -279,9 +279,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--memory-seconds", type=float, default=600.0,
                         help="part B's run before the final memory reading")
     parser.add_argument("--repeats", type=int, default=3, help="part A's runs of each kind")
+    parser.add_argument("--warm-up", type=float, default=10.0,
+                        help="part B's discovery and warm-up before timing (s)")
     args = parser.parse_args(argv)
     a = part_a(args.seconds, args.repeats)
-    b = separate_processes(min(args.seconds, 30.0), max(args.memory_seconds, args.seconds))
+    b = separate_processes(min(args.seconds, 30.0), max(args.memory_seconds, args.seconds),
+                           args.warm_up)
     info = machine()
     def pair(figures: dict, digits: int) -> str:
         return (f"{figures['p50']:.{digits}f} / {figures['p99']:.{digits}f}"

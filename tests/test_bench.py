@@ -111,7 +111,7 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN": session, "FT_BENCH_DOMAIN_PROCESSES": session}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "nodes.py"), "--out", str(tmp_path),
-         "--seconds", "2", "--memory-seconds", "2", "--repeats", "1"],
+         "--seconds", "2", "--memory-seconds", "2", "--repeats", "1", "--warm-up", "5"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads((tmp_path / "nodes.json").read_text())
