@@ -283,6 +283,30 @@ def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
+def _extend_history(times: np.ndarray, values: np.ndarray, integrals: np.ndarray,
+                    lagged: np.ndarray, rate: np.ndarray, k: int, time: float) -> None:
+    """Entry k's integral and lag states from entry k - 1's, for a command from `time`."""
+    h = time - times[k - 1]
+    n = values.shape[1]
+    for j in range(n):
+        integrals[k, j] = integrals[k - 1, j] + h * values[k - 1, j]
+    for t in range(rate.size):
+        decay = np.exp(-h * rate[t])
+        for j in range(n):
+            u = values[k - 1, j]
+            lagged[k, t, j] = u + (lagged[k - 1, t, j] - u) * decay
+
+
+@njit(cache=True, error_model="numpy")
+def _largest_step(times: np.ndarray) -> float:
+    """The longest interval between consecutive times (s)."""
+    largest = 0.0
+    for i in range(1, times.size):
+        largest = max(largest, times[i] - times[i - 1])
+    return largest
+
+
+@njit(cache=True, error_model="numpy")
 def _predicted_positions(starts: np.ndarray, values: np.ndarray, integrals: np.ndarray,
                          lagged: np.ndarray, start: int, end: int, rate: np.ndarray,
                          response_times: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -333,10 +357,8 @@ class CommandHistory(_Buffers):
             self._make_room()
         k = self.end
         if len(self):
-            h, u = time - self.times[k - 1], self.values[k - 1]
-            decay = np.exp(-h * self._rate)[:, None]
-            self.integrals[k] = self.integrals[k - 1] + h * u
-            self.lagged[k] = u + (self.lagged[k - 1] - u) * decay
+            _extend_history(self.times, self.values, self.integrals, self.lagged, self._rate,
+                            k, time)
         else:
             self.integrals[k] = 0.0
             self.lagged[k] = 0.0
@@ -421,7 +443,7 @@ class LockDetector:
         self._resumed_at = -math.inf  # when commands last resumed after a gap (or began)
         self._seen_following = 0.0
         self._last_update = -math.inf
-        self._plausible = np.ones(len(models), dtype=bool)
+        self._set_plausible(np.ones(len(models), dtype=bool))
         self._all_models = np.arange(len(models))
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
@@ -519,10 +541,14 @@ class LockDetector:
         return self._update(time, dt)
 
     # -------------------------------------------------------------- decisions
+    def _set_plausible(self, plausible: np.ndarray) -> None:
+        """The plausible models, and the longest settling of theirs (`_settling_time`)."""
+        self._plausible = plausible
+        self._slowest = (float(self._model_latency[plausible].max())
+                         + 3 * float(self._model_response[plausible].max()))
+
     def _settling_time(self) -> float:
-        plausible = self._plausible
-        return (self.config.window + self._model_latency[plausible].max()
-                + 3 * self._model_response[plausible].max())
+        return self.config.window + self._slowest
 
     def _gap_reason(self, now: float) -> str | None:
         cfg = self.config
@@ -536,7 +562,7 @@ class LockDetector:
         times = self._samples.window()[0]
         if times.size < cfg.min_samples or times[-1] - times[0] < cfg.window / 2:
             return "too few joint states in the window"
-        if np.max(np.diff(times)) > cfg.window / 2:
+        if _largest_step(times) > cfg.window / 2:
             return "joint states arrive with gaps"
         return None
 
@@ -640,6 +666,6 @@ class LockDetector:
         grid = self._response_times
         low = grid[max(int(np.searchsorted(grid, rt.min())) - RESPONSE_STEPS, 0)]
         high = grid[min(int(np.searchsorted(grid, rt.max())) + RESPONSE_STEPS, grid.size - 1)]
-        self._plausible = ((self._model_latency >= lat.min() - LATENCY_MARGIN[0] - 1e-9)
-                           & (self._model_latency <= lat.max() + LATENCY_MARGIN[1] + 1e-9)
-                           & (self._model_response >= low) & (self._model_response <= high))
+        self._set_plausible((self._model_latency >= lat.min() - LATENCY_MARGIN[0] - 1e-9)
+                            & (self._model_latency <= lat.max() + LATENCY_MARGIN[1] + 1e-9)
+                            & (self._model_response >= low) & (self._model_response <= high))

@@ -7,6 +7,7 @@ unknown-only or duplicate name, a length mismatch or a non-finite value raises
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
@@ -56,16 +57,12 @@ def _few(names: Sequence[str], most: int = 10) -> str:
     return f"[{shown}{f', ... {len(names) - most} more' if len(names) > most else ''}]"
 
 
-def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position") -> np.ndarray:
-    """The `field` values of `joints`, in that order, from a JointState.
+@functools.lru_cache(maxsize=32)
+def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> tuple[int, ...]:
+    """Where each of `joints` is in `names` (MessageError for duplicates or missing joints).
 
-    Raises MessageError for duplicate names, a field whose length differs from
-    the names, missing joints or non-finite values of the wanted joints.
+    Cached: a driver sends the same names in every message.
     """
-    names = list(msg.name)
-    values = np.asarray(getattr(msg, field), dtype=float)
-    if values.size != len(names):
-        raise MessageError(f"joint state has {len(names)} names but {values.size} {field} values")
     found = names_to_indices(names, joints)
     missing = [j for j in joints if j not in found]
     if missing:
@@ -73,7 +70,22 @@ def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position"
         raise MessageError(f"joint state lacks {missing}" + (f" (it has {_few(unknown)})" if unknown
                                                             else ""))
     position = {name: i for i, name in enumerate(names)}
-    vector = values[[position[j] for j in joints]]
+    return tuple(position[j] for j in joints)
+
+
+def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position") -> np.ndarray:
+    """The `field` values of `joints`, in that order, from a JointState.
+
+    Raises MessageError for duplicate names, a field whose length differs from
+    the names, missing joints or non-finite values of the wanted joints.
+    """
+    names = msg.name
+    values = np.asarray(getattr(msg, field), dtype=float)
+    if values.size != len(names):
+        raise MessageError(f"joint state has {len(names)} names but {values.size} {field} values")
+    if len(names) > MAX_NAMES:
+        raise MessageError(f"{len(names)} joint names (more than {MAX_NAMES})")
+    vector = values[list(_positions(tuple(names), tuple(joints)))]
     if not np.all(np.isfinite(vector)):
         bad = [j for j, v in zip(joints, vector, strict=True) if not np.isfinite(v)]
         raise MessageError(f"non-finite {field} for {bad}")
