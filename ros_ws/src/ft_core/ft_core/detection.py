@@ -542,8 +542,9 @@ class LockDetector:
 
     # -------------------------------------------------------------- decisions
     def _set_plausible(self, plausible: np.ndarray) -> None:
-        """The plausible models, and the longest settling of theirs (`_settling_time`)."""
+        """The plausible models (mask and indices), and their longest settling time."""
         self._plausible = plausible
+        self._plausible_models = np.flatnonzero(plausible)
         self._slowest = (float(self._model_latency[plausible].max())
                          + 3 * float(self._model_response[plausible].max()))
 
@@ -584,7 +585,7 @@ class LockDetector:
             plausible = slopes[self._plausible]
         else:
             measured, plausible, error = _window_fit(times, positions, predicted,
-                                                     np.flatnonzero(self._plausible), best)
+                                                     self._plausible_models, best)
         unlocked = np.array([e.locked_at is None for e in self.joints])
         undeclared = np.array([e.swinging_at is None for e in self.joints])
         latest = positions[-1]

@@ -22,7 +22,7 @@ symmetric eigen-decomposition A = V diag(L) V^T (ascending L) and, per joint:
 
 The functions are compiled with numba (nopython, cached on disk) and take plain
 arrays, so the engine's compiled cycle calls them without Python in between;
-from Python they are called like any function. `measures` and `resolution` (SVD
+from Python they are called like any function. `measures` and `velocity_jump` (SVD
 based) are the reference; the tests check this module against them. Squaring
 costs precision near zero: s_i carries an absolute error of about
 sqrt(machine epsilon) * sigma_max(J), some 2e-8 m for a 7-DOF arm, where the SVD
