@@ -55,6 +55,20 @@ def _distance_to(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndar
     return np.where(lower > upper, np.inf, gap)
 
 
+def _leg_timing(q: np.ndarray, q_next: np.ndarray, box: tuple[np.ndarray, np.ndarray],
+                speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(T, a, b, through) of legs q -> q_next (broadcast; last axis: joints).
+
+    T: the leg's duration (eq 4.2), s; a, b: per joint, the time to the interval from q
+    and from it to q_next at full speed, s; through: whether the joint can pass by the
+    interval within the leg (a + b < T).
+    """
+    T = np.abs(q_next - q).max(axis=-1) / speed
+    a = _distance_to(q, *box) / speed
+    b = _distance_to(q_next, *box) / speed
+    return T, a, b, a + b < T[..., None]
+
+
 def leg_cost(q: np.ndarray, q_next: np.ndarray, t0: float | np.ndarray,
              box: tuple[np.ndarray, np.ndarray], rates: np.ndarray, speed: float,
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -64,12 +78,9 @@ def leg_cost(q: np.ndarray, q_next: np.ndarray, t0: float | np.ndarray,
     [t0, t0 + a_i / v] and [t0 + T - b_i / v, t0 + T] when a_i + b_i < v T, else during
     the whole leg (eqs 4.3-4.4 over those stretches; eq 4.13 is the two-joint case).
     """
-    T = np.abs(q_next - q).max(axis=-1) / speed
-    a = _distance_to(q, *box) / speed
-    b = _distance_to(q_next, *box) / speed
+    T, a, b, through = _leg_timing(q, q_next, box, speed)
     t0 = np.asarray(t0, dtype=float)[..., None]
     end = t0 + T[..., None]
-    through = a + b < T[..., None]
     with np.errstate(invalid="ignore"):
         split = (np.exp(-rates * t0) - np.exp(-rates * (t0 + a))
                  + np.exp(-rates * (end - b)) - np.exp(-rates * end))
@@ -85,24 +96,14 @@ def leg_waypoints(q: np.ndarray, q_next: np.ndarray, box: tuple[np.ndarray, np.n
     and leaves at full speed to arrive at q_next at the leg's end; a joint that cannot
     gain time inside moves straight (timed so it arrives at the end).
     """
-    T = float(np.abs(q_next - q).max() / speed)
-    lower, upper = box
-    knots_t, knots_q = [], []
-    for i in range(q.size):
-        a = float(_distance_to(q[i:i + 1], lower[i:i + 1], upper[i:i + 1])[0]) / speed
-        b = float(_distance_to(q_next[i:i + 1], lower[i:i + 1], upper[i:i + 1])[0]) / speed
-        if a + b < T:
-            enter = float(np.clip(q[i], lower[i], upper[i]))
-            leave = float(np.clip(q_next[i], lower[i], upper[i]))
-            knots_t.append([0.0, a, T - b, T])
-            knots_q.append([q[i], enter, leave, q_next[i]])
-        else:
-            knots_t.append([0.0, T])
-            knots_q.append([q[i], q_next[i]])
-    times = np.unique(np.concatenate([np.asarray(k) for k in knots_t]))
-    configurations = np.stack([np.interp(times, kt, kq) for kt, kq in zip(knots_t, knots_q,
-                                                                           strict=True)], axis=1)
-    return times, configurations
+    duration, a, b, through = _leg_timing(q, q_next, box, speed)
+    T = float(duration)
+    enter, leave = np.clip(q, *box), np.clip(q_next, *box)
+    knots = [(np.array([0.0, a[i], T - b[i], T]), np.array([q[i], enter[i], leave[i], q_next[i]]))
+             if through[i] else (np.array([0.0, T]), np.array([q[i], q_next[i]]))
+             for i in range(q.size)]
+    times = np.unique(np.concatenate([kt for kt, _ in knots]))
+    return times, np.stack([np.interp(times, kt, kq) for kt, kq in knots], axis=1)
 
 
 @dataclass(frozen=True)
