@@ -159,14 +159,6 @@ def continuation_seed(robot: robots.Robot, target: np.ndarray, q_start: np.ndarr
     return q
 
 
-def _near(robot: robots.Robot, samples: np.ndarray, q: np.ndarray, distance: float) -> bool:
-    """Whether q is within `distance` (rad) of a sample, modulo 2 pi on unlimited joints."""
-    difference = samples - q
-    free = ~np.isfinite(robot.lower) | ~np.isfinite(robot.upper)
-    difference[:, free] = (difference[:, free] + np.pi) % (2 * np.pi) - np.pi
-    return bool(np.min(np.linalg.norm(difference, axis=1)) < distance)
-
-
 def evaluate_point(robot: robots.Robot, target: np.ndarray, q_start: np.ndarray,
                    joints: Sequence[int] | None = None, step: float = selfmotion.STEP,
                    restarts: int = 0, index: int = 0) -> PointResult:
@@ -210,7 +202,7 @@ def evaluate_point(robot: robots.Robot, target: np.ndarray, q_start: np.ndarray,
             other = selfmotion.find_seed(robot, target, start, attempts=0)
         except selfmotion.UnreachableError:
             continue
-        if _near(robot, traced, other, 4 * step):
+        if selfmotion.near(robot, traced, other, 4 * step):
             continue  # on a component already traced
         component = selfmotion.trace(robot, target, other, step=step)
         best_volume = max(best_volume, selfmotion.box_volume(robot, *component.box, joints))

@@ -250,7 +250,7 @@ def _curve(walker: _Walker, seed: np.ndarray, step: float,
     return paths, False
 
 
-def _near(robot: Robot, samples: np.ndarray, q: np.ndarray, distance: float) -> bool:
+def near(robot: Robot, samples: np.ndarray, q: np.ndarray, distance: float) -> bool:
     """Whether q is within `distance` of a sample (modulo 2 pi for joints without limits)."""
     difference = samples - q
     continuous = _continuous(robot)
@@ -280,7 +280,7 @@ def _branches(walker: _Walker, paths: list[np.ndarray], step: float,
                 offset = BRANCH_OFFSET * step * (math.cos(angle) * near_null[0]
                                                  + math.sin(angle) * near_null[1])
                 start = project(robot, walker.target, crossing + offset)
-                if start is None or _near(robot, np.vstack(found), start, 2 * step):
+                if start is None or near(robot, np.vstack(found), start, 2 * step):
                     continue
                 branch, _ = _curve(walker, start, step, max_steps)
                 found += branch
