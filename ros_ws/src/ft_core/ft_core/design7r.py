@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ft_core.measures import failure_weights
+from ft_core.measures import failure_weights, null_space_basis
 
 N_JOINTS = 7
 SIGMA = float(np.sqrt(7.0 / 3.0))  # singular value of the isotropic 6 x 7 Jacobian (eq 3.21)
@@ -210,7 +210,8 @@ def realisable_design(probabilities: Iterable[float] | None = None, *, free_weig
 
 
 def _null_vector(J: np.ndarray) -> np.ndarray:
-    return np.abs(np.linalg.svd(np.asarray(J, float))[2][-1])
+    """|n| of the unit null vector of a 6 x 7 J (`measures.null_space_basis`)."""
+    return np.abs(null_space_basis(np.asarray(J, float))[:, -1])
 
 
 def _better(new: RealisableDesign, old: RealisableDesign, free_weights: bool) -> bool:
