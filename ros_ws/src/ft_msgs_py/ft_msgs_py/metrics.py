@@ -41,12 +41,13 @@ def fill(msg: Float64MultiArray, data: Sequence[float]) -> None:
     Raises:
         ValueError: a wrong number of values, or non-finite ones (named by label).
     """
-    labels_ = msg.layout.dim[0].label.split(",")
     values = [float(v) for v in data]
-    if len(values) != len(labels_):
-        raise ValueError(f"{len(values)} metrics for {len(labels_)} labels")
-    bad = [label for label, v in zip(labels_, values, strict=True) if not math.isfinite(v)]
-    if bad:
+    count = msg.layout.dim[0].size
+    if len(values) != count:
+        raise ValueError(f"{len(values)} metrics for {count} labels")
+    if not all(math.isfinite(v) for v in values):  # the labels are read only to say which
+        bad = [label for label, v in zip(msg.layout.dim[0].label.split(","), values,
+                                         strict=True) if not math.isfinite(v)]
         raise ValueError(f"non-finite metrics {bad}")
     msg.data = values
 
