@@ -1,19 +1,25 @@
 """`make bench`: what one arm costs in CPU, with the nodes as separate processes or as one.
 
-For each control rate (250 and 1000 Hz by default) and each layout, the installed
-console scripts run on the wall clock beside a probe streaming a twist target:
+For each control rate (250 and 1000 Hz by default), each `thread_priority` of the
+controller and the monitor (0, the normal scheduler, and SCHED_FIFO 50) and each
+layout, the installed console scripts run on the wall clock beside a probe streaming
+a twist target:
 
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
 - one process: `ft-sim` and `ft-stack` (controller and monitor on one executor).
 
 After a warm-up, each process's CPU time (user + system, from /proc) is read
-before and after the timed run; the controller's achieved rate comes from its
-own `/diagnostics` (`loop_rate_hz`), and the probe times a `joint_states` message
-to the next `ft/command`. "Per arm" is the controller and the monitor (a real arm
-has a driver, not our sim); "arms on this machine" is the number of cores divided
-by that share of a core: an upper bound that ignores the driver and everything else
-the machine runs.
+before and after the timed run, and the controller's achieved rate comes from its
+own `/diagnostics` (`loop_rate_hz`); the probe only streams the target meanwhile,
+so the machine runs nothing else. Then the probe times a `joint_states` message to
+the next `ft/command` for as long again (subscribing to both streams in Python costs
+the probe about half a core at 1 kHz: that is why it is a phase of its own). "Per
+arm" is the controller and the monitor (a real arm has a driver, not our sim); "arms
+on this machine" is the number of cores divided by that share of a core: an upper
+bound that ignores the driver and everything else the machine runs. SCHED_FIFO
+needs root or an rtprio limit; where it is refused, the nodes say so and the row
+shows the normal scheduler's figures under the label "refused".
 
 Writes `<out>/layouts.md` and `<out>/layouts.json`. DDS domain `FT_BENCH_DOMAIN_LAYOUTS`
 (default 63).
@@ -46,36 +52,44 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
-def run(layout: str, rate: float, seconds: float, warm_up: float) -> dict:
-    """One layout at one rate: CPU per process, the controller's rate, latencies."""
+def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float) -> dict:
+    """One layout at one rate and priority: CPU per process, the controller's rate, latencies."""
     common = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position",
               "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
     commands = {name: [script, *common] for name, script in LAYOUTS[layout].items()}
+    for name, argv in commands.items():
+        if name != "sim":
+            argv += ["-p", f"thread_priority:={priority}"]
     rates: list[float] = []
+    scheduling: set[str] = set()
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
-            if status.name == "/controller":
-                values = {kv.key: kv.value for kv in status.values}
-                if "loop_rate_hz" in values:
-                    rates.append(float(values["loop_rate_hz"]))
+            values = {kv.key: kv.value for kv in status.values}
+            if "scheduling" in values:
+                scheduling.add(values["scheduling"])
+            if status.name == "/controller" and "loop_rate_hz" in values:
+                rates.append(float(values["loop_rate_hz"]))
 
     domain = os.environ.get("FT_BENCH_DOMAIN_LAYOUTS", "63")
-    with installed(commands, domain) as (processes, executor, probe):
+    with installed(commands, domain, timing=False) as (processes, executor, probe):
         probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
                                        qos.SENSOR_INPUT)
         spin_for(executor, warm_up)
         start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
-        probe.latencies.clear()
         rates.clear()
         elapsed = spin_for(executor, seconds)
         used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
+        achieved = list(rates)
+        probe.time_latencies()
+        spin_for(executor, seconds)
         latencies = list(probe.latencies)
     share = {name: value / elapsed for name, value in used.items()}
     arm = sum(v for name, v in share.items() if name != "sim")
-    return {"rate_hz": rate, "seconds": elapsed, "cpu_share": share,
+    return {"rate_hz": rate, "thread_priority": priority, "scheduling": sorted(scheduling),
+            "seconds": elapsed, "cpu_share": share,
             "arm_cpu_share": arm, "arm_cpu_ms_per_cycle": 1e3 * arm / rate,
-            "controller_rate_hz": float(np.median(rates)) if rates else float("nan"),
+            "controller_rate_hz": float(np.median(achieved)) if achieved else float("nan"),
             "arms_per_machine": int((os.cpu_count() or 1) // arm) if arm > 0 else 0,
             "state_to_command_ms": percentiles(latencies)}
 
@@ -85,27 +99,35 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--rates", type=float, nargs="+", default=[250.0, 1000.0])
-    parser.add_argument("--seconds", type=float, default=20.0, help="timed run of each")
+    parser.add_argument("--priorities", type=int, nargs="+", default=[0, 50],
+                        help="thread_priority of controller and monitor (0: normal)")
+    parser.add_argument("--seconds", type=float, default=20.0,
+                        help="timed run of each, and the latency run after it")
     parser.add_argument("--warm-up", type=float, default=10.0, help="discovery and warm-up")
     args = parser.parse_args(argv)
-    results = [run(layout, rate, args.seconds, args.warm_up)
-               for rate in args.rates for layout in LAYOUTS]
+    results = [run(layout, rate, priority, args.seconds, args.warm_up)
+               for rate in args.rates for priority in args.priorities for layout in LAYOUTS]
     info = machine()
-    lines = ["| rate | layout | controller rate (Hz) | CPU per arm (controller + monitor) | "
-             "CPU per cycle (ms) | sim's CPU | arms on this machine (bound) | "
+    lines = ["| rate | scheduling | layout | controller rate (Hz) | CPU per arm (controller + "
+             "monitor) | CPU per cycle (ms) | sim's CPU | arms on this machine (bound) | "
              "joint_states to ft/command p50 / p99 (ms) |",
-             "|---:|---|---:|---:|---:|---:|---:|---:|"]
-    for r, (_, layout) in zip(results, [(rate, layout) for rate in args.rates
-                                         for layout in LAYOUTS], strict=True):
+             "|---:|---|---|---:|---:|---:|---:|---:|---:|"]
+    for r, layout in zip(results, [layout for _ in args.rates for _ in args.priorities
+                                   for layout in LAYOUTS], strict=True):
         latency = r["state_to_command_ms"]
         shown = (f"{latency['p50']:.2f} / {latency['p99']:.2f}" if latency["samples"]
                  else "-")
-        lines.append(f"| {r['rate_hz']:.0f} Hz | {layout} | {r['controller_rate_hz']:.1f} | "
+        scheduling = "normal" if not r["thread_priority"] else (
+            f"SCHED_FIFO {r['thread_priority']}" if all(
+                s.startswith("SCHED_FIFO") for s in r["scheduling"]) else "refused")
+        lines.append(f"| {r['rate_hz']:.0f} Hz | {scheduling} | {layout} | "
+                     f"{r['controller_rate_hz']:.1f} | "
                      f"{100 * r['arm_cpu_share']:.0f} % | {r['arm_cpu_ms_per_cycle']:.3f} | "
                      f"{100 * r['cpu_share']['sim']:.0f} % | {r['arms_per_machine']} | "
                      f"{shown} |")
-    lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up; "
-              f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, {info['date']}."]
+    lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up, then "
+              f"{args.seconds:.0f} s of latency timing; {info['cpu']}, {info['cores']} cores, "
+              f"Python {info['python']}, {info['date']}."]
     report(args.out, "layouts", lines, {"machine": info, "runs": results})
     return 0
 

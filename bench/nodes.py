@@ -54,17 +54,23 @@ MODEL = {"robot_model": "panda", "task_space": "position"}
 class Probe:
     """Streams a circular twist target and times states against commands (wall clock)."""
 
-    def __init__(self, context: Context):
+    def __init__(self, context: Context, timing: bool = True):
+        """With `timing` False it only streams the target until `time_latencies()`."""
         self.node = rclpy.create_node("probe", context=context)
         self._twist = self.node.create_publisher(TwistStamped, "ft/target_twist", qos.RELIABLE)
-        self.node.create_subscription(JointState, "joint_states", self._on_state,
-                                      qos.SENSOR_INPUT)
-        self.node.create_subscription(JointState, "ft/command", self._on_command,
-                                      qos.SENSOR_INPUT)
         self.node.create_timer(0.02, self._send)
         self._pending: float | None = None
         self.latencies: list[float] = []
         self._start = time.perf_counter()
+        if timing:
+            self.time_latencies()
+
+    def time_latencies(self) -> None:
+        """Subscribe to both streams and time them (in Python: half a core at 1 kHz)."""
+        self.node.create_subscription(JointState, "joint_states", self._on_state,
+                                      qos.SENSOR_INPUT)
+        self.node.create_subscription(JointState, "ft/command", self._on_command,
+                                      qos.SENSOR_INPUT)
 
     def _send(self) -> None:
         t = time.perf_counter() - self._start
@@ -221,11 +227,12 @@ def rss_kib(pid: int) -> int:
 
 
 @contextmanager
-def installed(commands: dict[str, list[str]], domain: str,
+def installed(commands: dict[str, list[str]], domain: str, timing: bool = True,
               ) -> Iterator[tuple[dict[str, subprocess.Popen], Executor, Probe]]:
     """The installed console scripts (name -> arguments after the `ft-*` script) on `domain`.
 
-    Yields the processes, an executor and a probe on it; every process is stopped after.
+    Yields the processes, an executor and a probe on it (`Probe`'s `timing`); every
+    process is stopped after.
     """
     env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     bin_dir = Path(sys.executable).parent
@@ -235,7 +242,7 @@ def installed(commands: dict[str, list[str]], domain: str,
     context = Context()
     rclpy.init(context=context, domain_id=int(domain))
     executor = SingleThreadedExecutor(context=context)
-    probe = Probe(context)
+    probe = Probe(context, timing)
     executor.add_node(probe.node)
     try:
         yield processes, executor, probe

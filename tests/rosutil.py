@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -125,3 +126,13 @@ class FakePlant:
             if each is not None:
                 each(self)
             assert self.step(), f"no fresh command at step {step} of {steps}"
+
+
+def in_thread(work):
+    """Run `work()` in a fresh thread (never on pytest's own) and return what it returned."""
+    result = []
+    thread = threading.Thread(target=lambda: result.append(work()))
+    thread.start()
+    thread.join(10.0)
+    assert result, "the thread did not finish"
+    return result[0]

@@ -9,6 +9,7 @@ On main before issue 13, the same graphs locked 6 of 7 joints within a minute.
 
 from __future__ import annotations
 
+import os
 from itertools import pairwise
 from pathlib import Path
 
@@ -16,9 +17,10 @@ import numpy as np
 import yaml
 from deployment import Graph, cpu_hog, graph
 from ft_core import robots
-from ft_msgs_py import convert, qos
+from ft_msgs_py import convert, qos, thread_priority
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
+from rosutil import in_thread
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
@@ -226,12 +228,20 @@ def test_a_free_swinging_joint_is_reported_not_locked(tmp_path: Path) -> None:
 def test_controller_and_monitor_as_one_process_find_a_lock(tmp_path: Path) -> None:
     """`ft-stack` (both nodes on one executor) behind a lagging plant in its own process."""
     settings = parameters(tmp_path, WATCHDOG_PLANT)
-    settings["stack"] = {**settings.pop("controller"), **settings.pop("monitor")}
+    settings["stack"] = {**settings.pop("controller"), **settings.pop("monitor"),
+                         "thread_priority": 10}
     with graph(tmp_path, settings, processes=("sim", "stack")) as g:
         g.spin(8.0, goal_period=1.5)
         observing(g)
         assert g.ever_locked() == set(), g.log("stack")[-3000:]
         assert g.values("/controller") and g.values("/monitor")  # both nodes, one process
+        # The executor thread on SCHED_FIFO where the machine allows it (root, rtprio).
+        allowed = in_thread(lambda: thread_priority.apply(10)) is None
+        expected = "SCHED_FIFO 10" if allowed else "normal (SCHED_FIFO refused)"
+        for node in ("/controller", "/monitor"):
+            assert g.values(node)[-1]["scheduling"] == expected
+        policy = os.sched_getscheduler(g.processes["stack"].pid) & ~os.SCHED_RESET_ON_FORK
+        assert policy == (os.SCHED_FIFO if allowed else os.SCHED_OTHER)
         g.inject("panda_joint4")
         g.spin(1.5, goal_period=1.5)
         g.wait(lambda: g.locked_names() == ["panda_joint4"], 6.0, "panda_joint4 detected")

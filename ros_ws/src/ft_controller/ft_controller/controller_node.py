@@ -57,6 +57,7 @@ WATCHDOG_PERIOD = 0.05
 #: name -> (default, description, extra descriptor fields)
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
+    **parameters.THREAD_PRIORITY,
     "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
     "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
                  parameters.float_range(0.0, 1e4)),
@@ -118,6 +119,7 @@ class ControllerNode(SuiteNode):
     def __init__(self, **kwargs):
         super().__init__("controller", **kwargs)
         parameters.declare(self, PARAMETERS)
+        self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.robot: Robot | None = None
         self.engine: ResolutionEngine | None = None
         self.tracking = PoseTracking()
@@ -581,7 +583,7 @@ class ControllerNode(SuiteNode):
 
     def _controller_status(self, now: float):
         values = {"mode": self.param("resolution"), "loop_rate_hz": self._rate,
-                  "control_rate_hz": self.param("control_rate"),
+                  "control_rate_hz": self.param("control_rate"), "scheduling": self.scheduling,
                   "cycle_compute_median_ms": self.accounting.compute_ms(50),
                   "cycle_compute_p99_ms": self.accounting.compute_ms(99),
                   "missed_cycles": self.accounting.missed if self.accounting.count_missed

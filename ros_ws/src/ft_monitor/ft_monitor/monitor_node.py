@@ -54,6 +54,7 @@ _DETECTION = DetectorConfig()
 _IDENTIFIED = ("detection.latency", "detection.response_time")
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
+    **parameters.THREAD_PRIORITY,
     "detection.window": (_DETECTION.window, "s, sliding window of the comparison",
                          parameters.float_range(0.005, 10.0)),
     "detection.min_command": (_DETECTION.min_command, "rad/s; smaller predicted motion is "
@@ -90,6 +91,7 @@ class MonitorNode(SuiteNode):
     def __init__(self, **kwargs):
         super().__init__("monitor", **kwargs)
         parameters.declare(self, PARAMETERS)
+        self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.robot: robots.Robot | None = None
         self.detector: LockDetector | None = None
         self._store = None  # path of the persisted locked set, once the model is known
@@ -402,7 +404,8 @@ class MonitorNode(SuiteNode):
         locked = self.locked
         values = {"locked_joints": sorted(locked), "remap_commands":
                   self.param("remap_commands"),
-                  "command_age_s": age if math.isfinite(age) else "none"}
+                  "command_age_s": age if math.isfinite(age) else "none",
+                  "scheduling": self.scheduling}
         stalls = []
         statuses = []
         swinging = [] if self.detector is None else sorted(

@@ -9,7 +9,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py import convert, diagnostics, parameters
+from ft_msgs_py import convert, diagnostics, parameters, thread_priority
 from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
 
 
@@ -22,6 +22,20 @@ class SuiteNode(Node):
         self.problems = Episodes(self.get_logger(), FUTURE_TOLERANCE_SIM_TIME if sim_time
                                  else FUTURE_TOLERANCE)
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
+
+    def apply_thread_priority(self) -> str:
+        """Apply the `thread_priority` parameter to the calling thread; how it is scheduled.
+
+        Call it from the thread that will spin the node (the executables construct
+        their nodes there). A refusal is logged as a warning; the node runs on.
+        """
+        priority = self.param("thread_priority")
+        refused = thread_priority.apply(priority)
+        if refused is not None:
+            self.get_logger().warning(f"thread_priority: {refused}; running on the normal "
+                                      "scheduler")
+            return "normal (SCHED_FIFO refused)"
+        return f"SCHED_FIFO {priority}" if priority else "normal"
 
     def param(self, name: str):
         """The current value of a parameter."""

@@ -13,20 +13,38 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from ft_msgs_py import names, qos
+from ft_msgs_py import names, qos, thread_priority
 
 
 def float_range(low: float, high: float) -> dict:
     """Descriptor fields for a floating-point parameter allowed in [low, high]."""
     return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
 
+
+def int_range(low: int, high: int) -> dict:
+    """Descriptor fields for an integer parameter allowed in [low, high]."""
+    return {"integer_range": [IntegerRange(from_value=low, to_value=high, step=1)]}
+
+
+#: The nodes on the command path (controller, monitor): `thread_priority.apply` at start.
+THREAD_PRIORITY = {
+    "thread_priority": (0, "SCHED_FIFO priority (1-99) of the thread running the callbacks; "
+                        "0: the normal scheduler. Needs root or an rtprio limit (refused: a "
+                        "warning)",
+                        {"read_only": True, **int_range(0, thread_priority.MAX_PRIORITY)}),
+}
 
 #: name -> (default, description, extra descriptor fields)
 MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {

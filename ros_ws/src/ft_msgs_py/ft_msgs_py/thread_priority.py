@@ -1,0 +1,43 @@
+"""Real-time scheduling of the thread that runs a node's callbacks (`thread_priority`).
+
+On a busy Linux machine the normal scheduler may hold a runnable process back for
+a few milliseconds; an rclpy timer that runs more than one period late skips the
+missed periods (rcl's rule), so a 1 kHz control loop on a loaded 2-core machine
+loses 1-3 % of its cycles (`make bench`, docs/benchmarks.md). As ros2_control's
+controller manager does with its `thread_priority`, the controller and the monitor
+can put the thread that runs their callbacks on SCHED_FIFO: it then runs as soon
+as it is ready, ahead of every normal process.
+
+Only the calling thread changes (Linux schedules threads), with SCHED_RESET_ON_FORK:
+threads and processes it starts later (the controller's self-motion tracing pool)
+stay on the normal scheduler, so background work never competes with the loop.
+The kernel's real-time throttling (by default 5 % of each second kept for normal
+processes) still applies. Needs root or an rtprio limit for the user (for example
+`@realtime - rtprio 99` in /etc/security/limits.conf, as ros2_control's
+documentation describes); refused, the node logs a warning and keeps running on the
+normal scheduler.
+"""
+
+from __future__ import annotations
+
+import os
+
+#: Highest SCHED_FIFO priority on Linux.
+MAX_PRIORITY = 99
+
+
+def apply(priority: int) -> str | None:
+    """Run the calling thread on SCHED_FIFO at `priority` (1-99); 0 leaves it as it is.
+
+    Returns None on success (or for 0), else why the system refused (no permission, a
+    priority outside 1-`MAX_PRIORITY`, not Linux).
+    """
+    if priority == 0:
+        return None
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
+                              os.sched_param(priority))
+    except (OSError, AttributeError) as error:  # no permission, or not Linux
+        return f"SCHED_FIFO {priority} refused ({error})"
+    return None
+

@@ -1,0 +1,40 @@
+"""`thread_priority`: SCHED_FIFO for the thread that spins a node, never for its children."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+from ft_msgs_py import thread_priority
+from rosutil import in_thread
+
+
+def policy() -> int:
+    return os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK
+
+
+def test_zero_leaves_the_scheduler_alone() -> None:
+    assert in_thread(lambda: (thread_priority.apply(0), policy())) == (None, os.SCHED_OTHER)
+
+
+def test_a_priority_out_of_range_is_refused_with_the_reason() -> None:
+    refused, after = in_thread(lambda: (thread_priority.apply(150), policy()))
+    assert refused is not None and "150" in refused
+    assert after == os.SCHED_OTHER
+
+
+def test_fifo_for_the_calling_thread_only_and_not_for_what_it_starts() -> None:
+    def work():
+        refused = thread_priority.apply(5)
+        if refused is not None:
+            return refused, None, None
+        child = in_thread(policy)  # a thread started after: SCHED_RESET_ON_FORK
+        return None, (policy(), os.sched_getparam(0).sched_priority), child
+
+    refused, mine, child = in_thread(work)
+    if refused is not None:
+        assert "refused" in refused
+        pytest.skip(f"this machine does not allow SCHED_FIFO: {refused}")
+    assert mine == (os.SCHED_FIFO, 5)
+    assert child == os.SCHED_OTHER
+    assert policy() == os.SCHED_OTHER  # pytest's thread untouched
