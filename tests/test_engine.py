@@ -171,6 +171,46 @@ def test_damped_pseudo_inverse_is_exact_away_from_singularities() -> None:
         Damping(threshold=0.0)
 
 
+@pytest.mark.parametrize(("hi", "expected", "scale", "saturated"), [
+    ([5.0, 5.0], [1.5, 1.5], 1.0, [False, False]),  # nothing binds: the least-norm solution
+    ([1.0, 5.0], [1.0, 2.0], 1.0, [True, False]),  # joint 0 held, joint 1 does the rest
+    ([1.0, 1.0], [1.0, 1.0], 2.0 / 3.0, [True, True]),  # both held: the task is scaled
+])
+def test_saturation_in_the_null_space_by_hand(hi: list, expected: list, scale: float,
+                                              saturated: list) -> None:
+    """J = [1 1], xd = 3, lo = -hi, z = 0 (Flacco et al.'s Algorithm 1, worked by hand)."""
+    J, hi_ = np.array([[1.0, 1.0]]), np.array(hi)
+    pinv = damped_pinv(J, Damping())
+    qd, s, held = limits.saturate_in_null_space(J, np.array([3.0]), np.zeros(2), -hi_, hi_,
+                                                Damping().threshold, Damping().max_damping,
+                                                pinv)
+    np.testing.assert_allclose(qd, expected, atol=1e-12)
+    assert s == pytest.approx(scale, abs=1e-12)
+    assert held.tolist() == saturated
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**31), m=st.integers(1, 3), extra=st.integers(0, 4),
+       speed=st.floats(0.0, 50.0))
+def test_saturation_keeps_the_bounds_and_the_task_direction(seed: int, m: int, extra: int,
+                                                            speed: float) -> None:
+    rng = np.random.default_rng(seed)
+    n = m + extra
+    J = rng.normal(size=(m, n))
+    xd, z = rng.normal(size=m) * speed, rng.normal(size=n)
+    lo, hi = -rng.uniform(0.0, 2.0, n), rng.uniform(0.0, 2.0, n)
+    damping = Damping()
+    qd, scale, held = limits.saturate_in_null_space(J, xd, z, lo, hi, damping.threshold,
+                                                    damping.max_damping, damped_pinv(J, damping))
+    assert np.all(np.isfinite(qd)) and 0.0 <= scale <= 1.0
+    assert np.all(qd >= lo - 1e-9) and np.all(qd <= hi + 1e-9)
+    assert held.shape == (n,)
+    free = ~held
+    if scale > 0 and free.sum() >= m and np.linalg.svd(
+            J[:, free], compute_uv=False)[-1] > 2 * damping.threshold:
+        np.testing.assert_allclose(J @ qd, scale * xd, atol=1e-7)  # direction kept
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"resolution": "fastest"}, "resolution"),
     ({"kfm_gain": -1.0}, "kfm_gain"),

@@ -282,7 +282,7 @@ def test_a_lone_gripper_joint_after_the_arm_is_not_taken_into_the_chain() -> Non
 
 
 def test_derivatives_of_a_chain_with_prismatic_joints_and_turned_frames() -> None:
-    """The cross-product Hessian (`_task_jacobians`) holds for prismatic joints too."""
+    """The cross-product Hessian (`task_jacobians`) holds for prismatic joints too."""
     kinds = [("revolute", "0 0 1", "0.2 0.1 0.3"), ("prismatic", "1 0 0", "0.3 0 0"),
              ("revolute", "0 1 0", "0 0.4 0"), ("prismatic", "0 0.6 0.8", "0.1 0.2 0.3"),
              ("revolute", "1 0 0", "0 0 0.5"), ("revolute", "0 0 1", "0.2 0 0")]

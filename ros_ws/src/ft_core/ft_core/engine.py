@@ -44,7 +44,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ft_core import limits, measures, postfailure, swing
+from ft_core import limits, measures, postfailure, robots, swing
 from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
@@ -67,7 +67,11 @@ class Status(enum.StrEnum):
 
 
 class Gains(NamedTuple):
-    """The scalar settings of the compiled cycle (`EngineConfig`'s, by name)."""
+    """The scalar settings of the compiled cycle (`EngineConfig`'s, by name).
+
+    The cycle receives them as one float array in this order (numba checks an
+    array's type in a fraction of the time it takes for a tuple of eight).
+    """
 
     kfm: float
     jump: float
@@ -79,26 +83,8 @@ class Gains(NamedTuple):
     max_damping: float
 
 
-class CycleArrays(NamedTuple):
-    """What the compiled cycle returns, for the healthy joints."""
-
-    J: np.ndarray  # task-scaled Jacobian (m, nh)
-    xd: np.ndarray  # task-scaled task velocity (m,)
-    z: np.ndarray  # null-space preference (nh,)
-    lo: np.ndarray  # velocity bounds (nh,), rad/s
-    hi: np.ndarray
-    pinv: np.ndarray  # damped inverse (nh, m)
-    sigmas: np.ndarray  # post-failure sigmas (nh,)
-    sigma_min: float
-    reduced: np.ndarray  # reduced velocities if each joint locked (nh, nh); 0 x 0 if none
-    qd: np.ndarray  # the command before saturation (nh,), rad/s
-    fits: bool  # qd is within [lo, hi]
-
 #: Distance (rad or m) within which a joint counts as at a limit.
 AT_LIMIT = 1e-3
-
-#: dJ/dq placeholder for cycles that do not need it (the compiled cycle takes an array).
-_NO_DERIVATIVES = np.zeros((0, 0, 0))
 
 
 @dataclass(frozen=True)
@@ -189,14 +175,17 @@ class _LockedSet:
 
     locked: bool  #: whether any joint is locked
     healthy: np.ndarray  #: indices of the healthy joints
-    weights: np.ndarray  #: failure weights of the healthy joints
     soft: bool  #: whether the soft box applies
-    lower: np.ndarray  #: effective lower limits of the healthy joints (rad)
-    upper: np.ndarray  #: effective upper limits of the healthy joints (rad)
-    velocity: np.ndarray  #: velocity limits of the healthy joints (rad/s)
+    #: rows of the healthy joints: effective lower and upper limits (rad), velocity
+    #: limits (rad/s), failure weights (`BOX_ROWS`)
+    box: np.ndarray
     use_kfm: bool  #: whether the kfm gradient is part of the preference
     use_jump: bool  #: whether the minimum-jump term is part of the preference
     zeros: np.ndarray  #: zeros for the healthy joints: the swing bias when it is off
+
+
+#: The rows of `_LockedSet.box`.
+BOX_ROWS = ("lower", "upper", "velocity", "weights")
 
 
 @njit(cache=True, error_model="numpy")
@@ -215,18 +204,28 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
 
 
 @njit(cache=True, error_model="numpy")
-def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
-           task_scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray,
-           weights: np.ndarray, gains: Gains, use_kfm: bool, use_jump: bool,
-           probabilities: bool, bias: np.ndarray) -> CycleArrays:
-    """The arithmetic of `ResolutionEngine.step` for m <= healthy joints, compiled.
+def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
+           task_scale: np.ndarray, box: np.ndarray, gains: np.ndarray, use_kfm: bool,
+           use_jump: bool, probabilities: bool, bias: np.ndarray, limit_box: np.ndarray,
+           soft: bool) -> tuple:
+    """`ResolutionEngine.step` for m <= healthy joints, compiled in one call.
 
-    `bias` (healthy joints) is added to z. Returns `CycleArrays`, with
-    qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1] that keeps it within
-    [lo, hi] (`limits.preference_scale`), and whether it is; if not, the caller runs
-    the rest of `limits.saturate_in_null_space`, which starts the same way.
+    J6 is the tool point's 6-row Jacobian in the base's axes (`Robot.base_jacobian`),
+    `box` the locked set's `BOX_ROWS`, `gains` `Gains` as an array, `bias` (healthy
+    joints) is added to z, `limit_box` holds the robot's lower and upper limits and the
+    soft box (rows, n). qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1]
+    that keeps it within the velocity bounds (`limits.preference_scale`), else
+    `limits.saturate_in_null_space`. Returns, over all n joints (locked: qd 0, sigma
+    nan): (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump index,
+    task scale, soft-limit margin).
     """
-    m, nh = task_scale.size, healthy.size
+    kfm_gain, jump_gain, limit_gain, temperature, buffer, dt, threshold, max_damping = gains
+    lower, upper, velocity, weights = box[0], box[1], box[2], box[3]
+    m, nh, n = task_scale.size, healthy.size, q.size
+    if use_kfm:
+        J, dJ = robots.task_jacobians(J6, m)
+    else:
+        J, dJ = J6[:m], np.zeros((0, 0, 0))
     Js = np.empty((m, nh))
     for a in range(m):
         for j in range(nh):
@@ -234,35 +233,42 @@ def _cycle(J: np.ndarray, dJ: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy
     x = task_scale * xd
     qh = q[healthy]
     L, V, columns, sigmas, vectors = postfailure.analyse(Js)
-    z = gains.limit * limits.avoidance(qh, lower, upper, gains.limit_buffer) + bias
+    z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
     reduced = np.zeros((0, 0))
     if nh > m:
-        reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas,
-                                                   gains.damping_threshold, gains.max_damping)
+        reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas, threshold,
+                                                   max_damping)
         if use_jump:
-            z += gains.jump * (weights @ reduced)
+            z += jump_gain * (weights @ reduced)
         if use_kfm:
             dJs = np.empty((nh, m, nh))
             for k in range(nh):
                 for a in range(m):
                     for j in range(nh):
                         dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
-            ascent = weights if probabilities else measures.kfm_weights(sigmas,
-                                                                       gains.kfm_temperature)
-            z += gains.kfm * postfailure.weighted_sigma_gradient(Js, dJs, sigmas, vectors,
-                                                                 ascent)
-    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, gains.dt)
-    pinv = postfailure.damped_inverse(columns, L, V, gains.damping_threshold,
-                                      gains.max_damping)
+            ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
+            z += kfm_gain * postfailure.weighted_sigma_gradient(Js, dJs, sigmas, vectors,
+                                                                ascent)
+    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
+    pinv = postfailure.damped_inverse(columns, L, V, threshold, max_damping)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
-    qd = task + null_motion
-    fits = limits.within(qd, lo, hi)
-    if not fits:  # SNS's first step, the common case: shrink the preference beside the task
-        qd = task + limits.preference_scale(task, null_motion, lo, hi) * null_motion
-        fits = limits.within(qd, lo, hi)
-    return CycleArrays(Js, x, z, lo, hi, pinv, sigmas, postfailure.smallest_singular_value(L),
-                       reduced, qd, fits)
+    qd_h = task + null_motion
+    scale, saturated_h = 1.0, np.zeros(nh, dtype=np.bool_)
+    if not limits.within(qd_h, lo, hi):
+        # SNS's first step, the common case: shrink the preference beside the task.
+        qd_h = task + limits.preference_scale(task, null_motion, lo, hi) * null_motion
+        if not limits.within(qd_h, lo, hi):
+            qd_h, scale, saturated_h = limits.saturate_in_null_space(
+                Js, x, z, lo, hi, threshold, max_damping, pinv)
+    jump = _jump_index(reduced, qd_h, scale, weights) if reduced.size else 0.0
+    qd, saturated, sigmas_n = np.zeros(n), np.zeros(n, dtype=np.bool_), np.full(n, np.nan)
+    for j in range(nh):
+        qd[healthy[j]], saturated[healthy[j]] = qd_h[j], saturated_h[j]
+        sigmas_n[healthy[j]] = sigmas[j]
+    margin, at_soft, at_hard = _limit_report(q, limit_box, soft)
+    return (qd, saturated, sigmas_n, at_soft, at_hard, sigmas.min(),
+            postfailure.smallest_singular_value(L), jump, scale, margin)
 
 
 @njit(cache=True, error_model="numpy")
@@ -292,16 +298,19 @@ _INPUT_PROBLEMS = {
 
 
 @njit(cache=True, error_model="numpy")
-def _limit_report(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, soft_lower: np.ndarray,
-                  soft_upper: np.ndarray, soft: bool) -> tuple[float, np.ndarray, np.ndarray]:
-    """(soft-limit margin, at_soft_limit, at_hard_limit) of `CycleResult`."""
+def _limit_report(q: np.ndarray, limit_box: np.ndarray,
+                  soft: bool) -> tuple[float, np.ndarray, np.ndarray]:
+    """(soft-limit margin, at_soft_limit, at_hard_limit) of `CycleResult`.
+
+    `limit_box` rows: lower and upper joint limits, soft lower and upper (rad).
+    """
     margin = np.inf
     at_soft = np.zeros(q.size, dtype=np.bool_)
     if soft:
-        distance = np.minimum(q - soft_lower, soft_upper - q)
+        distance = np.minimum(q - limit_box[2], limit_box[3] - q)
         margin = distance.min()
         at_soft = distance < AT_LIMIT
-    return margin, at_soft, np.minimum(q - lower, upper - q) < AT_LIMIT
+    return margin, at_soft, np.minimum(q - limit_box[0], limit_box[1] - q) < AT_LIMIT
 
 
 class ResolutionEngine:
@@ -332,10 +341,13 @@ class ResolutionEngine:
             if np.any(lower > upper):
                 raise ValueError("a soft lower limit is above its upper limit")
             self._soft = (lower, upper)
-        self._gains = Gains(kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
-                            kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer,
-                            dt=cfg.dt, damping_threshold=cfg.damping.threshold,
-                            max_damping=cfg.damping.max_damping)
+        self._gains = np.array(Gains(
+            kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
+            kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer, dt=cfg.dt,
+            damping_threshold=cfg.damping.threshold, max_damping=cfg.damping.max_damping))
+        self._limit_box = np.array([robot.lower, robot.upper,
+                                    *(self._soft if self._soft[0].size else (robot.lower,
+                                                                             robot.upper))])
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
         self.step(robot.home(), np.zeros(robot.m))
 
@@ -361,10 +373,10 @@ class ResolutionEngine:
             nh = int(healthy.sum())
             next_failure = nh - 1 >= robot.m
             view = self._locked_sets[key] = _LockedSet(
-                locked=bool(key), healthy=np.flatnonzero(healthy),
-                weights=measures.failure_weights(p, nh) if nh else np.zeros(0), soft=soft,
-                lower=lower[healthy], upper=upper[healthy],
-                velocity=robot.velocity_limits[healthy] * cfg.velocity_scale,
+                locked=bool(key), healthy=np.flatnonzero(healthy), soft=soft,
+                box=np.array([lower[healthy], upper[healthy],
+                              robot.velocity_limits[healthy] * cfg.velocity_scale,
+                              measures.failure_weights(p, nh) if nh else np.zeros(0)]),
                 use_kfm=(next_failure and cfg.resolution in ("max_kfm", "blend")
                          and cfg.kfm_gain > 0),
                 use_jump=next_failure and cfg.resolution in ("min_jump", "blend"),
@@ -406,8 +418,9 @@ class ResolutionEngine:
             return None
         motion = speed * column / column[k]
         qd = np.array(qd, dtype=float)
-        lo, hi = limits.velocity_bounds(np.asarray(q, dtype=float)[index], view.lower,
-                                        view.upper, view.velocity, self.config.dt)
+        lower, upper, velocity, _ = view.box
+        lo, hi = limits.velocity_bounds(np.asarray(q, dtype=float)[index], lower, upper,
+                                        velocity, self.config.dt)
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
@@ -431,49 +444,33 @@ class ResolutionEngine:
             raise ValueError(_INPUT_PROBLEMS[problem])
         view = self._locked_set(locked)
         index, nh = view.healthy, view.healthy.size
-        if view.use_kfm:
-            J, dJ = robot.jacobian_and_derivatives(q)
-        else:
-            J, dJ = robot.jacobian(q), _NO_DERIVATIVES
-        jump, sigma_min = 0.0, 0.0
-        if nh >= m:
-            cycle = _cycle(J, dJ, xd, q, index, robot.task_scale, view.lower, view.upper,
-                           view.velocity, view.weights, self._gains, view.use_kfm, view.use_jump,
-                           self._probabilities is not None, self._swing_descent(q, view))
-            Js, x, sigmas_h, sigma_min = cycle.J, cycle.xd, cycle.sigmas, cycle.sigma_min
-            qd_h, reduced = cycle.qd, cycle.reduced
-            scale, saturated_h = 1.0, np.zeros(nh, dtype=bool)
-            if not cycle.fits:
-                result = limits.saturate_in_null_space(Js, x, cycle.z, cycle.lo, cycle.hi,
-                                                       cfg.damping, cycle.pinv)
-                qd_h, scale, saturated_h = result.qd, result.scale, result.saturated
-            if reduced.size:
-                jump = _jump_index(reduced, qd_h, scale, view.weights)
-        else:  # fewer healthy joints than task coordinates: least squares, scaled into bounds
-            Js, x = robot.scale_task(J)[:, index], robot.task_scale * xd
-            lo, hi = limits.velocity_bounds(q[index], view.lower, view.upper, view.velocity,
-                                            cfg.dt)
-            qd_h = damped_pinv(Js, cfg.damping) @ x if nh else np.zeros(0)
-            scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
-            qd_h, saturated_h, sigmas_h = scale * qd_h, np.zeros(nh, dtype=bool), np.zeros(nh)
-        if view.locked:
-            qd, saturated, sigmas = np.zeros(n), np.zeros(n, dtype=bool), np.full(n, np.nan)
-            qd[index], saturated[index], sigmas[index] = qd_h, saturated_h, sigmas_h
-        else:
-            qd, saturated, sigmas = qd_h, saturated_h, sigmas_h
-        margin, at_soft, at_hard = _limit_report(q, robot.lower, robot.upper, *self._soft,
-                                                 view.soft)
         if nh < m:
-            status = Status.INFEASIBLE
-        elif scale < 1.0:
+            return self._infeasible(q, xd, view)
+        (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
+         margin) = _cycle(robot.base_jacobian(q), xd, q, index, robot.task_scale, view.box,
+                          self._gains, view.use_kfm, view.use_jump,
+                          self._probabilities is not None, self._swing_descent(q, view),
+                          self._limit_box, view.soft)
+        if scale < 1.0:
             status = Status.LIMITED
         elif sigma_min < cfg.damping.threshold:
             status = Status.NEAR_SINGULARITY
         else:
             status = Status.OK
-        return CycleResult(
-            qd=qd, status=status, kfm=float(sigmas_h.min()) if nh else 0.0,
-            sigma_min=sigma_min, post_failure_sigmas=sigmas, jump_index=jump,
-            task_scale=float(scale), soft_limit_margin=margin, saturated=saturated,
-            at_soft_limit=at_soft, at_hard_limit=at_hard,
-        )
+        return CycleResult(qd, status, kfm, sigma_min, sigmas, jump, scale, margin, saturated,
+                           at_soft, at_hard)
+
+    def _infeasible(self, q: np.ndarray, xd: np.ndarray, view: _LockedSet) -> CycleResult:
+        """Fewer healthy joints than task coordinates: least squares, scaled into the bounds."""
+        cfg, robot = self.config, self.robot
+        index, nh, n = view.healthy, view.healthy.size, robot.n
+        lower, upper, velocity, _ = view.box
+        Js, x = robot.scale_task(robot.jacobian(q))[:, index], robot.task_scale * xd
+        lo, hi = limits.velocity_bounds(q[index], lower, upper, velocity, cfg.dt)
+        qd_h = damped_pinv(Js, cfg.damping) @ x if nh else np.zeros(0)
+        scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
+        qd, sigmas = np.zeros(n), np.full(n, np.nan)
+        qd[index], sigmas[index] = scale * qd_h, 0.0
+        margin, at_soft, at_hard = _limit_report(q, self._limit_box, view.soft)
+        return CycleResult(qd, Status.INFEASIBLE, 0.0, 0.0, sigmas, 0.0, float(scale), margin,
+                           np.zeros(n, dtype=bool), at_soft, at_hard)

@@ -14,12 +14,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit
 
-from ft_core.pseudoinverse import Damping, damped_pinv, pseudo_inverse_from_svd
+from ft_core.pseudoinverse import damped_from_svd
 
 #: Slack (rad/s) in bound checks against round-off.
 TOLERANCE = 1e-10
@@ -108,81 +106,80 @@ def preference_scale(task: np.ndarray, null_motion: np.ndarray, lo: np.ndarray,
     return alpha if feasible else 0.0
 
 
-@dataclass(frozen=True)
-class Saturated:
-    """Result of `saturate_in_null_space`."""
-
-    qd: np.ndarray  #: joint velocities (n,)
-    scale: float  #: task scale in [0, 1]; 1 = task fully achieved
-    saturated: np.ndarray  #: joints held at a bound (n,) bool
-
-
+@njit(cache=True, error_model="numpy")
 def _solve(J: np.ndarray, xd: np.ndarray, z: np.ndarray, free: np.ndarray, q_sat: np.ndarray,
-           damping: Damping, svd: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, float]:
+           threshold: float, max_damping: float, U: np.ndarray, S: np.ndarray,
+           Vt: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Split qd = a + b: a = (J W)# xd (scaled with the task), b = the rest.
 
     Also returns sigma_min(J W), how well the free joints can still do the task.
-    `svd` is the SVD of J, used while every joint is free.
-    """
-    Jw = J * free
-    U, S, Vt = svd if free.all() else np.linalg.svd(Jw, full_matrices=False)
-    pinv = pseudo_inverse_from_svd(U, S, Vt, damping)
-    zw = z * free
-    a = pinv @ xd
-    b = q_sat + zw - pinv @ (J @ q_sat + Jw @ zw)
-    return a, b, float(S[-1]) if J.shape[0] <= J.shape[1] else 0.0
-
-
-def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
-                           hi: np.ndarray, damping: Damping,
-                           pinv: np.ndarray | None = None) -> Saturated:
-    """Joint velocities J# xd + (I - J# J) z within lo <= qd <= hi (Flacco et al.'s SNS).
-
-    The task has priority over the preference z: z is first shrunk by the largest
-    factor in [0, 1] that keeps J# xd + (I - J# J) z inside the bounds (to 0 when
-    J# xd alone breaks them); then SNS saturates joints and, last, scales the task.
-    `lo <= 0 <= hi` must hold (as `velocity_bounds` guarantees). If the task at
-    scale 0 cannot be met with the remaining preference, the preference is dropped.
-    At most n saturation passes per preference; numbers that defeat them (inputs
-    near overflow) give zero velocity with task scale 0.
+    (U, S, Vt) is the SVD of J, used while every joint is free.
     """
     m, n = J.shape
-    if pinv is None:
-        pinv = damped_pinv(J, damping)
-    everything = np.ones(n, dtype=bool)
+    Jw, zw = J.copy(), z.copy()
+    if not free.all():
+        for j in range(n):
+            if not free[j]:
+                Jw[:, j] = 0.0
+                zw[j] = 0.0
+        U, S, Vt = np.linalg.svd(Jw, full_matrices=False)
+    pinv = damped_from_svd(U, S, Vt, threshold, max_damping)
     a = pinv @ xd
-    null_motion = z - pinv @ (J @ z) if z.any() else z
+    b = q_sat + zw - pinv @ (J @ q_sat + Jw @ zw)
+    return a, b, S[-1] if m <= n else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def saturate_in_null_space(J: np.ndarray, xd: np.ndarray, z: np.ndarray, lo: np.ndarray,
+                           hi: np.ndarray, threshold: float, max_damping: float,
+                           pinv: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """(qd, task scale, saturated joints): J# xd + (I - J# J) z within [lo, hi] (SNS).
+
+    Flacco et al.'s Algorithm 1 with the damped inverse (`pseudoinverse`; `pinv` is
+    J's). The task has priority over the preference z: z is first shrunk by the
+    largest factor in [0, 1] that keeps J# xd + (I - J# J) z inside the bounds (to 0
+    when J# xd alone breaks them); then SNS saturates joints and, last, scales the
+    task (scale in [0, 1], 1 = fully achieved). `lo <= 0 <= hi` must hold (as
+    `velocity_bounds` guarantees). If the task at scale 0 cannot be met with the
+    remaining preference, the preference is dropped. At most n saturation passes per
+    preference; numbers that defeat them give zero velocity with task scale 0. Compiled.
+    """
+    m, n = J.shape
+    a = pinv @ xd
+    null_motion = z - pinv @ (J @ z)
     qd = a + null_motion
     if within(qd, lo, hi):
-        return Saturated(qd, 1.0, np.zeros(n, dtype=bool))
-    svd = np.linalg.svd(J, full_matrices=False)
+        return qd, 1.0, np.zeros(n, dtype=np.bool_)
+    U, S, Vt = np.linalg.svd(J, full_matrices=False)
     # The task has priority: shrink the preference until it fits beside the task.
-    z = z * preference_scale(a, null_motion, lo, hi)
+    shrunk = z * preference_scale(a, null_motion, lo, hi)
     # Flacco's "rank(J W) < m", numerically: the free joints have lost a task direction.
-    rank_lost = min(damping.threshold, svd[1][-1] / 2 if m <= n else 0.0)
-    for preference in (z, np.zeros(n)):
-        free, q_sat = everything.copy(), np.zeros(n)
-        best: tuple[float, np.ndarray, np.ndarray] | None = None
+    rank_lost = min(threshold, S[-1] / 2 if m <= n else 0.0)
+    for attempt in range(2):
+        preference = shrunk if attempt == 0 else np.zeros(n)
+        free, q_sat = np.ones(n, dtype=np.bool_), np.zeros(n)
+        best_scale, best_free, best_q_sat = -1.0, free.copy(), q_sat.copy()
         for _ in range(n):  # each pass saturates one more joint: at most n passes
-            a, b, sigma_free = _solve(J, xd, preference, free, q_sat, damping, svd)
+            a, b, sigma_free = _solve(J, xd, preference, free, q_sat, threshold, max_damping,
+                                      U, S, Vt)
             if not free.all() and (sigma_free < rank_lost or free.sum() < m):
                 break
             qd = a + b
             if np.all((qd <= hi + TOLERANCE) & (qd >= lo - TOLERANCE) | ~free):
-                return Saturated(qd, 1.0, ~free)
+                return qd, 1.0, ~free
             scale, critical, feasible = largest_scale(a, b, lo, hi, free)
-            if feasible and (best is None or scale > best[0]):
-                best = (scale, free.copy(), q_sat.copy())
+            if feasible and scale > best_scale:
+                best_scale, best_free, best_q_sat = scale, free.copy(), q_sat.copy()
             if not free[critical]:
                 break  # no joint left to saturate (non-finite or degenerate numbers)
             free[critical] = False
-            q_sat[critical] = np.clip(qd[critical], lo[critical], hi[critical])
-        if best is not None:
-            scale, free, q_sat = best
-            a, b, _ = _solve(J, xd, preference, free, q_sat, damping, svd)
-            qd = np.clip(scale * a + b, lo, hi)
+            q_sat[critical] = min(max(qd[critical], lo[critical]), hi[critical])
+        if best_scale >= 0.0:
+            a, b, _ = _solve(J, xd, preference, best_free, best_q_sat, threshold, max_damping,
+                             U, S, Vt)
+            qd = np.minimum(np.maximum(best_scale * a + b, lo), hi)
             at_bound = ((qd >= hi - TOLERANCE) & (hi > 0)) | ((qd <= lo + TOLERANCE) & (lo < 0))
-            return Saturated(qd, scale, ~free | at_bound)
+            return qd, best_scale, ~best_free | at_bound
     # In exact arithmetic the task at scale 0 without preference is feasible; with
     # overflowing inputs it may not be found: stop (explicit zeros), never raise.
-    return Saturated(np.zeros(n), 0.0, np.zeros(n, dtype=bool))
+    return np.zeros(n), 0.0, np.zeros(n, dtype=np.bool_)

@@ -68,6 +68,22 @@ def pseudo_inverse_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray,
     return np.swapaxes(Vt, -1, -2) @ (factors[..., None] * np.swapaxes(U, -1, -2))
 
 
+@njit(cache=True, error_model="numpy")
+def damped_from_svd(U: np.ndarray, S: np.ndarray, Vt: np.ndarray, threshold: float,
+                    max_damping: float) -> np.ndarray:
+    """`pseudo_inverse_from_svd` with damping for one matrix (k, m), compiled."""
+    lam2 = squared_damping(S[-1], threshold, max_damping)
+    k, m = Vt.shape[1], U.shape[0]
+    inverse = np.zeros((k, m))
+    for r in range(S.size):
+        if S[r] > 0:
+            factor = S[r] / (S[r] * S[r] + lam2)
+            for i in range(k):
+                for a in range(m):
+                    inverse[i, a] += Vt[r, i] * factor * U[a, r]
+    return inverse
+
+
 def damped_pinv(A: np.ndarray, damping: Damping) -> np.ndarray:
     """Damped pseudo-inverse of an m x k matrix or a stack of them."""
     U, S, Vt = np.linalg.svd(np.asarray(A, dtype=float), full_matrices=False)

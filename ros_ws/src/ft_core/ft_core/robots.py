@@ -58,7 +58,7 @@ _SUPPORTED = _MOVABLE | {"fixed"}
 
 
 @njit(cache=True, error_model="numpy")
-def _task_jacobians(J: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+def task_jacobians(J: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """Task rows of a chain's Jacobian and of its derivatives: (m, n) and dJ/dq_k (n, m, n).
 
     J (6, n) is the tool point's Jacobian, linear rows v above angular rows w, every
@@ -454,14 +454,18 @@ class Robot:
             return pose
         return pose[self._rows, 3].copy()
 
+    def base_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """The tool point's full Jacobian (6 x n), axes of `base_link`.
+
+        Linear rows above angular ones; C-contiguous (one layout for the compiled code).
+        """
+        J = pin.computeFrameJacobian(self._model, self._data, self._check(q), self._tip,
+                                     pin.LOCAL_WORLD_ALIGNED)
+        return self._rotate @ J if not self._base_aligned else np.ascontiguousarray(J)
+
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Task Jacobian (m x n) at the tool point, axes of `base_link`."""
-        q = self._check(q)
-        J = pin.computeFrameJacobian(self._model, self._data, q, self._tip,
-                                     pin.LOCAL_WORLD_ALIGNED)
-        if not self._base_aligned:
-            J = self._rotate @ J
-        return np.ascontiguousarray(J[self._rows])  # one memory layout for the compiled cycle
+        return np.ascontiguousarray(self.base_jacobian(q)[self._rows])
 
     def jacobian_derivatives(self, q: np.ndarray) -> np.ndarray:
         """dJ/dq_k for every joint k, shape (n, m, n) (see `jacobian_and_derivatives`)."""
@@ -471,15 +475,10 @@ class Robot:
         """Task Jacobian (m, n) and dJ/dq_k (n, m, n) from one Pinocchio Jacobian.
 
         The full 6-row Jacobian is turned to the base's axes first (rows are then
-        selected): the derivatives (`_task_jacobians`) are cross products of its
+        selected): the derivatives (`task_jacobians`) are cross products of its
         columns, which hold in any fixed axes.
         """
-        q = self._check(q)
-        J = pin.computeFrameJacobian(self._model, self._data, q, self._tip,
-                                     pin.LOCAL_WORLD_ALIGNED)
-        if not self._base_aligned:
-            J = self._rotate @ J
-        return _task_jacobians(np.ascontiguousarray(J), self.m)
+        return task_jacobians(self.base_jacobian(q), self.m)
 
     def scale_task(self, A: np.ndarray) -> np.ndarray:
         """Multiply the angular task rows of A (..., m, k) by the characteristic length.
