@@ -21,7 +21,7 @@ def test_far_goals_are_approached_at_capped_speeds_in_the_error_direction() -> N
     goal = PANDA.forward(Q)
     goal[:3, 3] += [0.3, 0.0, -0.4]
     tracking = PoseTracking(gain=2.0, max_linear=0.1, max_angular=0.2)
-    xd, reached = pose_velocity(PANDA, goal, Q, tracking)
+    xd, reached = pose_velocity(PANDA, PANDA.task_error(goal, Q), tracking)
     assert not reached
     assert np.linalg.norm(xd[:3]) == pytest.approx(0.1)
     np.testing.assert_allclose(xd[:3] / 0.1, np.array([0.3, 0.0, -0.4]) / 0.5, atol=1e-12)
@@ -30,9 +30,9 @@ def test_far_goals_are_approached_at_capped_speeds_in_the_error_direction() -> N
 def test_near_goals_use_the_gain_and_reached_goals_give_zero() -> None:
     goal = PANDA.forward(Q)
     goal[:3, 3] += [0.01, 0.0, 0.0]
-    xd, _ = pose_velocity(PANDA, goal, Q, PoseTracking(gain=2.0))
+    xd, _ = pose_velocity(PANDA, PANDA.task_error(goal, Q), PoseTracking(gain=2.0))
     np.testing.assert_allclose(xd[:3], [0.02, 0, 0], atol=1e-12)
-    xd, reached = pose_velocity(PANDA, PANDA.forward(Q), Q, PoseTracking())
+    xd, reached = pose_velocity(PANDA, PANDA.task_error(PANDA.forward(Q), Q), PoseTracking())
     assert reached and np.all(xd == 0.0)
 
 

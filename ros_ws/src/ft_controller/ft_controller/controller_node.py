@@ -475,7 +475,7 @@ class ControllerNode(SuiteNode):
             self._take_boxes()
         if self._boxes_dirty:
             self._start_boxes(q)
-        xd, idle = self._task_velocity(q, now)
+        xd, idle, error = self._task_velocity(q, now)
         locked = [robot.joint_names.index(name) for name in self._locked]
         try:
             result = self.engine.step(q, xd, locked)
@@ -494,16 +494,17 @@ class ControllerNode(SuiteNode):
             qd = np.zeros(robot.n)
         self._last = result
         self._publish(qd, stamp, result)
-        self._watch_task(q, qd, locked, now)
+        if error is not None:
+            self._watch_task(q, qd, locked, now, error)
 
-    def _watch_task(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> None:
-        """Feed the task-space channel (`ft_core.task_channel`) on pose goals.
+    def _watch_task(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float,
+                    error: float) -> None:
+        """Feed the task-space channel (`ft_core.task_channel`) the pose goal's error (m).
 
         A new suspect is published on `ft/suspected_failure` for the monitor to decide.
         """
-        if self._channel is None or self._target is None or self._target.kind != "pose":
+        if self._channel is None:
             return
-        error = float(np.linalg.norm(self.robot.task_error(self._target.value, q)))
         joint = self._channel.update(now, q, qd, error, tuple(locked))
         name = None if joint is None else self.robot.joint_names[joint]
         if name is not None and name != self._suspect:
@@ -532,16 +533,17 @@ class ControllerNode(SuiteNode):
                 return qd
         return qd
 
-    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
-        """(task velocity, idle) from the latest target."""
+    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool, float | None]:
+        """(task velocity, idle, the pose goal's error norm or None) from the latest target."""
         target, robot = self._target, self.robot
         if target is None:
-            return np.zeros(robot.m), True
+            return np.zeros(robot.m), True, None
         if target.kind == "pose":
-            xd, reached = pose_velocity(robot, target.value, q, self.tracking)
-            return xd, reached
+            error = robot.task_error(target.value, q)
+            xd, reached = pose_velocity(robot, error, self.tracking)
+            return xd, reached, float(np.linalg.norm(error))
         scale = staleness_scale(now - target.stamp, self._target_timeout)
-        return scale * target.value, scale == 0.0
+        return scale * target.value, scale == 0.0, None
 
     def _publish(self, qd_chain: np.ndarray, stamp: Time | None = None, result=None) -> None:
         """The command (and with a cycle's result, the metrics), in preallocated messages."""

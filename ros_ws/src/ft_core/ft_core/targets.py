@@ -59,10 +59,13 @@ def _cap(vector: np.ndarray, limit: float) -> np.ndarray:
     return vector if norm <= limit else vector * (limit / norm)
 
 
-def pose_velocity(robot: Robot, goal: np.ndarray, q: np.ndarray,
+def pose_velocity(robot: Robot, error: np.ndarray,
                   tracking: PoseTracking) -> tuple[np.ndarray, bool]:
-    """(task velocity towards `goal` at q, whether the goal is reached)."""
-    error = robot.task_error(goal, q)
+    """(task velocity, whether the goal is reached) for a task error (`Robot.task_error`).
+
+    The caller computes the error once per cycle (the controller's task channel
+    watches its norm too).
+    """
     linear, angular = error[: min(3, robot.m)], error[3:]
     reached = (np.linalg.norm(linear) < tracking.position_tolerance
                and np.linalg.norm(angular) < tracking.angle_tolerance)
