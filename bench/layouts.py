@@ -3,7 +3,8 @@
 For each control rate (250 and 1000 Hz by default), each `thread_priority` of the
 controller and the monitor (0, the normal scheduler, and SCHED_FIFO 50) and each
 layout, the installed console scripts run on the wall clock beside a probe streaming
-a twist target:
+a twist target; at 1000 Hz (`--busy-rates`) every case runs once more with one busy
+process per core beside them (`busy_machine`):
 
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
@@ -29,6 +30,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -52,8 +57,25 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
-def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float) -> dict:
-    """One layout at one rate and priority: CPU per process, the controller's rate, latencies."""
+@contextmanager
+def busy_machine(busy: bool) -> Iterator[None]:
+    """With `busy`, one process spinning in Python per core for as long as the block runs."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
+            for _ in range((os.cpu_count() or 2) if busy else 0)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
+        busy: bool = False) -> dict:
+    """One layout at one rate and priority: CPU per process, the controller's rate, latencies.
+
+    With `busy`, the timed runs share the machine with one busy process per core.
+    """
     common = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position",
               "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
     commands = {name: [script, *common] for name, script in LAYOUTS[layout].items()}
@@ -76,17 +98,19 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float)
         probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
                                        qos.SENSOR_INPUT)
         spin_for(executor, warm_up)
-        start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
-        rates.clear()
-        elapsed = spin_for(executor, seconds)
-        used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
-        achieved = list(rates)
-        probe.time_latencies()
-        spin_for(executor, seconds)
-        latencies = list(probe.latencies)
+        with busy_machine(busy):
+            start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
+            rates.clear()
+            elapsed = spin_for(executor, seconds)
+            used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
+            achieved = list(rates)
+            probe.time_latencies()
+            spin_for(executor, seconds)
+            latencies = list(probe.latencies)
     share = {name: value / elapsed for name, value in used.items()}
     arm = sum(v for name, v in share.items() if name != "sim")
-    return {"rate_hz": rate, "thread_priority": priority, "scheduling": sorted(scheduling),
+    return {"rate_hz": rate, "thread_priority": priority, "busy": busy,
+            "scheduling": sorted(scheduling),
             "seconds": elapsed, "cpu_share": share,
             "arm_cpu_share": arm, "arm_cpu_ms_per_cycle": 1e3 * arm / rate,
             "controller_rate_hz": float(np.median(achieved)) if achieved else float("nan"),
@@ -101,29 +125,35 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rates", type=float, nargs="+", default=[250.0, 1000.0])
     parser.add_argument("--priorities", type=int, nargs="+", default=[0, 50],
                         help="thread_priority of controller and monitor (0: normal)")
+    parser.add_argument("--busy-rates", type=float, nargs="*", default=[1000.0],
+                        help="rates also run with one busy process per core")
     parser.add_argument("--seconds", type=float, default=20.0,
                         help="timed run of each, and the latency run after it")
     parser.add_argument("--warm-up", type=float, default=10.0, help="discovery and warm-up")
     args = parser.parse_args(argv)
-    results = [run(layout, rate, priority, args.seconds, args.warm_up)
-               for rate in args.rates for priority in args.priorities for layout in LAYOUTS]
+    cases = [(rate, priority, busy, layout) for busy, rates in ((False, args.rates),
+                                                               (True, args.busy_rates))
+             for rate in rates for priority in args.priorities for layout in LAYOUTS]
+    results = [run(layout, rate, priority, args.seconds, args.warm_up, busy)
+               for rate, priority, busy, layout in cases]
     info = machine()
-    lines = ["| rate | scheduling | layout | controller rate (Hz) | CPU per arm (controller + "
-             "monitor) | CPU per cycle (ms) | sim's CPU | arms on this machine (bound) | "
-             "joint_states to ft/command p50 / p99 (ms) |",
-             "|---:|---|---|---:|---:|---:|---:|---:|---:|"]
-    for r, layout in zip(results, [layout for _ in args.rates for _ in args.priorities
-                                   for layout in LAYOUTS], strict=True):
+    lines = ["| rate | machine | scheduling | layout | controller rate (Hz) | CPU per arm "
+             "(controller + monitor) | CPU per cycle (ms) | sim's CPU | arms on this machine "
+             "(bound) | joint_states to ft/command p50 / p99 (ms) |",
+             "|---:|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    for r, (_, _, busy, layout) in zip(results, cases, strict=True):
         latency = r["state_to_command_ms"]
         shown = (f"{latency['p50']:.2f} / {latency['p99']:.2f}" if latency["samples"]
                  else "-")
         scheduling = "normal" if not r["thread_priority"] else (
             f"SCHED_FIFO {r['thread_priority']}" if all(
                 s.startswith("SCHED_FIFO") for s in r["scheduling"]) else "refused")
-        lines.append(f"| {r['rate_hz']:.0f} Hz | {scheduling} | {layout} | "
+        machine_load = "a busy process per core" if busy else "idle"
+        lines.append(f"| {r['rate_hz']:.0f} Hz | {machine_load} | {scheduling} | {layout} | "
                      f"{r['controller_rate_hz']:.1f} | "
                      f"{100 * r['arm_cpu_share']:.0f} % | {r['arm_cpu_ms_per_cycle']:.3f} | "
-                     f"{100 * r['cpu_share']['sim']:.0f} % | {r['arms_per_machine']} | "
+                     f"{100 * r['cpu_share']['sim']:.0f} % | "
+                     f"{'-' if busy else r['arms_per_machine']} | "
                      f"{shown} |")
     lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up, then "
               f"{args.seconds:.0f} s of latency timing; {info['cpu']}, {info['cores']} cores, "

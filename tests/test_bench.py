@@ -127,12 +127,14 @@ def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN_LAYOUTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "layouts.py"), "--out", str(tmp_path),
-         "--rates", "100", "--priorities", "0", "--seconds", "1.5", "--warm-up", "4"],
+         "--rates", "100", "--priorities", "0", "--busy-rates", "100", "--seconds", "1.5",
+         "--warm-up", "4"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     runs = json.loads((tmp_path / "layouts.json").read_text())["runs"]
     assert [set(r["cpu_share"]) for r in runs] == [{"sim", "controller", "monitor"},
-                                                   {"sim", "controller + monitor"}]
+                                                   {"sim", "controller + monitor"}] * 2
+    assert [r["busy"] for r in runs] == [False, False, True, True]
     for run in runs:
         assert run["arm_cpu_share"] > 0 and run["controller_rate_hz"] > 50
         assert run["scheduling"] == ["normal"]

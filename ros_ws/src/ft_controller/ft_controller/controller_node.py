@@ -37,7 +37,16 @@ from ft_core.targets import (
     twist_velocity,
 )
 from ft_core.task_channel import TaskChannel
-from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
+from ft_msgs_py import (
+    convert,
+    diagnostics,
+    metrics,
+    names,
+    parameters,
+    qos,
+    spin,
+    thread_priority,
+)
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -327,8 +336,9 @@ class ControllerNode(SuiteNode):
                            "(the previous limits meanwhile)")
         try:
             if self._background is None:
-                self._background = ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+                self._background = ProcessPoolExecutor(  # never at the loop's priority
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                    initializer=thread_priority.normal)
             self._boxes_job = (self._boxes_generation, self._background.submit(
                 selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
         except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon

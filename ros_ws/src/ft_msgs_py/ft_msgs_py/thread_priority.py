@@ -8,12 +8,14 @@ controller manager does with its `thread_priority`, the controller and the monit
 can put the thread that runs their callbacks on SCHED_FIFO: it then runs as soon
 as it is ready, ahead of every normal process.
 
-Only the calling thread changes (Linux schedules threads), with SCHED_RESET_ON_FORK:
-threads and processes it starts later (the controller's self-motion tracing pool)
-stay on the normal scheduler, so background work never competes with the loop.
-The kernel's real-time throttling (by default 5 % of each second kept for normal
-processes) still applies. Needs root or an rtprio limit for the user (for example
-`@realtime - rtprio 99` in /etc/security/limits.conf, as ros2_control's
+Only the calling thread changes (Linux schedules threads), and what it starts later
+inherits its priority: the executors' own threads (the EventsExecutor's timer thread,
+which wakes the loop, is created when the nodes are added), so a busy machine cannot
+hold the wake-up back either. CPU-heavy work must not: the controller's self-motion
+tracing workers return to the normal scheduler first (`normal`, their pool's
+initializer). The kernel's real-time throttling (by default 5 % of each second kept
+for normal processes) still applies. Needs root or an rtprio limit for the user (for
+example `@realtime - rtprio 99` in /etc/security/limits.conf, as ros2_control's
 documentation describes); refused, the node logs a warning and keeps running on the
 normal scheduler.
 """
@@ -35,9 +37,12 @@ def apply(priority: int) -> str | None:
     if priority == 0:
         return None
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
-                              os.sched_param(priority))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (OSError, AttributeError) as error:  # no permission, or not Linux
         return f"SCHED_FIFO {priority} refused ({error})"
     return None
 
+
+def normal() -> None:
+    """Put the calling thread back on the normal scheduler (always allowed)."""
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
