@@ -250,3 +250,23 @@ def test_controller_and_monitor_as_one_process_find_a_lock(tmp_path: Path) -> No
         stack = g.processes["stack"]
         g.close()
         assert stack.returncode == 0, g.log("stack")[-3000:]
+
+
+def _tracing_workers(pid: int) -> list[int]:
+    """The process pool workers among a process's children (not multiprocessing's tracker)."""
+    children = [int(c) for task in Path(f"/proc/{pid}/task").iterdir()
+                for c in (task / "children").read_text().split()]
+    return [c for c in children
+            if "spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes().decode(errors="replace")]
+
+
+def test_tracing_workers_stay_on_the_normal_scheduler_beside_a_fifo_loop(tmp_path: Path) -> None:
+    """`thread_priority` raises the loop, never the CPU-heavy self-motion tracing."""
+    settings = parameters(tmp_path, WATCHDOG_PLANT)
+    settings["controller"].update(thread_priority=10, critical_points=[0.5, 0.1, 0.4])
+    with graph(tmp_path, settings, processes=("sim", "controller")) as g:
+        pid = g.processes["controller"].pid
+        g.wait(lambda: _tracing_workers(pid), 30.0, "the tracing worker started")
+        allowed = in_thread(lambda: thread_priority.apply(10)) is None
+        assert os.sched_getscheduler(pid) == (os.SCHED_FIFO if allowed else os.SCHED_OTHER)
+        assert [os.sched_getscheduler(w) for w in _tracing_workers(pid)] == [os.SCHED_OTHER]
