@@ -15,15 +15,16 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 import rclpy
-from ft_controller.controller_node import ControllerNode
+from ft_controller.controller_node import PARAMETERS, ControllerNode
 from ft_core import robots
+from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
 from ft_msgs_py import convert, diagnostics, metrics, qos
 from ft_msgs_py.spin import spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from paths import INSTALL, PACKAGES
+from paths import INSTALL, PACKAGES, REPO
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
-from rclpy.parameter import Parameter
+from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 from rosutil import FakePlant, ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
@@ -512,3 +513,13 @@ def test_soft_limits_can_be_set_one_side_at_a_time() -> None:
         np.testing.assert_allclose(node.engine.config.soft_upper, upper)
         plant.run(3)
         assert metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX
+
+
+def test_the_shipped_parameters_file_names_only_declared_parameters() -> None:
+    """config/controller.yaml (the launch file's default): every key is the controller's."""
+    shipped = REPO / "ros_ws" / "src" / "ft_controller" / "config" / "controller.yaml"
+    values = parameter_dict_from_yaml_file(str(shipped), use_wildcard=True)
+    assert "thread_priority" in values and "critical_points" in values
+    assert set(values) <= set(PARAMETERS)
+    # The launch file gives the monitor the same file: what it shares, it declares too.
+    assert {"thread_priority", "robot_model", "task_space"} <= set(MONITOR_PARAMETERS)
