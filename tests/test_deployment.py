@@ -261,7 +261,11 @@ def _tracing_workers(pid: int) -> list[int]:
 
 
 def test_tracing_workers_stay_on_the_normal_scheduler_beside_a_fifo_loop(tmp_path: Path) -> None:
-    """`thread_priority` raises the loop, never the CPU-heavy self-motion tracing."""
+    """`thread_priority` raises the loop, never the CPU-heavy self-motion tracing.
+
+    Checked as soon as the worker process exists: it must not run its start-up at the
+    loop's priority either.
+    """
     settings = parameters(tmp_path, WATCHDOG_PLANT)
     settings["controller"].update(thread_priority=10, critical_points=[0.5, 0.1, 0.4])
     with graph(tmp_path, settings, processes=("sim", "controller")) as g:

@@ -23,21 +23,32 @@ def test_a_priority_out_of_range_is_refused_with_the_reason() -> None:
     assert after == os.SCHED_OTHER
 
 
-def test_fifo_for_the_calling_thread_and_what_it_starts_until_normal() -> None:
+def test_fifo_for_the_calling_thread_and_what_it_starts_unless_lowered() -> None:
     def work():
         refused = thread_priority.apply(5)
         if refused is not None:
             return refused, None, None, None
         mine = policy(), os.sched_getparam(0).sched_priority
         child = in_thread(policy)  # the executor's threads are started after: they inherit
-        thread_priority.normal()  # what the tracing workers do first
-        return None, mine, child, policy()
+        with thread_priority.lowered():  # how the controller starts its tracing worker
+            started_lowered = in_thread(policy)
+            during = policy()
+        return None, mine, child, (started_lowered, during, policy())
 
-    refused, mine, child, after = in_thread(work)
+    refused, mine, child, lowered = in_thread(work)
     if refused is not None:
         assert "refused" in refused
         pytest.skip(f"this machine does not allow SCHED_FIFO: {refused}")
     assert mine == (os.SCHED_FIFO, 5)
     assert child == os.SCHED_FIFO
-    assert after == os.SCHED_OTHER
+    assert lowered == (os.SCHED_OTHER, os.SCHED_OTHER, os.SCHED_FIFO)  # then restored
     assert policy() == os.SCHED_OTHER  # pytest's thread untouched
+
+
+def test_lowered_leaves_a_normal_thread_alone() -> None:
+    def work():
+        with thread_priority.lowered():
+            during = policy()
+        return during, policy()
+
+    assert in_thread(work) == (os.SCHED_OTHER, os.SCHED_OTHER)

@@ -336,11 +336,11 @@ class ControllerNode(SuiteNode):
                            "(the previous limits meanwhile)")
         try:
             if self._background is None:
-                self._background = ProcessPoolExecutor(  # never at the loop's priority
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                    initializer=thread_priority.normal)
-            self._boxes_job = (self._boxes_generation, self._background.submit(
-                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+                self._background = ProcessPoolExecutor(
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            with thread_priority.lowered():  # the worker starts here: never at the loop's
+                self._boxes_job = (self._boxes_generation, self._background.submit(
+                    selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
         except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
             self._soft_note = "none (critical points failed)"
             self.problems.report("critical points", f"cannot start the process that traces "
