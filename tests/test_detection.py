@@ -177,6 +177,7 @@ def test_no_decision_at_start_up_until_the_plant_follows() -> None:
 def test_small_commands_are_unobservable() -> None:
     detector, events = run(lambda t: np.full(7, 0.02), 3.0, lock=((1,), 2.0))
     assert events == [] and not detector.joints[1].observable
+    assert not detector.joints[1].candidate
 
 
 def test_a_stall_at_a_joint_limit_is_not_a_lock() -> None:
@@ -185,6 +186,23 @@ def test_a_stall_at_a_joint_limit_is_not_a_lock() -> None:
     detector, events = run(lambda t: push, 9.0)
     assert events == []
     assert detector.joints[3].at_limit
+    # Not a candidate either: the monitor refuses a task-space suspect there (the check
+    # "still while commanded" alone confirmed it, a false lock in the campaign).
+    assert not detector.joints[3].candidate
+
+
+def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare() -> None:
+    """Only the locked joint commanded: no following joint vouches for the plant.
+
+    The detector declares nothing (seed 002's stuck arm); its candidate flag is what
+    the monitor confirms a task-space suspect with.
+    """
+    alone = np.zeros(7)
+    alone[1] = 0.2
+    detector, events = run(lambda t: alone, 3.0, lock=((1,), 2.0))
+    assert events == []
+    assert detector.joints[1].candidate
+    assert not any(e.candidate for k, e in enumerate(detector.joints) if k != 1)
 
 
 def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:

@@ -152,6 +152,10 @@ class JointEvidence:
     standard_error: float = 0.0  #: of the slope (rad/s)
     evidence_since: float | None = None  #: when the current lock evidence started (s)
     at_limit: bool = False  #: stalled at a physical limit
+    #: a lock candidate at the last update: stalled beyond the noise, not at a limit, not
+    #: moving on its own, no plant fault (whether or not a following joint vouches for the
+    #: plant, which the detector's own decision also needs)
+    candidate: bool = False
     swing_since: float | None = None  #: when the current free-swing evidence started (s)
     swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)
@@ -597,6 +601,7 @@ class LockDetector:
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])
             evidence.standard_error = float(error[j])
             evidence.at_limit = bool(stalled[j] and pushing[j])
+            evidence.candidate = bool(candidates[j])
         n_stalled, n_following = int(candidates.sum()), int(following.sum())
         n_own = int(on_its_own.sum())
         if n_stalled == 0 and n_own == 0 and identify:
@@ -609,6 +614,8 @@ class LockDetector:
                 for j in np.flatnonzero(odd))
             self._seen_following = 0.0
             self._clear_evidence()
+            for evidence in self.joints:
+                evidence.candidate = False
             return []
         self.plant_fault = None
         if self._seen_following < cfg.follow_time:

@@ -249,17 +249,17 @@ class MonitorNode(SuiteNode):
             self.get_logger().warning(f"ft/suspected_failure ignored: {error}",
                                       throttle_duration_sec=5.0)
             return
-        cfg, now = self.detector.config, self.now()
+        now = self.now()
         for j in known.values():
             evidence, name = self.detector.joints[j], self.robot.joint_names[j]
             if j in self.detector.locked or j in self.detector.swinging:
                 continue  # known already (a free-swinging joint stays reported as such)
-            still = (abs(evidence.commanded) >= cfg.min_command
-                     and abs(evidence.measured) < cfg.ratio * abs(evidence.commanded))
-            if not still:
+            if not evidence.candidate:  # the detector's own stall test, witness aside
+                reason = " at a joint limit" if evidence.at_limit else ""
                 self.get_logger().warning(
-                    f"suspected lock of {name} not confirmed: measured {evidence.measured:.4f} "
-                    f"rad/s, commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
+                    f"suspected lock of {name} not confirmed{reason}: measured "
+                    f"{evidence.measured:.4f} rad/s (+-{evidence.standard_error:.4f}), "
+                    f"commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
                 continue
             self.detector.lock(j, float(self._q[j]), now)
             self.get_logger().error(
