@@ -4,7 +4,7 @@ For each control rate (250 and 1000 Hz by default), each `thread_priority` of th
 controller and the monitor (0, the normal scheduler, and SCHED_FIFO 50) and each
 layout, the installed console scripts run on the wall clock beside a probe streaming
 a twist target; at 1000 Hz (`--busy-rates`) every case runs once more with one busy
-process per core beside them (`busy_machine`):
+process per core beside them (`ft_sim.load.busy_cores`):
 
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
@@ -30,10 +30,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
-import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +38,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine, report
 from ft_msgs_py import qos
 from ft_msgs_py.spin import spin_for
+from ft_sim.load import busy_cores
 from nodes import installed, percentiles
 
 LAYOUTS = {
@@ -55,19 +53,6 @@ def cpu_seconds(pid: int) -> float:
     """User plus system CPU time of a process so far (s)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
-
-
-@contextmanager
-def busy_machine(busy: bool) -> Iterator[None]:
-    """With `busy`, one process spinning in Python per core for as long as the block runs."""
-    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
-            for _ in range((os.cpu_count() or 2) if busy else 0)]
-    try:
-        yield
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
 
 
 def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
@@ -98,7 +83,7 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
         probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
                                        qos.SENSOR_INPUT)
         spin_for(executor, warm_up)
-        with busy_machine(busy):
+        with busy_cores() if busy else nullcontext():
             start = {name: cpu_seconds(p.pid) for name, p in processes.items()}
             rates.clear()
             elapsed = spin_for(executor, seconds)

@@ -4,7 +4,7 @@
 install space (as `ros2 run` and `ros2 launch` do), each its own process on a DDS
 domain of the test's own, and a probe node in the test process that drives pose
 goals and records what the graph publishes. Processes can be killed (-9), paused
-(SIGSTOP/SIGCONT, a stalled process) and restarted. `cpu_hog` saturates every core.
+(SIGSTOP/SIGCONT, a stalled process) and restarted. `ft_sim.load.busy_cores` saturates every core.
 """
 
 from __future__ import annotations
@@ -211,16 +211,3 @@ def graph(tmp_path: Path, parameters: dict[str, dict], before_start=None,
             yield g
         finally:
             g.close()
-
-
-@contextmanager
-def cpu_hog() -> Iterator[None]:
-    """One busy process per core for as long as the block runs."""
-    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
-            for _ in range(os.cpu_count() or 2)]
-    try:
-        yield
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()

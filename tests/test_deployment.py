@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from deployment import Graph, cpu_hog, graph
+from deployment import Graph, graph
 from ft_core import robots
 from ft_msgs_py import convert, qos, thread_priority
+from ft_sim.load import busy_cores
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rosutil import in_thread
@@ -65,7 +66,7 @@ def test_a_healthy_minute_with_command_pauses(tmp_path: Path) -> None:
 def test_a_healthy_minute_under_full_cpu_load(tmp_path: Path) -> None:
     with graph(tmp_path, parameters(tmp_path, HOLDING_PLANT)) as g:
         g.spin(5.0, goal_period=1.5)
-        with cpu_hog():
+        with busy_cores():
             g.spin(60.0, goal_period=1.5)
         assert_observed_healthy_motion(g)
 
