@@ -249,3 +249,17 @@ def test_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert exit_info.value.code == 2
     with pytest.raises(SystemExit):
         design.main([])
+
+
+def test_two_by_two_smallest_singular_value_keeps_relative_precision() -> None:
+    """Near-singular 2 x 2 blocks: |det| / sigma_max, not the square root of ~1e-17."""
+    rng = np.random.default_rng(27)
+    blocks = rng.normal(size=(300, 2, 2))
+    blocks[::3, 1] = blocks[::3, 0] * 0.5 + 1e-9  # nearly dependent rows
+    blocks[1::3, :, 1] = 0.0  # a zero column: exactly singular
+    got = multicase._sigma_min_2x2(blocks[:, 0, 0], blocks[:, 0, 1], blocks[:, 1, 0],
+                                   blocks[:, 1, 1])
+    reference = np.linalg.svd(blocks, compute_uv=False)
+    assert np.all(np.abs(got - reference[:, 1]) <= 1e-6 * reference[:, 1] + 1e-14 * reference[:, 0])
+    assert np.all(got[1::3] == 0.0)
+    assert multicase._sigma_min_2x2(*np.zeros((4, 1))).tolist() == [0.0]

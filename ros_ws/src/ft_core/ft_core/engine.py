@@ -232,7 +232,7 @@ def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
             Js[a, j] = task_scale[a] * J[a, healthy[j]]
     x = task_scale * xd
     qh = q[healthy]
-    L, V, columns, sigmas, vectors = postfailure.analyse(Js)
+    L, V, columns, sigmas, vectors, sigma_min = postfailure.analyse(Js)
     z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
     reduced = np.zeros((0, 0))
     if nh > m:
@@ -250,7 +250,7 @@ def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
             z += kfm_gain * postfailure.weighted_sigma_gradient(Js, dJs, sigmas, vectors,
                                                                 ascent)
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
-    pinv = postfailure.damped_inverse(columns, L, V, threshold, max_damping)
+    pinv = postfailure.damped_inverse(columns, L, V, sigma_min, threshold, max_damping)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
     qd_h = task + null_motion
@@ -267,8 +267,8 @@ def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
         qd[healthy[j]], saturated[healthy[j]] = qd_h[j], saturated_h[j]
         sigmas_n[healthy[j]] = sigmas[j]
     margin, at_soft, at_hard = _limit_report(q, limit_box, soft)
-    return (qd, saturated, sigmas_n, at_soft, at_hard, sigmas.min(),
-            postfailure.smallest_singular_value(L), jump, scale, margin)
+    return (qd, saturated, sigmas_n, at_soft, at_hard, sigmas.min(), sigma_min, jump, scale,
+            margin)
 
 
 @njit(cache=True, error_model="numpy")

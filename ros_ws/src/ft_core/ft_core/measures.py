@@ -10,7 +10,7 @@ For a pose task, pass `Robot.scale_task(J)` so that angular rows are in m/s.
 Reading taken where the papers are silent: when a further failure would leave
 fewer healthy joints than task coordinates (n - |locked| - 1 < m), the reduced
 Jacobian cannot span the task and its m-th singular value is 0, so the
-post-failure singular value of that joint is reported as 0 (no tolerance), not
+post-failure singular value of that joint is reported as exactly 0.0 (no tolerance), not
 as undefined. Entries for joints that are already locked are nan.
 """
 
@@ -65,8 +65,9 @@ def post_failure_svd(J: np.ndarray, locked: Iterable[int] = ()) -> tuple[np.ndar
 def post_failure_singular_values(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
     """Singular values of every post-failure Jacobian, shape (n, m), descending.
 
-    Row i belongs to a failure of joint i; rows of locked joints are nan. When the
-    matrix has fewer columns than rows the missing values are 0.
+    Row i belongs to a failure of joint i; rows of locked joints are nan. Values past
+    the number of remaining columns (n - |locked| - 1) are exactly 0; the others carry
+    LAPACK's absolute precision, about machine epsilon times the largest.
     """
     J = as_matrix(J)
     m, n = J.shape
@@ -74,6 +75,9 @@ def post_failure_singular_values(J: np.ndarray, locked: Iterable[int] = ()) -> n
     values = np.linalg.svd(post_failure_jacobians(J, np.flatnonzero(mask)), compute_uv=False)
     if values.shape[1] < m:
         values = np.pad(values, ((0, 0), (0, m - values.shape[1])))
+    # n - |locked| - 1 nonzero columns span at most that many values: the rest are 0 by
+    # structure, not whatever rounding LAPACK leaves there.
+    values[:, max(n - int(mask.sum()) - 1, 0):] = 0.0
     values[mask] = np.nan
     return values
 

@@ -49,10 +49,16 @@ def link_grid(step: float = 0.02) -> np.ndarray:
 
 
 def _sigma_min_2x2(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Smallest singular value of [[a, b], [c, d]] (element-wise arrays)."""
+    """Smallest singular value of [[a, b], [c, d]] (element-wise arrays).
+
+    |det| / sigma_max, with sigma_max^2 the larger root of s^4 - trace s^2 + det^2: no
+    cancellation, so a small value keeps its relative precision (the smaller root taken
+    directly would lose it, as a square root of an eigenvalue near 0 does).
+    """
     trace = a * a + b * b + c * c + d * d
     det = a * d - b * c
-    return np.sqrt(np.maximum(trace / 2 - np.sqrt(np.maximum(trace**2 / 4 - det**2, 0.0)), 0.0))
+    largest = np.sqrt(trace / 2 + np.sqrt(np.maximum(trace**2 / 4 - det**2, 0.0)))
+    return np.divide(np.abs(det), largest, out=np.zeros_like(largest), where=largest > 0)
 
 
 def manifold_configurations(lengths: Sequence[float], radius: float | np.ndarray,
