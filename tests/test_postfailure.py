@@ -136,7 +136,7 @@ def test_values_match_an_svd_on_rank_deficient_matrices(seed: int, shape: tuple[
 
 
 def test_square_jacobians_report_exact_zeros() -> None:
-    """m = n: removing any column leaves n - 1 < m, so every s_i is 0.0 by structure."""
+    """With m = n, removing any column leaves n - 1 < m: every s_i is 0.0 by structure."""
     J = np.random.default_rng(0).normal(size=(3, 3))
     assert postfailure.analyse(J)[3].tolist() == [0.0, 0.0, 0.0]
     assert measures.post_failure_sigmas(J).tolist() == [0.0, 0.0, 0.0]
