@@ -11,7 +11,11 @@ STAMP := $(VENV)/.installed
 WARM_UP := from ft_core import engine, robots; engine.ResolutionEngine(robots.load('panda')); \
 	engine.ResolutionEngine(robots.load('panda'), engine.EngineConfig(resolution='least_norm'))
 
-.PHONY: all venv build lint test demo bench clean
+PYTEST := $(BIN)/python -m pytest
+#: The ft_core sources whose compiled functions numba caches (see `build`).
+NUMBA_STAMP := ros_ws/build/.ft_core-sources
+
+.PHONY: all venv build lint test test-fast test-kernels demo bench clean
 
 all: test
 
@@ -29,6 +33,13 @@ venv: $(STAMP)
 build: $(STAMP)
 	cd ros_ws && ../$(BIN)/colcon --log-base log build --base-paths src \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
+	# numba's cache of a function is checked against that function's file only, not the
+	# files of the functions it calls: when any ft_core source changed, drop every cached
+	# compilation, or the engine's cycle would keep an old postfailure.
+	@sources=$$(cat ros_ws/src/ft_core/ft_core/*.py | sha256sum); \
+	if [ "$$sources" != "$$(cat $(NUMBA_STAMP) 2>/dev/null)" ]; then \
+		find ros_ws/src/ft_core ros_ws/install/ft_core -name '*.nb[ic]' -delete; \
+		echo "$$sources" > $(NUMBA_STAMP); fi
 	# Compile the engine's cycle (numba, cached next to each copy of the sources: the
 	# install space's and the editable one) now, not in the first node to start.
 	for path in ros_ws/install/ft_core/lib/python*/site-packages ""; do \
@@ -38,8 +49,23 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy
 
+# Every tier (markers in pyproject.toml, docs/testing.md), on both cores, the 15 slowest
+# tests listed at the end.
 test: build lint
-	$(BIN)/python -m pytest
+	$(PYTEST) -n 2 --durations=15
+
+# The ROS-free unit tier alone: under a minute.
+test-fast: $(STAMP)
+	$(PYTEST) -m unit -n 2 --durations=15
+
+# The unit tier again under other OpenBLAS kernels, whose rounding differs (CI runs it
+# after `make test`): Prescott runs on every x86-64 CPU, Haswell needs AVX2.
+test-kernels: $(STAMP)
+	if [ "$$(uname -m)" = x86_64 ]; then \
+		OPENBLAS_CORETYPE=Prescott $(PYTEST) -m unit -n 2 -q && \
+		if grep -qw avx2 /proc/cpuinfo; then OPENBLAS_CORETYPE=Haswell $(PYTEST) -m unit -n 2 -q; \
+		else echo "no AVX2 on this CPU: the Haswell kernel is not tried"; fi; \
+	else echo "OpenBLAS kernels are named for x86-64: nothing to try on $$(uname -m)"; fi
 
 demo: $(STAMP)
 	$(BIN)/ft-demo

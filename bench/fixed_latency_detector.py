@@ -2,7 +2,7 @@
 
 It compares the measured slope with the raw command shifted by a fixed `latency`
 (no plant model, no gap or plant-fault rule). `bench/detection.py` runs it beside
-`ft_core.detection` on the same recorded data; `tests/test_detection.py` shows it
+`ft_core.detection` on the same recorded data; `tests/unit/test_detection.py` shows it
 declaring false locks where the new detector does not.
 
 Over a sliding window of `window` seconds it fits a straight line to each joint's

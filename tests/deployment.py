@@ -46,6 +46,25 @@ def _argument(value: object) -> str:
     return str(value)
 
 
+def _children(pid: int) -> list[int]:
+    """The processes `pid` started (Linux /proc), and theirs."""
+    direct = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            direct += [int(child) for child in (task / "children").read_text().split()]
+        except OSError:  # the thread ended meanwhile
+            continue
+    return direct + [grandchild for child in direct for grandchild in _children(child)]
+
+
+def _running(pid: int) -> bool:
+    """Whether `pid` runs (a zombie waiting for its parent's reaper has ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
 class Graph:
     """Sim, controller and monitor processes plus an in-process probe; see the module."""
 
@@ -100,10 +119,13 @@ class Graph:
         log.close()
 
     def kill(self, name: str) -> None:
-        """Kill -9, as a crash would."""
+        """Kill -9, as a crash would; the processes it started must end too (no orphans)."""
         process = self.processes.pop(name)
+        children = _children(process.pid)
         process.kill()
         process.wait(timeout=10)
+        self.wait(lambda: not any(_running(pid) for pid in children), 10.0,
+                  f"the processes {name} started ({children}) to end after its kill -9")
 
     def pause(self, name: str, seconds: float) -> None:
         """Stop a process for `seconds` (SIGSTOP), spinning the probe meanwhile."""

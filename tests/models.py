@@ -1,10 +1,12 @@
-"""Small test robots built as URDF strings."""
+"""Small test robots built as URDF strings, and the open-loop control of seed 002's Theorem 1."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 from ft_core import robots
+from ft_core.task_channel import TaskChannel
 
 
 def planar_arm(links: Sequence[float], limit: float | None = None,
@@ -55,3 +57,29 @@ def straight_chain(axes: Sequence[str], link: float = 0.2,
                    task_space: str = "pose") -> robots.Robot:
     """`chain_urdf` loaded: at q = 0 it stands straight up, an exactly singular pose."""
     return robots.load(chain_urdf(axes, link), task_space=task_space)
+
+
+PLANAR = robots.load("planar3r")
+DT = 0.005
+
+
+def pseudoinverse_control(q0, x_d, locked: int, seconds: float = 20.0, gain: float = 1.0):
+    """Seed 002 eq 15 with G = J+ (W = I): qd_c = J+ gain (x_d - x).
+
+    The locked joint does not move and nobody knows. Returns (final q, final command,
+    channel, first suspicion).
+    """
+    q = np.array(q0, dtype=float)
+    channel = TaskChannel(PLANAR)
+    suspected_at = None
+    qd = np.zeros(3)
+    for k in range(round(seconds / DT)):
+        error = x_d - PLANAR.forward(q)
+        qd = np.linalg.pinv(PLANAR.jacobian(q)) @ (gain * error)
+        if channel.update(k * DT, q, qd, float(np.linalg.norm(error))) is not None and (
+                suspected_at is None):
+            suspected_at = (k * DT, channel.suspect)
+        moved = qd.copy()
+        moved[locked] = 0.0
+        q = q + DT * moved
+    return q, qd, channel, suspected_at

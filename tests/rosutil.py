@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-_contexts = itertools.count(1)
+_contexts = itertools.count()
 
 
 @contextmanager
@@ -44,12 +44,13 @@ def ros_context(shared: bool = False, executor_type: type[Executor] = SingleThre
 
 
 def fresh_domain() -> int:
-    """A DDS domain for one test context: never the session's, a new one each call."""
-    session = int(os.environ["ROS_DOMAIN_ID"])
-    domain = session
-    while domain == session:
-        domain = (session + next(_contexts)) % 100 + 1
-    return domain
+    """A DDS domain for one test context: never the session's, the next of its block each call.
+
+    The block (conftest.py) is this pytest process's alone, so workers of one run never
+    meet; within it the domains come round again after size - 1 contexts.
+    """
+    start, size = (int(v) for v in os.environ["FT_TEST_DOMAINS"].split(","))
+    return 1 + (start + 1 + next(_contexts) % (size - 1)) % 100
 
 
 class FakePlant:

@@ -17,7 +17,7 @@ Usage (from the repository root)::
     .venv/bin/python tools/param_tables.py --write   # regenerate the tables
     .venv/bin/python tools/param_tables.py --check   # exit 1 with a diff if stale
 
-`tests/test_docs.py` runs the check.
+`tests/nodes/test_docs.py` runs the check.
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import os
 import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_core import robots, selfmotion
+from ft_core import robots, selfmotion, workers
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, Status
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.robots import Robot, RobotModelError
@@ -337,7 +338,8 @@ class ControllerNode(SuiteNode):
         try:
             if self._background is None:
                 self._background = ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                    initializer=workers.exit_with_parent, initargs=(os.getpid(),))
             with thread_priority.lowered():  # the worker starts here: never at the loop's
                 self._boxes_job = (self._boxes_generation, self._background.submit(
                     selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))

@@ -8,7 +8,7 @@ r"""The closed loop as separate processes: sim (owning the clock), controller an
 Watch `ft/locked_joints`, `ft/metrics` and `/diagnostics`. (`ros2 run ft_sim demo`
 runs the scripted story with its report and figure in one process.) The sim behaves
 like a real driver: 20 ms command latency, a 30 ms velocity response time and a
-command watchdog (`tests/test_deployment.py` runs this graph as separate processes).
+command watchdog (`tests/processes/test_deployment.py` runs this graph as separate processes).
 """
 
 from launch import LaunchDescription

@@ -14,6 +14,7 @@ from paths import PANDA_URDF, REPO
 from rosutil import fresh_domain
 
 
+@pytest.mark.slow
 def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> None:
     """Short demo: right joint detected, task continued, every point reached, all finite.
 
@@ -54,6 +55,7 @@ def recorded(bag: Path) -> dict[str, list[tuple[int, object]]]:
     return topics
 
 
+@pytest.mark.slow
 def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
     """Issue 15 (in part): `ft-demo --robot <urdf>`, here example-robot-data's Panda."""
     assert demo.main(["--robot", str(PANDA_URDF), "--joint", "panda_joint4", "--lock-time",
@@ -62,6 +64,7 @@ def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
     assert "detected | panda_joint4" in text and "3 of 3" in text
 
 
+@pytest.mark.slow
 def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
     """Issue 15: `--task pose`: pose points chosen around the home, soft limits from them."""
     assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "3",
@@ -71,6 +74,7 @@ def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
     assert "| soft limits | 3 critical points |" in text
 
 
+@pytest.mark.slow
 def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
     """A synthetic 7-joint URDF: task points are chosen around a bent configuration."""
     urdf = tmp_path / "arm7.urdf"
@@ -84,6 +88,7 @@ def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
     assert (tmp_path / "demo.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     config = ScenarioConfig(lock_joint="panda_joint2", lock_time=3.0, duration=12.0)
     summary = demo.summarise(config, run(config, domain_id=fresh_domain()))
@@ -94,6 +99,7 @@ def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     assert demo.verdict(summary) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("soft", [True, False])
 def test_a_campaign_run(soft: bool) -> None:
     """One run per condition on the real-world Panda URDF and a realistic plant."""
@@ -137,6 +143,7 @@ def test_docker_files_refer_to_what_the_workspace_provides() -> None:
     assert "colcon build" in dockerfile and "install/setup.sh" in dockerfile
 
 
+@pytest.mark.slow
 def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, capsys) -> None:
     """Issue 15 (in part): ft-campaign on a URDF with a realistic plant, resumable."""
     from models import chain_urdf

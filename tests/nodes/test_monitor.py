@@ -132,6 +132,7 @@ GRID = [(latency, response) for latency in (0.0, 0.01, 0.03, 0.05)
         for response in (0.0, 0.02, 0.05)]
 
 
+@pytest.mark.slow
 def test_healthy_motion_with_noise_declares_no_lock() -> None:
     """30 s of simulated time at 250 Hz, 1e-3 rad noise, speeds 0.05 to 1 rad/s.
 

@@ -106,6 +106,7 @@ def test_selfmotion_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     assert all(f["median_s"] > 0 for f in figures.values())
 
 
+@pytest.mark.slow
 def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     session = os.environ["ROS_DOMAIN_ID"]  # parts A and B run one after the other
     env = {**os.environ, "FT_BENCH_DOMAIN": session, "FT_BENCH_DOMAIN_PROCESSES": session}
@@ -123,6 +124,7 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
                                                                     "monitor"}
 
 
+@pytest.mark.slow
 def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN_LAYOUTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
@@ -141,6 +143,7 @@ def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
         assert run["state_to_command_ms"]["samples"] > 0
 
 
+@pytest.mark.slow
 def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "detection.py"), "--out", str(tmp_path),
@@ -155,6 +158,7 @@ def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: 
     assert "| new | 0.2 rad/s |" in (tmp_path / "detection.md").read_text()
 
 
+@pytest.mark.slow
 def test_observability_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "observability.py"), "--out", str(tmp_path),

@@ -3,11 +3,7 @@
 from __future__ import annotations
 
 import math
-import os
 import re
-import signal
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -21,7 +17,7 @@ from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
 from ft_msgs_py import convert, diagnostics, metrics, qos
 from ft_msgs_py.spin import spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from paths import INSTALL, PACKAGES, REPO
+from paths import REPO
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
@@ -318,13 +314,17 @@ def test_critical_points_become_soft_limits() -> None:
         plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
         plant.step()
         assert node._soft_note.startswith("computing soft limits")  # in the background
-        computed, deadline = False, time.monotonic() + 60.0
+        computed, commanded, deadline = False, 0, time.monotonic() + 60.0
         while not computed and time.monotonic() < deadline:
-            # The loop keeps commanding while the boxes are traced in the background.
-            assert plant.step(timeout=0.2), "no command within 0.2 s: the loop was blocked"
+            # The loop keeps commanding while the boxes are traced in the background (a
+            # second of CPU in another process). Counted, not timed: on a busy machine one
+            # cycle can wait for a core, but a loop that traced in its callback would
+            # command once, before or after.
+            commanded += plant.step(timeout=2.0)
             computed = (metrics.values(plant.metrics[-1])["soft_limit_margin"]
                         < metrics.NO_SOFT_BOX)
         assert computed, "the soft limits never arrived"
+        assert commanded >= 10, f"{commanded} commands while tracing: the loop was blocked"
         plant.run(70)
         assert "2 critical points" in dict(
             (kv.key, kv.value) for kv in controller_status(plant).values)["soft_limits"]
@@ -418,39 +418,6 @@ def test_model_from_the_robot_description_topic() -> None:
         assert node.robot.name == "iiwa14"
 
 
-def test_executable_runs_from_the_install_space_and_stops_on_sigint() -> None:
-    env = dict(os.environ)
-    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
-    env["PYTHONPATH"] = os.pathsep.join(
-        str(INSTALL / p / "lib" / version / "site-packages") for p in PACKAGES)
-    script = INSTALL / "ft_controller" / "lib" / "ft_controller" / "controller_node"
-    assert script.is_file(), "run `make build`"
-    process = subprocess.Popen([sys.executable, str(script), "--ros-args", "-p",
-                                "robot_model:=panda", "-p", "state_timeout:=60.0"], env=env,
-                               stderr=subprocess.PIPE, text=True)
-    try:
-        with ros_context(shared=True) as (context, executor):
-            node = rclpy.create_node("probe", context=context)
-            executor.add_node(node)
-            commands: list[JointState] = []
-            node.create_subscription(JointState, "ft/command_raw", commands.append, qos.RELIABLE)
-            states = node.create_publisher(JointState, "joint_states", qos.RELIABLE)
-
-            def state_then_commands() -> bool:
-                states.publish(convert.joint_state(PANDA.joint_names,
-                                                   node.get_clock().now().to_msg(), Q0))
-                return len(commands) >= 3
-
-            assert spin_until(executor, state_then_commands, 30.0)
-            process.send_signal(signal.SIGINT)
-            _, errors = process.communicate(timeout=20)
-            assert process.returncode == 0, errors[-3000:]
-            spin_until(executor, lambda: False, 0.5)
-            assert np.all(np.array(commands[-1].velocity) == 0.0)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
 
 
 

@@ -1,0 +1,70 @@
+"""Issue 16, part 2: undetected locks (seed 002 Theorem 1) and the task-space channel."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from ft_core import robots, selfmotion
+from ft_core.task_channel import TaskChannel, TaskChannelConfig
+from models import DT, PLANAR, pseudoinverse_control
+
+
+def test_theorem_1_an_undetected_lock_of_joint_2_still_converges() -> None:
+    """Seed 002 fig. 3: from x_i = (2, -1.4) to x_d = (1.5, 1.5) with joint 2 locked."""
+    q0 = selfmotion.find_seed(PLANAR, np.array([2.0, -1.4]), np.array([-0.48, -0.97, 1.51]))
+    q, _, _, suspected = pseudoinverse_control(q0, np.array([1.5, 1.5]), locked=1)
+    assert np.linalg.norm(PLANAR.forward(q) - [1.5, 1.5]) < 1e-3
+    assert suspected is None  # converging: nothing to suspect
+
+
+def test_theorem_1_an_undetected_lock_of_joint_1_converges_wrongly_and_is_caught() -> None:
+    """Seed 002 fig. 4: from x_i = (-0.9, 1.8) with joint 1 locked.
+
+    The arm stops far from x_d = (1.5, 1.5), which the crippled arm could reach, where
+    the reduced Jacobian [j2 j3] is rank deficient and all the commanded motion is on
+    joint 1 (eqs 16-17); the task-space channel names joint 1. The paper does not give
+    the initial configuration: this one (elbow up, q1 = 1.87 rad) shows the behaviour.
+    """
+    q0 = selfmotion.find_seed(PLANAR, np.array([-0.9, 1.8]), np.array([1.873, -0.708, 2.05]))
+    x_d = np.array([1.5, 1.5])
+    q, qd, channel, suspected = pseudoinverse_control(q0, x_d, locked=0)
+    assert np.linalg.norm(PLANAR.forward(q) - x_d) > 1.0  # stuck far away
+    J = PLANAR.jacobian(q)
+    assert np.linalg.svd(J[:, 1:], compute_uv=False)[-1] < 1e-2  # eq 17: rank deficient
+    assert np.linalg.svd(J, compute_uv=False)[-1] > 0.1  # at a non-singular configuration
+    assert abs(qd[0]) > 0.99 * np.linalg.norm(qd)  # eq 16: only the failed joint commanded
+    x_c = x_d - PLANAR.forward(q)
+    cosine = abs(x_c @ J[:, 0]) / (np.linalg.norm(x_c) * np.linalg.norm(J[:, 0]))
+    assert cosine > 0.99  # x_c lies along j1
+    # x_d is in the post-failure workspace: reachable with joint 1 where it locked.
+    lower, upper = PLANAR.lower.copy(), PLANAR.upper.copy()
+    lower[0] = upper[0] = q0[0]
+    assert selfmotion.find_seed(PLANAR, x_d, q, lower, upper) is not None
+    assert suspected is not None and suspected[1] == 0
+    assert channel.suspect == 0 and channel.residuals[0] < 0.25 < channel.residuals[1:].min()
+
+
+def test_a_healthy_stall_or_a_slow_approach_is_not_suspected() -> None:
+    """A goal out of reach: the error stops shrinking, but nothing is unexplained.
+
+    The joints do what they are told, so no joint is suspected.
+    """
+    channel = TaskChannel(PLANAR)
+    q = np.array([0.3, 0.4, 0.5])
+    for k in range(400):
+        error = np.array([5.0, 0.0]) - PLANAR.forward(q)  # 5 m: beyond the 3 m reach
+        qd = np.linalg.pinv(PLANAR.jacobian(q)) @ error
+        qd *= min(1.0, 0.5 / np.linalg.norm(qd))
+        assert channel.update(k * DT, q, qd, float(np.linalg.norm(error))) is None
+        q = q + DT * qd
+
+
+def test_configuration_and_task_checks() -> None:
+    with pytest.raises(ValueError, match="explained"):
+        TaskChannelConfig(explained=1.0)
+    with pytest.raises(ValueError, match="position"):
+        TaskChannel(robots.load("panda", task_space="pose"))
+
+
+
+
