@@ -52,18 +52,18 @@ lint: $(STAMP)
 # Every tier (markers in pyproject.toml, docs/testing.md), on both cores, the 15 slowest
 # tests listed at the end.
 test: build lint
-	$(PYTEST) -n 2 --durations=15
+	$(PYTEST) -n 2 --dist worksteal --durations=15
 
 # The ROS-free unit tier alone: under a minute.
 test-fast: $(STAMP)
-	$(PYTEST) -m unit -n 2 --durations=15
+	$(PYTEST) tests/unit -m unit -n 2 --durations=15
 
 # The unit tier again under other OpenBLAS kernels, whose rounding differs (CI runs it
 # after `make test`): Prescott runs on every x86-64 CPU, Haswell needs AVX2.
 test-kernels: $(STAMP)
 	if [ "$$(uname -m)" = x86_64 ]; then \
-		OPENBLAS_CORETYPE=Prescott $(PYTEST) -m unit -n 2 -q && \
-		if grep -qw avx2 /proc/cpuinfo; then OPENBLAS_CORETYPE=Haswell $(PYTEST) -m unit -n 2 -q; \
+		OPENBLAS_CORETYPE=Prescott $(PYTEST) tests/unit -m unit -n 2 -q && \
+		if grep -qw avx2 /proc/cpuinfo; then OPENBLAS_CORETYPE=Haswell $(PYTEST) tests/unit -m unit -n 2 -q; \
 		else echo "no AVX2 on this CPU: the Haswell kernel is not tried"; fi; \
 	else echo "OpenBLAS kernels are named for x86-64: nothing to try on $$(uname -m)"; fi
 

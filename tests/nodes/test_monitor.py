@@ -109,6 +109,10 @@ def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {"robot_model": "panda", "use_sim_time": True,
                                                "state_directory": state,
+                                               # lock-step: the steady-time watchdog must
+                                               # not fire in a busy machine's pauses (as in
+                                               # ft_sim.scenario); tests of it set their own
+                                               "command_timeout": 60.0,
                                                **(monitor_parameters or {})}.items()])
         executor.add_node(sim)
         executor.add_node(monitor)
@@ -459,7 +463,8 @@ def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
 
 
 def test_stale_huge_and_duplicate_inputs_cost_little_and_change_nothing() -> None:
-    with loop() as lp:
+    # command_timeout also decides what is stale (its default here, not the loop's 60 s).
+    with loop(monitor_parameters={"command_timeout": 0.2}) as lp:
         for _ in range(100):
             lp.step(constant(np.full(7, 0.1)))
         old = convert.joint_state(PANDA.joint_names, convert.stamp_from_nanoseconds(1),

@@ -14,6 +14,21 @@ DAMPING = Damping()
 DAMPING_ARGS = (DAMPING.threshold, DAMPING.max_damping)
 
 
+def analysed_like_an_svd(J: np.ndarray, relative: float) -> tuple:
+    """`postfailure.analyse(J)`, its s_i and sigma_min checked against SVDs.
+
+    Within `relative` times J's largest singular value: the precision of an SVD, not of
+    a square root of an eigenvalue (the module docstring).
+    """
+    analysed = postfailure.analyse(J)
+    sigmas, sigma_min = analysed[3], analysed[5]
+    values = np.linalg.svd(J, compute_uv=False)
+    np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), rtol=0,
+                               atol=relative * values[0])
+    assert sigma_min == pytest.approx(values[-1], abs=relative * values[0])
+    return analysed
+
+
 @settings(max_examples=60, deadline=None)
 @given(name=st.sampled_from(["panda", "puma560", "planar3r", "iiwa14"]), seed=st.integers(0, 2**31))
 def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
@@ -23,12 +38,7 @@ def test_fast_path_equals_the_reference(name: str, seed: int) -> None:
     J, dJ = robot.jacobian_and_derivatives(q)
     J, dJ = robot.scale_task(J), robot.scale_task(dJ)
     xd = rng.normal(size=robot.m)
-    L, V, columns, sigmas, vectors, sigma_min = postfailure.analyse(J)
-    # The precision of an SVD, not of a square root of an eigenvalue (module docstring).
-    largest = np.linalg.svd(J, compute_uv=False)[0]
-    np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), rtol=0,
-                               atol=1e-12 * largest)
-    assert sigma_min == pytest.approx(np.linalg.svd(J, compute_uv=False)[-1], abs=1e-12 * largest)
+    L, V, columns, sigmas, vectors, sigma_min = analysed_like_an_svd(J, 1e-12)
     np.testing.assert_allclose(postfailure.damped_inverse(columns, L, V, sigma_min,
                                                           *DAMPING_ARGS),
                                damped_pinv(J, DAMPING), atol=1e-8)
@@ -104,12 +114,8 @@ RANK_CASES = {
 def test_small_values_keep_the_precision_of_an_svd(case: str) -> None:
     """Where a reduced arm is (nearly) singular the value is that of an SVD, not ~1e-8."""
     J = RANK_CASES[case]
-    _, _, _, sigmas, vectors, sigma_min = postfailure.analyse(J)
+    _, _, _, sigmas, vectors, _ = analysed_like_an_svd(J, 1e-14)
     largest = np.linalg.svd(J, compute_uv=False)[0]
-    np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), rtol=0,
-                               atol=1e-14 * largest)
-    assert sigma_min == pytest.approx(np.linalg.svd(J, compute_uv=False)[-1],
-                                      abs=1e-14 * largest)
     for i in range(J.shape[1]):  # u_i belongs to s_i
         assert np.linalg.norm(np.delete(J, i, axis=1).T @ vectors[i]) == pytest.approx(
             sigmas[i], abs=1e-14 * largest)
@@ -127,12 +133,7 @@ def test_values_match_an_svd_on_rank_deficient_matrices(seed: int, shape: tuple[
     J = rng.normal(size=(m, rank)) @ rng.normal(size=(rank, n))
     if zero_column:
         J[:, rng.integers(n)] = 0.0
-    _, _, _, sigmas, _, sigma_min = postfailure.analyse(J)
-    largest = np.linalg.svd(J, compute_uv=False)[0]
-    np.testing.assert_allclose(sigmas, measures.post_failure_sigmas(J), rtol=0,
-                               atol=1e-12 * largest)
-    assert sigma_min == pytest.approx(np.linalg.svd(J, compute_uv=False)[-1],
-                                      abs=1e-12 * largest)
+    analysed_like_an_svd(J, 1e-12)
 
 
 def test_square_jacobians_report_exact_zeros() -> None:

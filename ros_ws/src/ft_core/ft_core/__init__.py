@@ -7,7 +7,7 @@ Modules:
     parallel: failure-tolerance measures of parallel manipulators (seed 003).
     pseudoinverse: damped pseudo-inverse acting only near singularities.
     postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
-    resolution: minimum joint-velocity jump (seed 004).
+    velocity_jump: minimum joint-velocity jump (seed 004).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
     checks: input checks of the per-cycle path (compiled).
@@ -16,4 +16,5 @@ Modules:
     bounds: the `ft-bounds` command line.
     detection: locked-joint detection from commanded and measured motion.
     remap: reduced-Jacobian remapping of commands around locked joints.
+    workers: worker processes that end with the process that started them.
 """

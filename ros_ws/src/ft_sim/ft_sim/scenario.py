@@ -167,16 +167,17 @@ class Scenario:
             "command_latency": config.command_latency, "response_time": config.response_time,
             "hold_last_command": config.hold_last_command,
             "initial_positions": [float(v) for v in start]})
+        # Lock-step on simulated time: wall-clock gaps between steps (a busy machine) are not
+        # stalls of the loop, so neither node's steady-time watchdog may fire in them (the
+        # controller's is max(state_timeout, 2 periods); states are always fresh here).
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
+            state_timeout=60.0,
             **({"critical_points": flat} if config.soft_limits and flat else {})))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
-            model, use_sim_time=True, state_directory=self._state.name,
-            # Lock-step on simulated time: wall-clock gaps between steps are not pauses
-            # of the command stream, so the steady-time watchdog must not fire in them.
-            command_timeout=60.0))
+            model, use_sim_time=True, state_directory=self._state.name, command_timeout=60.0))
         self.driver = rclpy.create_node("driver", context=self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)

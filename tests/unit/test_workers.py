@@ -1,0 +1,60 @@
+"""ft_core.workers: a pool worker ends when the process that started it is killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+PARENT = """
+import multiprocessing, os, sys, time
+from concurrent.futures import ProcessPoolExecutor
+from ft_core import workers
+if __name__ == "__main__":
+    use = sys.argv[1] == "watch"
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                               **({"initializer": workers.exit_with_parent,
+                                   "initargs": (os.getpid(),)} if use else {}))
+    print(pool.submit(os.getpid).result(), flush=True)
+    time.sleep(60)
+"""
+
+
+def running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def orphan_after_kill(tmp_path: Path, mode: str) -> tuple[int, bool]:
+    """(worker pid, whether it still runs 3 s after its parent's kill -9)."""
+    script = tmp_path / "parent.py"
+    script.write_text(PARENT)
+    parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE,
+                              text=True)
+    worker = int(parent.stdout.readline())
+    assert running(worker)
+    parent.kill()
+    parent.wait(timeout=10)
+    deadline = time.monotonic() + 3.0
+    while running(worker) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    alive = running(worker)
+    if alive:
+        os.kill(worker, signal.SIGKILL)
+    return worker, alive
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads Linux /proc")
+def test_a_worker_ends_with_its_killed_parent_and_would_not_by_itself(tmp_path: Path) -> None:
+    _, orphaned = orphan_after_kill(tmp_path, "plain")
+    assert orphaned, "a plain pool worker was expected to outlive its parent"
+    _, orphaned = orphan_after_kill(tmp_path, "watch")
+    assert not orphaned
