@@ -56,7 +56,7 @@ test: build lint
 
 # The ROS-free unit tier alone: under a minute.
 test-fast: $(STAMP)
-	$(PYTEST) tests/unit -m unit -n 2 --durations=15
+	$(PYTEST) tests/unit -m unit -n 2 --dist worksteal --durations=15
 
 # The unit tier again under other OpenBLAS kernels, whose rounding differs (CI runs it
 # after `make test`): Prescott runs on every x86-64 CPU, Haswell needs AVX2.
