@@ -3,7 +3,7 @@
 Property-based messages (NaN, infinities, 1e300 and 1e306, wrong lengths, unknown
 and duplicate names, huge arrays, stamps from 1970 or the future, odd frames) go
 straight into the nodes' callbacks, in-process. After each: no exception escaped,
-no callback took longer than 50 ms, every command published is finite and within
+no callback used more than 50 ms of CPU, every command published is finite and within
 the velocity limits, and commands are explicit zeros while the input is bad; then
 good input returns and the node commands motion again.
 """
@@ -33,7 +33,8 @@ from std_msgs.msg import Float64MultiArray
 PANDA = robots.load("panda")
 NAMES = list(PANDA.joint_names)
 Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
-#: Longest a callback may take on hostile input (s).
+#: Most CPU time (s) a callback may use on hostile input: the thread's own, so that what
+#: other processes of a busy machine (a parallel test run) do is not counted.
 BOUND = 0.05
 
 numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
@@ -81,10 +82,10 @@ def recorded(node, publisher_attribute: str) -> Iterator[list]:
 
 
 def timed(call, *args) -> None:
-    start = time.perf_counter()
+    start = time.thread_time()
     call(*args)
-    elapsed = time.perf_counter() - start
-    assert elapsed < BOUND, f"{call.__name__} took {elapsed * 1e3:.0f} ms"
+    elapsed = time.thread_time() - start
+    assert elapsed < BOUND, f"{call.__name__} used {elapsed * 1e3:.0f} ms of CPU"
 
 
 def assert_safe(commands: list[JointState]) -> None:
@@ -243,9 +244,9 @@ def test_parameter_services_refuse_hostile_values_without_crashing(request, whic
         parameter = Parameter(name, value=value)
     except TypeError:
         return  # not a ROS parameter value at all: the service cannot carry it
-    start = time.perf_counter()
+    start = time.thread_time()
     node.set_parameters_atomically([parameter])  # succeeds or fails; must not raise
-    assert time.perf_counter() - start < BOUND
+    assert time.thread_time() - start < BOUND
     if which == "controller":
         node._on_state(good_state(node))
         node._on_twist(good_twist(node))
