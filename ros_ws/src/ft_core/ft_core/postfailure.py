@@ -141,7 +141,7 @@ def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
         if sigmas[i] < small:
             U, values, _ = np.linalg.svd(_without(J, i))
             sigmas[i], vectors[i] = values[m - 1], U[:, m - 1]
-    sigma_min = _norm_without(columns, np.eye(m)[0], n)
+    sigma_min = np.sqrt(np.sum(columns[:, 0] ** 2))  # |J^T v_0|, refined as above
     if sigma_min < small:
         sigma_min = np.linalg.svd(J)[1][m - 1]
     return L, V, columns, sigmas, vectors, sigma_min
@@ -149,7 +149,7 @@ def analyse(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
 
 @njit(cache=True, error_model="numpy")
 def _norm_without(columns: np.ndarray, y: np.ndarray, skip: int) -> float:
-    """|J^T V y| over the columns other than `skip` (`skip` = n keeps every column)."""
+    """|J^T V y| over the columns other than `skip`."""
     total = 0.0
     for b in range(columns.shape[0]):
         if b != skip:
