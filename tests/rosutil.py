@@ -12,9 +12,9 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import convert, qos
-from ft_msgs_py.spin import spin_until
+from ft_msgs_py.spin import LockStepExecutor, spin_until
 from rclpy.context import Context
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -23,14 +23,15 @@ _contexts = itertools.count()
 
 
 @contextmanager
-def ros_context(shared: bool = False, executor_type: type[Executor] = SingleThreadedExecutor,
+def ros_context(shared: bool = False, executor_type: type[Executor] = LockStepExecutor,
                 ) -> Iterator[tuple[Context, Executor]]:
     """A fresh rclpy context with its own executor, shut down afterwards.
 
     Each context gets a DDS domain of its own, so a latched message of a node from
     an earlier test cannot reach this one; `shared` uses the session's
     ROS_DOMAIN_ID instead, to talk with nodes in subprocesses. `executor_type` is
-    rclpy's SingleThreadedExecutor or the EventsExecutor the executables spin.
+    the lock-step harnesses' `LockStepExecutor` or the EventsExecutor the executables
+    spin.
     """
     domain = int(os.environ["ROS_DOMAIN_ID"]) if shared else fresh_domain()
     context = Context()

@@ -36,3 +36,25 @@ def test_run_node_freezes_start_up_objects_and_stops_cleanly_on_sigint() -> None
     assert seen["frozen"] > 10_000
     assert seen["stopped"] is True
     assert signal.getsignal(signal.SIGINT) is previous
+
+
+def test_the_lock_step_executor_drops_qos_event_handlers_and_still_delivers() -> None:
+    import rclpy
+    from rosutil import ros_context
+    from std_msgs.msg import String
+
+    with ros_context() as (context, executor):
+        assert isinstance(executor, spin.LockStepExecutor)
+        node = rclpy.create_node("lock_step_probe", context=context)
+        heard: list[str] = []
+        publisher = node.create_publisher(String, "probe", 10)
+        node.create_subscription(String, "probe", lambda m: heard.append(m.data), 10)
+        assert publisher.event_handlers and list(node.waitables)  # rclpy's defaults
+        executor.add_node(node)
+        assert list(node.waitables) == []
+        assert all(e.event_handlers == [] for e in (*node.publishers, *node.subscriptions))
+        publisher.publish(String(data="step"))
+        assert spin.spin_until(executor, lambda: heard == ["step"], 5.0), heard
+        executor.remove_node(node)
+        assert node.destroy_publisher(publisher)
+        node.destroy_node()

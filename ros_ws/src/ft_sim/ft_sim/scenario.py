@@ -31,7 +31,6 @@ from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, metrics, names, qos, spin
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -155,7 +154,7 @@ class Scenario:
             self.robot, [v for point in config.points for v in point])
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = spin.LockStepExecutor(context=self.context)
         model = {"robot_model": config.robot, "task_space": config.task_space,
                  **{name: value for name, value in (("base_link", config.base_link),
                                                     ("tip_link", config.tip_link)) if value}}
