@@ -9,12 +9,14 @@ and its own ROS_HOME, so no test reads or writes the user's ~/.ros.
 from __future__ import annotations
 
 import atexit
+import fcntl
 import os
 import shutil
 import tempfile
 import zlib
 
 import pytest
+from _pytest.fixtures import FixtureRequest
 from hypothesis import settings
 
 
@@ -50,8 +52,59 @@ TIERS = ("unit", "nodes", "processes")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Mark every test with the tier of its folder: `-m unit` selects that folder's tests."""
+    """Mark every test with its folder's tier, then order them for two workers.
+
+    `-m unit` selects the unit folder's tests; the order is `_two_queues`.
+    """
     for item in items:
         tier = item.path.parent.name
         assert tier in TIERS, f"{item.nodeid}: every test lives in one of {TIERS}"
         item.add_marker(tier)
+    items[:] = _two_queues(items)
+
+
+def _two_queues(items: list[pytest.Item]) -> list[pytest.Item]:
+    """The order for `make test`'s `-n 2 --dist worksteal`: long tests first, on both cores.
+
+    Worksteal hands the first len // 2 tests to one worker and the rest to the other;
+    a worker that runs dry steals from the end of the other's. So each half starts with
+    its share of the slow tests (the quick ones fill in at the end).
+    The `busy_machine` tests open the first half while the second starts with
+    simulated-time tests, so their exclusive lock (`_machine_share`) waits for nothing.
+    Any other run (one process, `-n 4`, `--random-order`) is only ordered differently.
+    """
+    def has(item: pytest.Item, name: str) -> bool:
+        return item.get_closest_marker(name) is not None
+
+    busy = [item for item in items if has(item, "busy_machine")]
+    rest = [item for item in items if not has(item, "busy_machine")]
+    # Slow first; among equals, separate-process tests (wall time) before simulated time.
+    rest.sort(key=lambda item: (not has(item, "slow"), not has(item, "processes")))
+    first, second = list(busy), []
+    for item in rest:
+        (first if len(first) < len(items) // 2 and len(first) <= len(second)
+         else second).append(item)
+    second.sort(key=lambda item: (not has(item, "slow"), has(item, "processes")))
+    return first + second
+
+
+@pytest.fixture(autouse=True)
+def _machine_share(request: FixtureRequest, tmp_path_factory: pytest.TempPathFactory):
+    """Wall-time tests (the processes tier) never run beside a test that loads every core.
+
+    A `busy_machine` test holds an exclusive lock for its duration, every other
+    processes-tier test a shared one (flock on a file all workers of the run see), so
+    with `-n 2` the other worker runs simulated-time tests meanwhile: a separate-process
+    graph judged on wall time beside a full CPU load *and* another graph measured how
+    two graphs on two cores starve each other, not how the nodes hold up on a busy machine.
+    """
+    if request.node.get_closest_marker("processes") is None:
+        yield
+        return
+    exclusive = request.node.get_closest_marker("busy_machine") is not None
+    with open(tmp_path_factory.getbasetemp().parent / "ft-wall-time.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)

@@ -112,7 +112,7 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN": session, "FT_BENCH_DOMAIN_PROCESSES": session}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "nodes.py"), "--out", str(tmp_path),
-         "--seconds", "2", "--memory-seconds", "2", "--repeats", "1", "--warm-up", "5"],
+         "--seconds", "1", "--memory-seconds", "1", "--repeats", "1", "--warm-up", "5"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads((tmp_path / "nodes.json").read_text())
@@ -126,17 +126,18 @@ def test_nodes_benchmark_writes_its_outputs(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
+    """Idle only: the busy machine (`busy_cores`) is test_deployment's, not run twice."""
     env = {**os.environ, "FT_BENCH_DOMAIN_LAYOUTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "layouts.py"), "--out", str(tmp_path),
-         "--rates", "100", "--priorities", "0", "--busy-rates", "100", "--seconds", "1.5",
+         "--rates", "100", "--priorities", "0", "--busy-rates", "--seconds", "1.5",
          "--warm-up", "4"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     runs = json.loads((tmp_path / "layouts.json").read_text())["runs"]
     assert [set(r["cpu_share"]) for r in runs] == [{"sim", "controller", "monitor"},
-                                                   {"sim", "controller + monitor"}] * 2
-    assert [r["busy"] for r in runs] == [False, False, True, True]
+                                                   {"sim", "controller + monitor"}]
+    assert [r["busy"] for r in runs] == [False, False]
     for run in runs:
         # Measured, not judged: on a busy machine under a loaded suite the rate can be
         # anything (docs/benchmarks.md has the figures of a quiet one).
@@ -149,7 +150,7 @@ def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
 def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "detection.py"), "--out", str(tmp_path),
-         "--healthy-seconds", "3", "--trials", "1"],
+         "--healthy-seconds", "1", "--trials", "1"],
         capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads((tmp_path / "detection.json").read_text())

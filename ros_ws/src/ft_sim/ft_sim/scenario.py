@@ -49,6 +49,8 @@ TASK_POINTS = {
 
 #: A pose goal is reached within this many rad of orientation per m of position tolerance.
 ANGLE_PER_METRE = 10.0
+#: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
+WAIT_PERIOD = 0.01
 
 
 @dataclass
@@ -177,7 +179,8 @@ class Scenario:
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, state_directory=self._state.name, command_timeout=60.0))
-        self.driver = rclpy.create_node("driver", context=self.context)
+        self.driver = rclpy.create_node("driver", context=self.context,
+                                        start_parameter_services=False)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
         self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,
@@ -342,8 +345,11 @@ class Scenario:
     def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
         """Step the still arm until the controller has computed its soft limits (or failed).
 
-        The outcome is `Record.soft_limits` (the controller's note, e.g. "3 critical
-        points" or "none (critical points failed)").
+        One step per `WAIT_PERIOD` of wall clock at most: the computation runs in a
+        worker process, and a loop stepping a still arm flat out would only take the
+        CPU from it (and from whatever else runs on the machine). The outcome is
+        `Record.soft_limits` (the controller's note, e.g. "3 critical points" or "none
+        (critical points failed)").
         """
         deadline = time.monotonic() + timeout
         self.step()  # the controller starts the computation at its first joint state
@@ -351,6 +357,7 @@ class Scenario:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"the controller had no soft limits after {timeout:g} s "
                                    "(see its 'critical points' diagnostics)")
+            time.sleep(WAIT_PERIOD)
             self.step()
         self.record.soft_limits = self.controller.soft_limits_note
 
