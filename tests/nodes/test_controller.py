@@ -313,7 +313,7 @@ def test_critical_points_become_soft_limits() -> None:
     with controller(task_space="position", critical_points=points) as (node, plant):
         plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
         plant.step()
-        assert node._soft_note.startswith("computing soft limits")  # in the background
+        assert node.soft_limits_note.startswith("computing soft limits")  # in the background
         computed, commanded, deadline = False, 0, time.monotonic() + 60.0
         while not computed and time.monotonic() < deadline:
             # The loop keeps commanding while the boxes are traced in the background (a
@@ -331,7 +331,7 @@ def test_critical_points_become_soft_limits() -> None:
     with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (node, plant):
         plant.step()
         deadline = time.monotonic() + 60.0
-        while node._boxes_job is not None and time.monotonic() < deadline:
+        while node.soft_limits_pending and time.monotonic() < deadline:
             plant.step()
         plant.run(70)
         status = controller_status(plant)
@@ -363,8 +363,8 @@ def test_parameters_change_at_run_time() -> None:
         results = node.set_parameters([Parameter("velocity_scale", value=0.1),
                                        Parameter("resolution", value="blend")])
         assert all(result.successful for result in results)
-        assert node.engine.config.velocity_scale == 0.1
-        assert node.engine.config.resolution == "blend"
+        assert node.core.engine.config.velocity_scale == 0.1
+        assert node.core.engine.config.resolution == "blend"
         plant.run(5, twist_sender(plant, 20 * TWIST))
         assert np.all(np.abs(plant.velocity()) <= 0.1 * PANDA.velocity_limits + 1e-12)
 
@@ -474,10 +474,10 @@ def test_soft_limits_can_be_set_one_side_at_a_time() -> None:
     with controller(task_space="position") as (node, plant):
         (first,) = node.set_parameters([Parameter("soft_limits.lower", value=lower)])
         assert first.successful
-        assert node.engine.config.soft_lower == ()  # one side alone: none yet
+        assert node.core.engine.config.soft_lower == ()  # one side alone: none yet
         (second,) = node.set_parameters([Parameter("soft_limits.upper", value=upper)])
         assert second.successful
-        np.testing.assert_allclose(node.engine.config.soft_upper, upper)
+        np.testing.assert_allclose(node.core.engine.config.soft_upper, upper)
         plant.run(3)
         assert metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX
 

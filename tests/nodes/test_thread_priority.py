@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 
 import pytest
+from ft_core import workers
 from ft_msgs_py import thread_priority
 from rosutil import in_thread
 
@@ -30,7 +31,7 @@ def test_fifo_for_the_calling_thread_and_what_it_starts_unless_lowered() -> None
             return refused, None, None, None
         mine = policy(), os.sched_getparam(0).sched_priority
         child = in_thread(policy)  # the executor's threads are started after: they inherit
-        with thread_priority.lowered():  # how the controller starts its tracing worker
+        with workers.lowered():  # how the controller starts its tracing worker
             started_lowered = in_thread(policy)
             during = policy()
         return None, mine, child, (started_lowered, during, policy())
@@ -47,7 +48,7 @@ def test_fifo_for_the_calling_thread_and_what_it_starts_unless_lowered() -> None
 
 def test_lowered_leaves_a_normal_thread_alone() -> None:
     def work():
-        with thread_priority.lowered():
+        with workers.lowered():
             during = policy()
         return during, policy()
 

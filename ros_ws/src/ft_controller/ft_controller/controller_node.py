@@ -1,8 +1,10 @@
 """controller_node: fault-tolerant redundancy resolution as a ROS 2 node.
 
 Joint states plus an end-effector target (twist or pose) in, joint velocities out:
-one `ft_core.engine` cycle per timer tick at `control_rate`. Topics, parameters and
-reactions are listed in docs/controller.md; the contract is shared/INTERFACE.md.
+one `ft_core.controller.Controller.step` per timer tick at `control_rate`. The node
+is wiring: parameters, message conversion, the watchdog, publishing and diagnostics;
+the per-cycle logic is the core's. Topics, parameters and reactions are listed in
+docs/controller.md.
 
 Safety: with no model, no joint state yet, a stale state (older than
 `state_timeout`), missing joints, non-finite values, stamps in the future or going
@@ -16,38 +18,18 @@ logged once per episode. On shutdown it publishes zeros before leaving.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
 import time
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_core import robots, selfmotion, workers
+from ft_core import robots, selfmotion
+from ft_core.controller import Controller, ControllerConfig
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, Status
-from ft_core.observability import Excursions, ObservabilityConfig
+from ft_core.observability import ObservabilityConfig
 from ft_core.robots import Robot, RobotModelError
-from ft_core.targets import (
-    PoseTracking,
-    goal_from_transform,
-    pose_velocity,
-    staleness_scale,
-    twist_velocity,
-)
-from ft_core.task_channel import TaskChannel
-from ft_msgs_py import (
-    convert,
-    diagnostics,
-    metrics,
-    names,
-    parameters,
-    qos,
-    spin,
-    thread_priority,
-)
+from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
+from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -114,15 +96,6 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
 }
 
 
-@dataclass
-class _Target:
-    """The latest target: a twist (task velocity) or a pose goal."""
-
-    kind: str  # "twist" or "pose"
-    value: np.ndarray  # task velocity, or goal
-    stamp: float  # s
-
-
 class ControllerNode(SuiteNode):
     """The controller; see the module docstring."""
 
@@ -131,8 +104,7 @@ class ControllerNode(SuiteNode):
         parameters.declare(self, PARAMETERS)
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.robot: Robot | None = None
-        self.engine: ResolutionEngine | None = None
-        self.tracking = PoseTracking()
+        self.core: Controller | None = None  #: the per-cycle logic, once a model is loaded
         self._order: np.ndarray | None = None  # command index -> chain index
         self.command_joints: list[str] = []  #: joint names in command order
         self._labels: list[str] = []
@@ -140,23 +112,9 @@ class ControllerNode(SuiteNode):
         self._command_msg = JointState()
         self._metrics_msg = Float64MultiArray()
         self._q: np.ndarray | None = None
-        self._target: _Target | None = None
         self._locked: dict[str, float] = {}
-        self._soft_note = "none"
-        self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
-        self._boxes_dirty = False
-        self._background: ProcessPoolExecutor | None = None  # started with the first boxes
-        self._model_source: tuple[str, tuple] | None = None
-        self._boxes_job: tuple[int, Future] | None = None
-        self._boxes_generation = 0
-        self._last = None
-        self._excursions: Excursions | None = None
-        self._channel: TaskChannel | None = None
-        self._suspect: str | None = None
-        self._suspect_sent = -math.inf
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
-        self._read_cycle_parameters()
         self._rate_window = (0, self.now())
         self._rate = 0.0
 
@@ -192,19 +150,22 @@ class ControllerNode(SuiteNode):
         try:
             robot = robots.load(spec, *parameters.chain_arguments(self))
             order = parameters.joint_order(self, robot.joint_names)
-            engine = ResolutionEngine(robot, self._engine_config(robot, order, {}))
+            core = Controller(robot, self._engine_config(robot, order, {}),
+                              self._controller_config({}),
+                              (spec, parameters.chain_arguments(self)),
+                              report=self.problems.report, log=self.get_logger().info)
         except (RobotModelError, ValueError) as error:
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
-        self.robot, self._order, self.engine = robot, order, engine
-        self._excursions = self._observability(robot, {})
-        self._channel = TaskChannel(robot) if robot.task_space != "pose" else None
-        self._model_source = (spec, parameters.chain_arguments(self))
+        if self.core is not None:
+            self.core.close()
+        self.robot, self._order, self.core = robot, order, core
         self.command_joints = [robot.joint_names[i] for i in order]
         self._labels = metrics.labels(self.command_joints)
         self._command_msg = convert.joint_state(self.command_joints, Time())
         self._metrics_msg = metrics.template(self._labels)
-        self._boxes_dirty = len(self.param("critical_points")) > 0
+        if self.param("critical_points"):
+            core.set_critical_points(self.param("critical_points"))
         self.problems.report("model", None)
         self.get_logger().info(
             f"model from {source}: {robot.name}, {robot.base_link} -> {robot.tip_link}, "
@@ -219,9 +180,11 @@ class ControllerNode(SuiteNode):
         chain[order] = values
         return chain
 
-    def _engine_config(self, robot: Robot, order: np.ndarray, changes: dict,
-                       soft: tuple | None = None) -> EngineConfig:
-        """The engine configuration from the parameters (with pending `changes`)."""
+    def _engine_config(self, robot: Robot, order: np.ndarray, changes: dict) -> EngineConfig:
+        """The engine configuration from the parameters (with pending `changes`).
+
+        Without the critical points' box: the core intersects it with these limits.
+        """
         value = {name: changes.get(name, self.param(name)) for name in PARAMETERS}
         probabilities = list(value["failure_probabilities"] or [])
         if probabilities:
@@ -230,9 +193,6 @@ class ControllerNode(SuiteNode):
                  for name in ("soft_limits.lower", "soft_limits.upper")]
         # One side alone (set one at a time through SetParameters): no soft limits yet.
         box = None if any(side is None for side in sides) else tuple(sides)
-        if soft is not None:
-            box = soft if box is None else (np.maximum(box[0], soft[0]),
-                                            np.minimum(box[1], soft[1]))
         return EngineConfig(
             resolution=value["resolution"], kfm_gain=value["kfm_gain"],
             swing_gain=value["swing_gain"],
@@ -242,61 +202,56 @@ class ControllerNode(SuiteNode):
             release_soft_limits_on_failure=value["release_soft_limits_on_failure"],
             dt=1.0 / value["control_rate"], velocity_scale=value["velocity_scale"])
 
+    def _controller_config(self, changes: dict) -> ControllerConfig:
+        """The core's settings from the parameters (with pending `changes`)."""
+        value = {name: changes.get(name, self.param(name)) for name in PARAMETERS}
+        observability = ObservabilityConfig(value["observability.idle_time"],
+                                            value["observability.speed"],
+                                            value["observability.duration"])
+        return ControllerConfig(
+            state_timeout=value["state_timeout"], target_timeout=value["target_timeout"],
+            idle_null_space_motion=value["idle_null_space_motion"],
+            tracking=PoseTracking(value["position_gain"], value["max_linear_speed"],
+                                  value["max_angular_speed"]),
+            observability=observability if value["observability.enabled"] else None)
+
     # -------------------------------------------------------------- parameters
     def _validate(self, parameters: list[Parameter]) -> SetParametersResult:
         changes = {p.name: p.value for p in parameters}
         try:
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
-            PoseTracking(changes.get("position_gain", self.param("position_gain")),
-                         changes.get("max_linear_speed", self.param("max_linear_speed")),
-                         changes.get("max_angular_speed", self.param("max_angular_speed")))
+            self._controller_config(changes)
             if self.robot is not None:
                 robot = self.robot
                 config = self._engine_config(robot, self._order, changes)
                 ResolutionEngine(robot, config)  # validates lengths against the robot
                 if "critical_points" in changes:
                     selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
-                self._observability(robot, changes)
         except (ValueError, TypeError) as error:
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
-    def _read_cycle_parameters(self) -> None:
-        """The parameters the control cycle reads, read once per change, not per cycle."""
-        self._state_timeout = self.param("state_timeout")
-        self._target_timeout = self.param("target_timeout")
-        self._idle_null_space_motion = self.param("idle_null_space_motion")
-
     def _apply(self, parameters: list[Parameter]) -> None:
         changed = {p.name for p in parameters}
-        self._read_cycle_parameters()
-        self.tracking = PoseTracking(self.param("position_gain"), self.param("max_linear_speed"),
-                                     self.param("max_angular_speed"))
         if "control_rate" in changed:
             self.accounting.period = 1.0 / self.param("control_rate")
             self._timer.cancel()
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
-        if self.robot is None:
+        if self.core is None:
             return
+        self.core.configure(self._engine_config(self.robot, self._order, {}),
+                            self._controller_config({}))
         if "critical_points" in changed:
-            self._boxes_dirty = True
-        if any(name.startswith("observability.") for name in changed):
-            self._excursions = self._observability(self.robot, {})
-        self._rebuild_engine(self._critical_box)
-
-    def _observability(self, robot: Robot, changes: dict) -> Excursions | None:
-        """The excursions the `observability.*` parameters (with `changes`) ask for."""
-        value = {name: changes.get(f"observability.{name}", self.param(f"observability.{name}"))
-                 for name in ("enabled", "idle_time", "speed", "duration")}
-        config = ObservabilityConfig(value["idle_time"], value["speed"], value["duration"])
-        return Excursions(robot.n, config) if value["enabled"] else None
+            self.core.set_critical_points(self.param("critical_points") or [])
 
     @property
     def suspected_lock(self) -> str | None:
         """The joint the task-space channel suspects now, if any."""
-        return self._suspect
+        if self.core is None or self.core.suspect is None:
+            return None
+        return self.robot.joint_names[self.core.suspect]
 
     @property
     def soft_limits_note(self) -> str:
@@ -305,76 +260,17 @@ class ControllerNode(SuiteNode):
         "none (critical points failed)" when they could not be computed (the reason
         is in the diagnostics).
         """
-        return self._soft_note
+        return "none" if self.core is None else self.core.soft_limits_note
 
     @property
     def soft_limits_pending(self) -> bool:
         """Whether soft limits from the critical points are still to be computed or taken."""
-        return self._boxes_dirty or self._boxes_job is not None
-
-    def _rebuild_engine(self, critical_box: tuple | None) -> None:
-        """New engine from the parameters; `critical_box` from the critical points, if any."""
-        self._critical_box = critical_box
-        self.engine = ResolutionEngine(self.robot, self._engine_config(
-            self.robot, self._order, {}, critical_box))
-
-    def _start_boxes(self, q: np.ndarray) -> None:
-        """Compute the critical points' soft limits in a worker process (never in the cycle).
-
-        The control loop goes on with the limits it has; `_take_boxes` switches to
-        the new ones, in the cycle, once they are ready. A change of the points while
-        a computation runs makes its result stale: it is dropped and computed again.
-        """
-        self._boxes_dirty = False
-        flat = list(self.param("critical_points") or [])
-        if not flat:
-            self._soft_note = "none"
-            self.problems.report("critical points", None)
-            self._rebuild_engine(None)
-            return
-        self._boxes_generation += 1
-        self._soft_note = (f"computing soft limits from {len(flat)} values of critical points "
-                           "(the previous limits meanwhile)")
-        try:
-            if self._background is None:
-                self._background = ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                    initializer=workers.exit_with_parent, initargs=(os.getpid(),))
-            with thread_priority.lowered():  # the worker starts here: never at the loop's
-                self._boxes_job = (self._boxes_generation, self._background.submit(
-                    selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
-        except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
-            self._soft_note = "none (critical points failed)"
-            self.problems.report("critical points", f"cannot start the process that traces "
-                                 f"the boxes ({error}); running without their soft limits")
-
-    def _take_boxes(self) -> None:
-        """Switch to soft limits computed in the background, if any are ready."""
-        generation, job = self._boxes_job
-        if not job.done():
-            return
-        self._boxes_job = None
-        if generation != self._boxes_generation:
-            return  # the points changed meanwhile: a newer computation follows
-        try:
-            box, count = job.result()
-        except (selfmotion.UnreachableError, RobotModelError, ValueError, BrokenProcessPool,
-                ) as error:
-            self._soft_note = "none (critical points failed)"
-            self.problems.report("critical points", f"{error}; running without their soft limits")
-            self._rebuild_engine(None)
-            return
-        self._soft_note = f"{count} critical points"
-        self.problems.report("critical points", None)
-        self.get_logger().info(f"soft limits from {count} critical points: "
-                               f"lower {np.round(box[0], 3).tolist()}, "
-                               f"upper {np.round(box[1], 3).tolist()}")
-        self._rebuild_engine(box)
+        return self.core is not None and self.core.soft_limits_pending
 
     def destroy_node(self) -> None:
         """Stop the background work too."""
-        if self._background is not None:
-            self._background.shutdown(wait=False, cancel_futures=True)
+        if self.core is not None:
+            self.core.close()
         super().destroy_node()
 
     # ------------------------------------------------------------------ inputs
@@ -400,7 +296,7 @@ class ControllerNode(SuiteNode):
             self.problems.report("ft/target_twist", str(error))
             return
         if stamp is not None:
-            self._target = _Target("twist", twist_velocity(self.robot, twist), stamp)
+            self.core.set_twist(twist_velocity(self.robot, twist), stamp)
 
     def _on_pose(self, msg: PoseStamped) -> None:
         if self.robot is None or not self._frame_ok(msg.header.frame_id, "ft/target_pose"):
@@ -415,7 +311,7 @@ class ControllerNode(SuiteNode):
             self.problems.report("ft/target_pose", str(error))
             return
         self.problems.report("ft/target_pose", None)
-        self._target = _Target("pose", goal, self.now())
+        self.core.set_pose_goal(goal, self.now())
 
     def _locked_publisher_problem(self) -> str | None:
         """Why `ft/locked_joints` cannot be trusted now, or None (one publisher: the monitor)."""
@@ -447,6 +343,7 @@ class ControllerNode(SuiteNode):
         if set(locked) != set(self._locked):
             self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
         self._locked = locked
+        self.core.set_locked([self.robot.joint_names.index(name) for name in locked])
 
     # ------------------------------------------------------------------- cycle
     def _check_watchdog(self) -> None:
@@ -469,93 +366,24 @@ class ControllerNode(SuiteNode):
             self.accounting.end()
 
     def _control(self) -> None:
-        robot = self.robot
-        if robot is None:
+        core = self.core
+        if core is None:
             return
         clock = self.get_clock().now()
         now, stamp = clock.nanoseconds * 1e-9, clock.to_msg()
-        q = self._q
-        if q is not None and now - self.state_stamp > self._state_timeout:
-            self.problems.report("joint_states",
-                                 f"no joint state for {now - self.state_stamp:.3f} s")
-            q = None
-        if q is None:
-            self._last = None
-            self._publish(np.zeros(robot.n), stamp)
-            return
-        if self._boxes_job is not None:
-            self._take_boxes()
-        if self._boxes_dirty:
-            self._start_boxes(q)
-        xd, idle, error = self._task_velocity(q, now)
-        locked = [robot.joint_names.index(name) for name in self._locked]
-        try:
-            result = self.engine.step(q, xd, locked)
-        except ValueError as error:  # physically absurd state or target
-            self.problems.report("engine", f"{error}: commanding zeros")
-            self._last = None
-            self._publish(np.zeros(robot.n), stamp)
-            return
-        self.problems.report("engine", None)
-        qd = result.qd
-        if idle and not self._idle_null_space_motion:
-            qd = np.zeros(robot.n)
-            result.jump_index = 0.0
-        qd = self._excite(q, qd, locked, now)
-        if not np.all(np.isfinite(qd)):
-            qd = np.zeros(robot.n)
-        self._last = result
-        self._publish(qd, stamp, result)
-        if error is not None:
-            self._watch_task(q, qd, locked, now, error)
-
-    def _watch_task(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float,
-                    error: float) -> None:
-        """Feed the task-space channel (`ft_core.task_channel`) the pose goal's error (m).
-
-        A new suspect is published on `ft/suspected_failure` for the monitor to decide.
-        """
-        if self._channel is None:
-            return
-        joint = self._channel.update(now, q, qd, error, tuple(locked))
-        name = None if joint is None else self.robot.joint_names[joint]
-        if name is not None and name != self._suspect:
+        step = core.step(self._q, now - self.state_stamp, now)
+        for kind, problem in step.problems.items():
+            self.problems.report(kind, problem)
+        self._publish(step.qd, stamp, step.result)
+        if step.new_suspect:
             self.get_logger().warning(
-                f"task error not decreasing while joints are commanded: {name}'s loss explains "
-                f"the motion (residual {self._channel.residuals[joint]:.2f} of the unexplained "
-                "motion); suspected, for the monitor to decide", throttle_duration_sec=5.0)
-        if name is not None and (name != self._suspect
-                                 or now - self._suspect_sent >= self._channel.config.window):
-            # Again every window while it lasts: the monitor may not have had the evidence.
-            self._suspect_pub.publish(JointState(header=Header(
-                stamp=self.get_clock().now().to_msg()), name=[name]))
-            self._suspect_sent = now
-        self._suspect = name
-
-    def _excite(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> np.ndarray:
-        """The command with the observability excursion under way, if any (null space only)."""
-        if self._excursions is None:
-            return qd
-        for k, (joint, speed) in enumerate(self._excursions.update(now, qd, locked)):
-            moved = self.engine.excursion(q, qd, joint, speed, locked)
-            if moved is not None:
-                qd = moved
-            elif k == 0:  # the idle joint itself cannot move: no excursion now
-                self._excursions.cannot_move(joint, now)
-                return qd
-        return qd
-
-    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool, float | None]:
-        """(task velocity, idle, the pose goal's error norm or None) from the latest target."""
-        target, robot = self._target, self.robot
-        if target is None:
-            return np.zeros(robot.m), True, None
-        if target.kind == "pose":
-            error = robot.task_error(target.value, q)
-            xd, reached = pose_velocity(robot, error, self.tracking)
-            return xd, reached, float(np.linalg.norm(error))
-        scale = staleness_scale(now - target.stamp, self._target_timeout)
-        return scale * target.value, scale == 0.0, None
+                f"task error not decreasing while joints are commanded: "
+                f"{self.robot.joint_names[step.suspect]}'s loss explains the motion (residual "
+                f"{core.channel.residuals[step.suspect]:.2f} of the unexplained motion); "
+                "suspected, for the monitor to decide", throttle_duration_sec=5.0)
+        if step.announce:
+            self._suspect_pub.publish(JointState(header=Header(stamp=stamp),
+                                                 name=[self.robot.joint_names[step.suspect]]))
 
     def _publish(self, qd_chain: np.ndarray, stamp: Time | None = None, result=None) -> None:
         """The command (and with a cycle's result, the metrics), in preallocated messages."""
@@ -580,22 +408,26 @@ class ControllerNode(SuiteNode):
             self._rate = (self.accounting.cycles - cycles) / (now - since)
         self._rate_window = (self.accounting.cycles, now)
         statuses = [self._controller_status(now)]
-        if self.robot is not None and self._last is not None:
+        last = None if self.core is None else self.core.last
+        if last is not None:
             for joint, i in zip(self.command_joints, self._order, strict=True):
                 locked = joint in self._locked
                 level = (diagnostics.ERROR if locked else
-                         diagnostics.WARN if self._last.at_hard_limit[i] else diagnostics.OK)
+                         diagnostics.WARN if last.at_hard_limit[i] else diagnostics.OK)
                 statuses.append(self.status(
                     level,
                     "locked" if locked else "ok", {
-                        "locked": locked, "at_soft_limit": bool(self._last.at_soft_limit[i]),
-                        "at_hard_limit": bool(self._last.at_hard_limit[i]),
-                        "post_failure_sigma": float(self._last.post_failure_sigmas[i])
+                        "locked": locked, "at_soft_limit": bool(last.at_soft_limit[i]),
+                        "at_hard_limit": bool(last.at_hard_limit[i]),
+                        "post_failure_sigma": float(last.post_failure_sigmas[i])
                         if not locked else "n/a"}, joint=joint))
         self._diagnostics_pub.publish(diagnostics.array(statuses,
                                                         self.get_clock().now().to_msg()))
 
     def _controller_status(self, now: float):
+        core = self.core
+        last = None if core is None else core.last
+        target = None if core is None else core.target
         values = {"mode": self.param("resolution"), "loop_rate_hz": self._rate,
                   "control_rate_hz": self.param("control_rate"), "scheduling": self.scheduling,
                   "cycle_compute_median_ms": self.accounting.compute_ms(50),
@@ -603,28 +435,27 @@ class ControllerNode(SuiteNode):
                   "missed_cycles": self.accounting.missed if self.accounting.count_missed
                   else "n/a (simulated time)",
                   "state_age_s": now - self.state_stamp if self._q is not None else "none",
-                  "target": self._target.kind if self._target else "none",
-                  "target_age_s": now - self._target.stamp if self._target else "none",
-                  "locked_joints": sorted(self._locked), "soft_limits": self._soft_note,
+                  "target": target.kind if target else "none",
+                  "target_age_s": now - target.stamp if target else "none",
+                  "locked_joints": sorted(self._locked), "soft_limits": self.soft_limits_note,
                   "observability": self._observability_note(),
-                  "suspected_lock": self._suspect or "none"}
-        if self._last is not None:
-            values.update(kfm=self._last.kfm, task_scale=self._last.task_scale,
-                          status=self._last.status)
+                  "suspected_lock": self.suspected_lock or "none"}
+        if last is not None:
+            values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)
         if self.problems.active:
             level, message = diagnostics.ERROR, self.problems.summary()
-        elif self._last is None:
+        elif last is None:
             level, message = diagnostics.WARN, "waiting for joint states"
-        elif self._last.status == Status.INFEASIBLE:
+        elif last.status == Status.INFEASIBLE:
             level, message = diagnostics.WARN, "task infeasible with the remaining joints"
         else:
-            level, message = diagnostics.OK, self._last.status
+            level, message = diagnostics.OK, last.status
         return self.status(level, message, values)
 
     def _observability_note(self) -> str:
-        if self._excursions is None:
+        if self.core is None or self.core.excursions is None:
             return "off"
-        joint = self._excursions.active
+        joint = self.core.excursions.active
         return "waiting" if joint is None else f"exciting {self.robot.joint_names[joint]}"
 
     def stop(self) -> None:

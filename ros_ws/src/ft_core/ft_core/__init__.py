@@ -10,11 +10,13 @@ Modules:
     velocity_jump: minimum joint-velocity jump (seed 004).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
+    controller: the controller's per-cycle logic around the engine (targets, soft-limit
+        job, observability excursions, task channel): `Controller.step`.
     checks: input checks of the per-cycle path (compiled).
     targets: task velocities from pose goals and twists.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
     bounds: the `ft-bounds` command line.
     detection: locked-joint detection from commanded and measured motion.
     remap: reduced-Jacobian remapping of commands around locked joints.
-    workers: worker processes that end with the process that started them.
+    workers: worker processes that end with their parent, started off a real-time thread.
 """

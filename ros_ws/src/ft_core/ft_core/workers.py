@@ -1,15 +1,22 @@
-"""Worker processes that end with the process that started them.
+"""Worker processes for CPU-heavy work beside a control loop.
 
 A process pool's worker blocks on its task queue; when its parent is killed (kill -9,
 the OOM killer) nobody closes that queue and the worker lives on, an orphan, one per
-crash. `exit_with_parent` as the pool's initializer ends it within `PERIOD`.
+crash. `exit_with_parent` as the pool's initializer ends it within `PERIOD`; `pool`
+makes such a pool. A worker inherits the scheduling of the thread that starts it: a
+loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) starts it `lowered`, so the heavy
+work never runs at the loop's priority, not even its start-up imports.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import threading
 import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 
 #: How often (s) a worker checks that its parent still runs.
 PERIOD = 0.5
@@ -24,3 +31,31 @@ def exit_with_parent(parent: int) -> None:
         os._exit(0)
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def pool() -> ProcessPoolExecutor:
+    """One spawned worker process that ends with this process (`exit_with_parent`).
+
+    Spawned, not forked: a fork of a process running rclpy or numba threads may
+    inherit a lock held by a thread that does not exist in the child.
+    """
+    return ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=exit_with_parent, initargs=(os.getpid(),))
+
+
+@contextmanager
+def lowered() -> Iterator[None]:
+    """The calling thread on the normal scheduler for the block, then as before.
+
+    For starting processes and threads that must not inherit a real-time priority.
+    Lowering is always allowed; restoring needs the permission that raised it.
+    """
+    policy, parameters = os.sched_getscheduler(0), os.sched_getparam(0)
+    if policy == os.SCHED_OTHER:
+        yield
+        return
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    try:
+        yield
+    finally:
+        os.sched_setscheduler(0, policy, parameters)

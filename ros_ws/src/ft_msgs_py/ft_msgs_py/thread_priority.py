@@ -13,9 +13,9 @@ Only the calling thread changes (Linux schedules threads), and what it starts la
 inherits its priority: the executors' own threads (the EventsExecutor's timer thread,
 which wakes the loop, is created when the nodes are added), so a busy machine cannot
 hold the wake-up back either. CPU-heavy work must not: the controller starts its
-self-motion tracing workers with the thread `lowered` to the normal scheduler, so they
-run on it from their first instruction (their start-up imports alone take a second of
-CPU). The kernel's real-time throttling (by default 5 % of each second kept
+self-motion tracing workers with the thread `ft_core.workers.lowered` to the normal
+scheduler, so they run on it from their first instruction (their start-up imports alone
+take a second of CPU). The kernel's real-time throttling (by default 5 % of each second kept
 for normal processes) still applies. Needs root or an rtprio limit for the user (for
 example `@realtime - rtprio 99` in /etc/security/limits.conf, as ros2_control's
 documentation describes); refused, the node logs a warning and keeps running on the
@@ -25,8 +25,6 @@ normal scheduler.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 #: Highest SCHED_FIFO priority on Linux.
 MAX_PRIORITY = 99
@@ -46,20 +44,3 @@ def apply(priority: int) -> str | None:
         return f"SCHED_FIFO {priority} refused ({error})"
     return None
 
-
-@contextmanager
-def lowered() -> Iterator[None]:
-    """The calling thread on the normal scheduler for the block, then as before.
-
-    For starting processes and threads that must not inherit a real-time priority.
-    Lowering is always allowed; restoring needs the permission `apply` had.
-    """
-    policy, parameters = os.sched_getscheduler(0), os.sched_getparam(0)
-    if policy == os.SCHED_OTHER:
-        yield
-        return
-    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    try:
-        yield
-    finally:
-        os.sched_setscheduler(0, policy, parameters)

@@ -1,0 +1,322 @@
+"""The controller's per-cycle logic without ROS: a core with a step function.
+
+The pattern of MoveIt Servo (a `Servo` core whose node only wires topics and
+parameters): `Controller.step(q, now)` turns the latest joint positions, the latest
+target and the locked set into one command, and owns everything a cycle needs
+besides the engine's arithmetic (`ft_core.engine`):
+
+- the target: a twist (feed-forward, decaying once stale, `targets.staleness_scale`)
+  or a pose goal (tracked proportionally, `targets.pose_velocity`);
+- holding still with no target (unless `idle_null_space_motion`);
+- the observability excursions (`ft_core.observability`) in the null space;
+- the task-space channel (`ft_core.task_channel`), fed the pose goal's error: its
+  suspect is returned for whoever decides (the monitor);
+- the soft limits from critical points: the intersected self-motion boxes of Lewis
+  and Maciejewski (1997), traced in a worker process (never in the cycle) and
+  switched in atomically, in the cycle, once ready.
+
+Every input is checked by the caller or by the engine; the step never raises on a
+bad state or target: it returns explicit zeros and says why (`Step.problems`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ft_core import selfmotion, workers
+from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
+from ft_core.observability import Excursions, ObservabilityConfig
+from ft_core.robots import Robot, RobotModelError
+from ft_core.targets import PoseTracking, pose_velocity, staleness_scale
+from ft_core.task_channel import TaskChannel
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """What the cycle reads besides the engine's configuration.
+
+    Attributes:
+        state_timeout: s; an older joint state stops the arm (explicit zeros).
+        target_timeout: s; an older twist decays linearly to 0 over one more timeout.
+        idle_null_space_motion: with no target (or a pose goal reached), allow the
+            null-space terms to move the arm; otherwise hold still.
+        tracking: pose-goal tracking gains and caps.
+        observability: the excursions' settings; None: no excursions.
+    """
+
+    state_timeout: float = 0.1
+    target_timeout: float = 0.5
+    idle_null_space_motion: bool = False
+    tracking: PoseTracking = field(default_factory=PoseTracking)
+    observability: ObservabilityConfig | None = None
+
+
+@dataclass(frozen=True)
+class Target:
+    """The latest target: a twist (task velocity, m/s and rad/s) or a pose goal."""
+
+    kind: str  #: "twist" or "pose"
+    value: np.ndarray  #: task velocity, or goal (`targets.goal_from_transform`)
+    stamp: float  #: s, the twist's stamp or the time the goal arrived
+
+
+@dataclass
+class Step:
+    """What one cycle decided.
+
+    Attributes:
+        qd: the command (rad/s, chain order); explicit zeros when no motion is safe.
+        result: the engine's cycle (None when zeros were commanded without one).
+        problems: why zeros were commanded, by input: "joint_states" (stale) or
+            "engine" (a state or target it refuses); "engine" None once it accepts again.
+        suspect: the joint the task channel suspects now (None: none).
+        new_suspect: `suspect` differs from the previous cycle's.
+        announce: publish the suspect now (new, or again once per channel window).
+    """
+
+    qd: np.ndarray
+    result: CycleResult | None
+    problems: dict[str, str | None]
+    suspect: int | None = None
+    new_suspect: bool = False
+    announce: bool = False
+
+
+#: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
+Report = Callable[..., None]
+
+
+class Controller:
+    """The per-cycle logic of the controller node; see the module docstring.
+
+    Args:
+        robot: the chain.
+        engine_config: the engine's configuration (without the critical points' box).
+        config: the rest of the cycle's settings.
+        model_source: (spec, chain arguments) that `robots.load` rebuilds the robot
+            from in the worker process tracing the critical points' boxes.
+        report: called with (input name, problem or None) when a background job
+            fails or recovers ("critical points").
+        log: called with an informational message.
+    """
+
+    def __init__(self, robot: Robot, engine_config: EngineConfig,
+                 config: ControllerConfig | None = None,
+                 model_source: tuple[str, Sequence] | None = None,
+                 report: Report = lambda *_args, **_kwargs: None,
+                 log: Callable[[str], None] = lambda _message: None):
+        self.robot = robot
+        self.config = config or ControllerConfig()
+        self._engine_config = engine_config
+        self.engine = ResolutionEngine(robot, engine_config)
+        self._model_source = model_source
+        self._report, self._log = report, log
+        self.excursions = self._excursions(self.config)
+        self.channel = TaskChannel(robot) if robot.task_space != "pose" else None
+        self.target: Target | None = None
+        self.locked: tuple[int, ...] = ()
+        self.last: CycleResult | None = None
+        self.suspect: int | None = None
+        self._suspect_sent = -math.inf
+        # Soft limits from critical points, computed in a worker process.
+        self._critical_points: list[float] = []
+        self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
+        self._boxes_dirty = False
+        self._boxes_job: tuple[int, Future] | None = None
+        self._boxes_generation = 0
+        self._background: ProcessPoolExecutor | None = None
+        self.soft_limits_note = "none"
+
+    # ------------------------------------------------------------ configuration
+    def _excursions(self, config: ControllerConfig) -> Excursions | None:
+        if config.observability is None:
+            return None
+        return Excursions(self.robot.n, config.observability)
+
+    def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
+        """New settings: the engine is rebuilt (keeping the critical points' box)."""
+        if config.observability != self.config.observability:
+            self.excursions = self._excursions(config)
+        self.config = config
+        self._engine_config = engine_config
+        self._rebuild_engine()
+
+    def _rebuild_engine(self) -> None:
+        config, box = self._engine_config, self._critical_box
+        if box is not None:
+            if len(config.soft_lower):
+                box = (np.maximum(config.soft_lower, box[0]),
+                       np.minimum(config.soft_upper, box[1]))
+            config = replace(config, soft_lower=tuple(box[0]), soft_upper=tuple(box[1]))
+        self.engine = ResolutionEngine(self.robot, config)
+
+    # ------------------------------------------------------------------- inputs
+    def set_twist(self, velocity: np.ndarray, stamp: float) -> None:
+        """A task velocity (`targets.twist_velocity`) stamped `stamp` (s)."""
+        self.target = Target("twist", velocity, stamp)
+
+    def set_pose_goal(self, goal: np.ndarray, now: float) -> None:
+        """A pose goal (`targets.goal_from_transform`), received at `now` (s)."""
+        self.target = Target("pose", goal, now)
+
+    def set_locked(self, locked: Sequence[int]) -> None:
+        """The locked joints (chain indices), as the monitor announced them."""
+        self.locked = tuple(sorted(locked))
+
+    def set_critical_points(self, flat: Sequence[float]) -> None:
+        """Task points (`selfmotion.targets_from_flat`) whose boxes become soft limits.
+
+        Traced from the next cycle's configuration, in a worker process; empty: none.
+        """
+        self._critical_points = [float(v) for v in flat]
+        self._boxes_dirty = True
+
+    @property
+    def soft_limits_pending(self) -> bool:
+        """Whether soft limits from the critical points are still to be computed or taken."""
+        return self._boxes_dirty or self._boxes_job is not None
+
+    # -------------------------------------------------------------------- cycle
+    def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
+        """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
+
+        `q` None (no state yet) or older than `state_timeout` commands zeros.
+        """
+        robot = self.robot
+        zeros = np.zeros(robot.n)
+        if q is None:
+            self.last = None
+            return Step(zeros, None, {})
+        if state_age > self.config.state_timeout:
+            self.last = None
+            return Step(zeros, None, {"joint_states": f"no joint state for {state_age:.3f} s"})
+        if self._boxes_job is not None:
+            self._take_boxes()
+        if self._boxes_dirty:
+            self._start_boxes(q)
+        xd, idle, error = self._task_velocity(q, now)
+        locked = list(self.locked)
+        try:
+            result = self.engine.step(q, xd, locked)
+        except ValueError as problem:  # physically absurd state or target
+            self.last = None
+            return Step(zeros, None, {"engine": f"{problem}: commanding zeros"})
+        qd = result.qd
+        if idle and not self.config.idle_null_space_motion:
+            qd = zeros
+            result.jump_index = 0.0
+        qd = self._excite(q, qd, locked, now)
+        if not np.all(np.isfinite(qd)):
+            qd = np.zeros(robot.n)
+        self.last = result
+        step = Step(qd, result, {"engine": None})
+        if error is not None:
+            self._watch_task(step, q, locked, now, error)
+        return step
+
+    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool, float | None]:
+        """(task velocity, idle, the pose goal's error norm or None) from the latest target."""
+        target, robot = self.target, self.robot
+        if target is None:
+            return np.zeros(robot.m), True, None
+        if target.kind == "pose":
+            error = robot.task_error(target.value, q)
+            xd, reached = pose_velocity(robot, error, self.config.tracking)
+            return xd, reached, float(np.linalg.norm(error))
+        scale = staleness_scale(now - target.stamp, self.config.target_timeout)
+        return scale * target.value, scale == 0.0, None
+
+    def _excite(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> np.ndarray:
+        """The command with the observability excursion under way, if any (null space only)."""
+        if self.excursions is None:
+            return qd
+        for k, (joint, speed) in enumerate(self.excursions.update(now, qd, locked)):
+            moved = self.engine.excursion(q, qd, joint, speed, locked)
+            if moved is not None:
+                qd = moved
+            elif k == 0:  # the idle joint itself cannot move: no excursion now
+                self.excursions.cannot_move(joint, now)
+                return qd
+        return qd
+
+    def _watch_task(self, step: Step, q: np.ndarray, locked: list[int], now: float,
+                    error: float) -> None:
+        """Feed the task channel the pose goal's error (m); its suspect goes into `step`.
+
+        Announced when new, and again every channel window while it lasts (the
+        monitor may not have had the evidence the first time).
+        """
+        if self.channel is None:
+            return
+        joint = self.channel.update(now, q, step.qd, error, tuple(locked))
+        step.suspect, step.new_suspect = joint, joint is not None and joint != self.suspect
+        step.announce = joint is not None and (
+            joint != self.suspect or now - self._suspect_sent >= self.channel.config.window)
+        if step.announce:
+            self._suspect_sent = now
+        self.suspect = joint
+
+    # ------------------------------------------------------ soft limits (worker)
+    def _start_boxes(self, q: np.ndarray) -> None:
+        """Trace the critical points' boxes in a worker process (never in the cycle).
+
+        The cycle goes on with the limits it has; `_take_boxes` switches to the new
+        ones once ready. Points changed while a computation runs make its result
+        stale: it is dropped, and the newer computation follows.
+        """
+        self._boxes_dirty = False
+        flat = self._critical_points
+        if not flat:
+            self.soft_limits_note = "none"
+            self._report("critical points", None)
+            self._critical_box = None
+            self._rebuild_engine()
+            return
+        self._boxes_generation += 1
+        self.soft_limits_note = (f"computing soft limits from {len(flat)} values of critical "
+                                 "points (the previous limits meanwhile)")
+        try:
+            if self._background is None:
+                self._background = workers.pool()
+            with workers.lowered():  # the worker starts here: never at the loop's
+                self._boxes_job = (self._boxes_generation, self._background.submit(
+                    selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+        except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
+            self.soft_limits_note = "none (critical points failed)"
+            self._report("critical points", f"cannot start the process that traces the boxes "
+                         f"({error}); running without their soft limits")
+
+    def _take_boxes(self) -> None:
+        """Switch to soft limits computed in the background, if they are ready."""
+        generation, job = self._boxes_job
+        if not job.done():
+            return
+        self._boxes_job = None
+        if generation != self._boxes_generation:
+            return  # the points changed meanwhile: a newer computation follows
+        try:
+            box, count = job.result()
+        except (selfmotion.UnreachableError, RobotModelError, ValueError, BrokenProcessPool,
+                ) as error:
+            self.soft_limits_note = "none (critical points failed)"
+            self._report("critical points", f"{error}; running without their soft limits")
+            self._critical_box = None
+            self._rebuild_engine()
+            return
+        self.soft_limits_note = f"{count} critical points"
+        self._report("critical points", None)
+        self._log(f"soft limits from {count} critical points: lower "
+                  f"{np.round(box[0], 3).tolist()}, upper {np.round(box[1], 3).tolist()}")
+        self._critical_box = box
+        self._rebuild_engine()
+
+    def close(self) -> None:
+        """Stop the background work."""
+        if self._background is not None:
+            self._background.shutdown(wait=False, cancel_futures=True)
