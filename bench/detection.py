@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fixed_latency_detector
 from engine_cycle import machine, report
 from ft_core import robots
-from ft_core.detection import LockDetector
+from ft_core.detection import LockDetector, Update
 from ft_core.plant import Plant, PlantConfig
 
 PANDA = robots.load("panda")
@@ -90,6 +90,7 @@ def replay(recording: Recording, detector, reset_after_lock: bool = False,
             detector.command(t, values)
             continue
         new = detector.measure(t, values)
+        new = list(new.locked) if isinstance(new, Update) else new  # the old one: a list
         if new:
             declared.append((t, new))
             if reset_after_lock:

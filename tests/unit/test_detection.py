@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from ft_core.detection import DetectorConfig, LockDetector
+from ft_core.detection import DetectorConfig, LockDetector, Update
 from ft_core.plant import PlantConfig
 from paths import REPO
 
@@ -154,8 +154,9 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
         if kind == "command":
             detector.command(t, values)
         else:
-            locks += detector.measure(t, values)
-            declared += [(t, j) for j in detector.newly_swinging]
+            update = detector.measure(t, values)
+            locks += update.locked
+            declared += [(t, j) for j in update.swinging]
     assert [j for _, j in declared] == [2]
     assert 4.0 < declared[0][0] < 4.5
     # Against its command it passes through a stall: a lock, taken back once it moves.
@@ -169,7 +170,7 @@ def test_no_decision_at_start_up_until_the_plant_follows() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     for k in range(100):  # commanded, never moving: not one lock, and why
         detector.command(k * DT, np.full(7, 0.3))
-        assert detector.measure((k + 1) * DT, START) == []
+        assert detector.measure((k + 1) * DT, START) == Update()
     assert detector.not_observing is not None or detector.plant_fault is not None
     assert detector.locked == {}
 
@@ -186,9 +187,12 @@ def test_a_stall_at_a_joint_limit_is_not_a_lock() -> None:
     detector, events = run(lambda t: push, 9.0)
     assert events == []
     assert detector.joints[3].at_limit
-    # Not a candidate either: the monitor refuses a task-space suspect there (the check
-    # "still while commanded" alone confirmed it, a false lock in the campaign).
+    # Not a candidate either: a task-space suspect is refused there (the check "still
+    # while commanded" alone confirmed it, a false lock in the campaign).
     assert not detector.joints[3].candidate
+    answer = detector.confirm(3, -0.07, 9.0)
+    assert answer.decision == "refused" and answer.evidence.at_limit
+    assert detector.locked == {}
 
 
 def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare() -> None:
@@ -203,6 +207,11 @@ def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare()
     assert events == []
     assert detector.joints[1].candidate
     assert not any(e.candidate for k, e in enumerate(detector.joints) if k != 1)
+    assert detector.confirm(0, 0.0, 3.0).decision == "refused"  # still, but not commanded
+    answer = detector.confirm(1, -0.3, 3.0)  # the task channel's suspect: confirmed
+    assert answer.decision == "locked" and answer.evidence.candidate
+    assert detector.locked == {1: -0.3}
+    assert detector.confirm(1, -0.3, 3.1).decision == "known"
 
 
 def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
@@ -210,8 +219,8 @@ def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
     detector.command(0.0, np.full(7, 0.5))
     for t in (0.0, 0.004, 0.2, 0.204, 0.208):  # a 0.2 s gap: no positions in most windows
         detector.command(t, np.full(7, 0.5))
-        assert detector.measure(t, START) == []
-    assert detector.measure(0.1, START) == []  # out of order: ignored
+        assert detector.measure(t, START) == Update()
+    assert detector.measure(0.1, START) == Update()  # out of order: ignored
     assert detector.latest_time == 0.208
 
 
@@ -219,7 +228,7 @@ def test_a_blind_caller_forbids_decisions() -> None:
     detector, _ = run(lambda t: np.full(7, 0.2), 2.0)
     assert detector.not_observing is None
     detector.command(2.0, np.full(7, 0.2))
-    assert detector.measure(2.004, START, blind="nobody listens") == []
+    assert detector.measure(2.004, START, blind="nobody listens") == Update()
     assert detector.not_observing == "nobody listens"
 
 

@@ -106,13 +106,12 @@ class Controller:
         log: called with an informational message.
     """
 
-    def __init__(self, robot: Robot, engine_config: EngineConfig,
-                 config: ControllerConfig | None = None,
-                 model_source: tuple[str, Sequence] | None = None,
+    def __init__(self, robot: Robot, engine_config: EngineConfig, config: ControllerConfig,
+                 model_source: tuple[str, Sequence],
                  report: Report = lambda *_args, **_kwargs: None,
                  log: Callable[[str], None] = lambda _message: None):
         self.robot = robot
-        self.config = config or ControllerConfig()
+        self.config = config
         self._engine_config = engine_config
         self.engine = ResolutionEngine(robot, engine_config)
         self._model_source = model_source
@@ -197,7 +196,7 @@ class Controller:
             self.last = None
             return Step(zeros, None, {"joint_states": f"no joint state for {state_age:.3f} s"})
         if self._boxes_job is not None:
-            self._take_boxes()
+            self._take_boxes(*self._boxes_job)
         if self._boxes_dirty:
             self._start_boxes(q)
         xd, idle, error = self._task_velocity(q, now)
@@ -292,9 +291,8 @@ class Controller:
             self._report("critical points", f"cannot start the process that traces the boxes "
                          f"({error}); running without their soft limits")
 
-    def _take_boxes(self) -> None:
+    def _take_boxes(self, generation: int, job: Future) -> None:
         """Switch to soft limits computed in the background, if they are ready."""
-        generation, job = self._boxes_job
         if not job.done():
             return
         self._boxes_job = None

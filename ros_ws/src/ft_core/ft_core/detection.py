@@ -70,7 +70,7 @@ shared by commands and measurements.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -160,6 +160,29 @@ class JointEvidence:
     swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)
     position: float = 0.0  #: position when locked (rad)
+
+
+@dataclass(frozen=True)
+class Update:
+    """What one measurement decided: joints newly declared locked and free-swinging."""
+
+    locked: tuple[int, ...] = ()
+    swinging: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """The detector's answer to a suspect from elsewhere (the controller's task channel).
+
+    Attributes:
+        decision: "locked" (declared now), "known" (already locked or free-swinging:
+            a free-swinging joint stays reported as such) or "refused" (not a lock
+            candidate at the last update: following, within the noise, or at a limit).
+        evidence: the joint's evidence at the decision (a copy).
+    """
+
+    decision: str
+    evidence: JointEvidence
 
 
 @dataclass(frozen=True)
@@ -452,7 +475,6 @@ class LockDetector:
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
-        self.newly_swinging: list[int] = []  #: joints declared free-swinging at the last update
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -521,16 +543,13 @@ class LockDetector:
         self.history.append(time, np.asarray(velocity, dtype=float))
         self.history.forget_before(time - 2 * self.config.window - self._latencies.max())
 
-    def measure(self, time: float, position: np.ndarray, blind: str | None = None) -> list[int]:
-        """A measured configuration; returns the joints newly declared locked.
-
-        Joints newly declared free-swinging are in `newly_swinging` after the call.
+    def measure(self, time: float, position: np.ndarray, blind: str | None = None) -> Update:
+        """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
         """
-        self.newly_swinging = []
         if time <= self.latest_time:
-            return []  # out of order or repeated: ignored
+            return Update()  # out of order or repeated: ignored
         self._samples.append(time, np.asarray(position, dtype=float),
                              self.history.positions(time - self._latencies).reshape(-1, self.n))
         self._samples.drop_before(time - self.config.window)
@@ -541,8 +560,24 @@ class LockDetector:
         if reason is not None:
             self.plant_fault = None  # no evidence either way
             self._clear_evidence()
-            return []
+            return Update()
         return self._update(time, dt)
+
+    def confirm(self, joint: int, position: float, time: float) -> Confirmation:
+        """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.
+
+        Locked when the joint is a candidate of the detector's own stall test at the
+        last update, without the witness of another joint seen following (a suspect
+        comes exactly where no such witness exists: the task-space channel of issue 16);
+        the noise tests, the joint-limit rule and the plant-fault rule all apply.
+        """
+        evidence = self.joints[joint]
+        if evidence.locked_at is not None or evidence.swinging_at is not None:
+            return Confirmation("known", replace(evidence))
+        if not evidence.candidate:
+            return Confirmation("refused", replace(evidence))
+        self.lock(joint, position, time)
+        return Confirmation("locked", replace(evidence))
 
     # -------------------------------------------------------------- decisions
     def _set_plausible(self, plausible: np.ndarray) -> None:
@@ -575,7 +610,7 @@ class LockDetector:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
 
-    def _update(self, now: float, dt: float) -> list[int]:
+    def _update(self, now: float, dt: float) -> Update:
         cfg = self.config
         times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
         best = int(np.argmin(self._scores))  # always plausible
@@ -616,14 +651,15 @@ class LockDetector:
             self._clear_evidence()
             for evidence in self.joints:
                 evidence.candidate = False
-            return []
+            return Update()
         self.plant_fault = None
         if self._seen_following < cfg.follow_time:
             if n_following and not n_stalled:
                 self._seen_following += dt
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
-            return []
+            return Update()
+        swinging = []
         for j in np.flatnonzero(on_its_own).tolist():
             evidence = self.joints[j]
             if evidence.swinging_at is not None:
@@ -633,7 +669,7 @@ class LockDetector:
             if now - evidence.swing_since >= cfg.persistence:
                 # A joint declared locked that moves was never locked: it swings.
                 evidence.swinging_at, evidence.locked_at = now, None
-                self.newly_swinging.append(j)
+                swinging.append(j)
         for j in np.flatnonzero(~on_its_own).tolist():
             self.joints[j].swing_since = None
         newly = []
@@ -647,7 +683,7 @@ class LockDetector:
             if now - evidence.evidence_since >= cfg.persistence:
                 evidence.locked_at, evidence.position = now, float(latest[j])
                 newly.append(j)
-        return newly
+        return Update(tuple(newly), tuple(swinging))
 
     def _identify(self, now: float, measured: np.ndarray, slopes: np.ndarray,
                   error: np.ndarray, usable: np.ndarray) -> None:

@@ -210,13 +210,13 @@ class MonitorNode(SuiteNode):
             self._locked_changed(stamp)
         listeners = (self._command_pub.get_subscription_count()
                      + self._array_pub.get_subscription_count())
-        newly = self.detector.measure(
+        update = self.detector.measure(
             stamp, q, None if listeners else "nobody subscribes to ft/command(_array)")
         self.problems.report("plant", self.detector.plant_fault)
-        if self.detector.newly_swinging:
-            self._free_swinging(self.detector.newly_swinging, q, stamp)
-        if newly:
-            for j in newly:
+        if update.swinging:
+            self._free_swinging(update.swinging, q, stamp)
+        if update.locked:
+            for j in update.locked:
                 name = self.robot.joint_names[j]
                 evidence = self.detector.joints[j]
                 self.get_logger().error(
@@ -225,7 +225,7 @@ class MonitorNode(SuiteNode):
                     f"{evidence.commanded:.4f} expected")
             self._locked_changed(stamp)
 
-    def _free_swinging(self, joints: list[int], q: np.ndarray, stamp: float) -> None:
+    def _free_swinging(self, joints: tuple[int, ...], q: np.ndarray, stamp: float) -> None:
         """Report joints newly found moving on their own; with the option, brake them."""
         brake = self.param("brake_free_swinging")
         for j in joints:
@@ -251,17 +251,17 @@ class MonitorNode(SuiteNode):
             return
         now = self.now()
         for j in known.values():
-            evidence, name = self.detector.joints[j], self.robot.joint_names[j]
-            if j in self.detector.locked or j in self.detector.swinging:
-                continue  # known already (a free-swinging joint stays reported as such)
-            if not evidence.candidate:  # the detector's own stall test, witness aside
+            answer = self.detector.confirm(j, float(self._q[j]), now)
+            name = self.robot.joint_names[j]
+            evidence = answer.evidence
+            if answer.decision == "refused":
                 reason = " at a joint limit" if evidence.at_limit else ""
                 self.get_logger().warning(
                     f"suspected lock of {name} not confirmed{reason}: measured "
                     f"{evidence.measured:.4f} rad/s (+-{evidence.standard_error:.4f}), "
                     f"commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
+            if answer.decision != "locked":
                 continue
-            self.detector.lock(j, float(self._q[j]), now)
             self.get_logger().error(
                 f"joint {name} locked (suspected by the task-space channel, confirmed: measured "
                 f"{evidence.measured:.4f} rad/s against {evidence.commanded:.4f} commanded)")

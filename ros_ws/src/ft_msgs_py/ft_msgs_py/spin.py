@@ -26,12 +26,16 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import cast
 
 import rclpy
+from rclpy.event_handler import EventHandler
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
+from rclpy.subscription import Subscription
 
 #: Longest time (s) between two checks of the stop flag.
 CHECK_PERIOD = 0.1
@@ -65,11 +69,14 @@ class LockStepExecutor(SingleThreadedExecutor):
     def add_node(self, node: Node) -> bool:
         """Add `node` (as rclpy does), without the QoS-event handlers of its entities."""
         added = super().add_node(node)
-        for entity in (*node.publishers, *node.subscriptions):
-            for handler in entity.event_handlers:
+        entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
+        for entity in entities:
+            # A list of handlers, whatever rclpy's annotation (one EventHandler) says.
+            handlers = cast("list[EventHandler]", entity.event_handlers)
+            for handler in handlers:
                 node.remove_waitable(handler)
                 handler.destroy()
-            entity.event_handlers = []
+            handlers.clear()  # so destroy_publisher/subscription skips them too
         return added
 
 
