@@ -357,6 +357,33 @@ def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value
         assert node.param(name) == before
 
 
+def test_default_parameters_are_the_cores_defaults_written_once() -> None:
+    """Every default that configures a core comes from its dataclass (issue 28).
+
+    A node started with only a model builds exactly the default configurations of
+    `ft_core` (the engine's, the cycle's, the plant's): no default is written twice.
+    """
+    from ft_core.controller import ControllerConfig
+    from ft_core.engine import EngineConfig
+    from ft_core.plant import PlantConfig
+    from ft_sim.sim_node import SimNode
+
+    with ros_context() as (context, _):
+        node = ControllerNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda")])
+        sim = SimNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda")])
+        try:
+            assert node.robot is not None
+            assert node._engine_config(node.robot, node._order, {}) == EngineConfig()
+            assert node._controller_config({}) == ControllerConfig()
+            assert node.core.engine.config == EngineConfig()
+            assert sim._plant_config() == PlantConfig()
+        finally:
+            node.destroy_node()
+            sim.destroy_node()
+
+
 def test_parameters_change_at_run_time() -> None:
     with controller() as (node, plant):
         plant.frozen = True

@@ -46,19 +46,23 @@ ABSURD_DISTANCE = 1e3
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
 WATCHDOG_PERIOD = 0.05
 
+#: The defaults of every parameter that configures the core: its dataclasses' own.
+_ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
+_TRACKING, _OBSERVABILITY = _CYCLE.tracking, ObservabilityConfig()
+
 #: name -> (default, description, extra descriptor fields)
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     **parameters.THREAD_PRIORITY,
-    "resolution": ("blend", "least_norm, max_kfm, min_jump or blend", {}),
-    "kfm_gain": (50.0, "kfm gradient ascent, rad/s per (m/rad)",
+    "resolution": (_ENGINE.resolution, "least_norm, max_kfm, min_jump or blend", {}),
+    "kfm_gain": (_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
                  parameters.float_range(0.0, 1e4)),
-    "swing_gain": (0.0, "swing-measure descent for free-swinging failures, rad/s per rad "
-                   "(0: off; needs the URDF's inertias)",
+    "swing_gain": (_ENGINE.swing_gain, "swing-measure descent for free-swinging failures, "
+                   "rad/s per rad (0: off; needs the URDF's inertias)",
                    parameters.float_range(0.0, 100.0)),
-    "jump_gain": (1.0, "minimum-jump term (1 = exact)",
+    "jump_gain": (_ENGINE.jump_gain, "minimum-jump term (1 = exact)",
                   parameters.float_range(0.0, 100.0)),
-    "limit_gain": (1.0, "soft/hard limit avoidance, rad/s at a box edge",
+    "limit_gain": (_ENGINE.limit_gain, "soft/hard limit avoidance, rad/s at a box edge",
                    parameters.float_range(0.0, 100.0)),
     "failure_probabilities": (Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` order "
                               "(empty: equal)", {}),
@@ -67,31 +71,34 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "critical_points": (Parameter.Type.DOUBLE_ARRAY, "task points concatenated (pose: x y z "
                         "qx qy qz qw); their intersected self-motion boxes become soft limits",
                         {}),
-    "release_soft_limits_on_failure": (True, "drop the soft limits once a joint is locked", {}),
-    "control_rate": (250.0, "Hz", parameters.float_range(1.0, 2000.0)),
-    "target_timeout": (0.5, "s; an older twist decays to 0 over one more timeout",
-                       parameters.float_range(0.001, 60.0)),
-    "state_timeout": (0.1, "s; older joint states stop the arm",
+    "release_soft_limits_on_failure": (_ENGINE.release_soft_limits_on_failure,
+                                       "drop the soft limits once a joint is locked", {}),
+    "control_rate": (1.0 / _ENGINE.dt, "Hz", parameters.float_range(1.0, 2000.0)),
+    "target_timeout": (_CYCLE.target_timeout, "s; an older twist decays to 0 over one more "
+                       "timeout", parameters.float_range(0.001, 60.0)),
+    "state_timeout": (_CYCLE.state_timeout, "s; older joint states stop the arm",
                       parameters.float_range(0.001, 60.0)),
-    "position_gain": (2.0, "1/s, pose-goal tracking",
+    "position_gain": (_TRACKING.gain, "1/s, pose-goal tracking",
                       parameters.float_range(0.01, 100.0)),
-    "max_linear_speed": (0.25, "m/s, pose-goal tracking",
+    "max_linear_speed": (_TRACKING.max_linear, "m/s, pose-goal tracking",
                          parameters.float_range(0.001, 10.0)),
-    "max_angular_speed": (0.5, "rad/s, pose-goal tracking",
+    "max_angular_speed": (_TRACKING.max_angular, "rad/s, pose-goal tracking",
                           parameters.float_range(0.001, 10.0)),
-    "velocity_scale": (0.5, "fraction of the URDF velocity limits",
+    "velocity_scale": (_ENGINE.velocity_scale, "fraction of the URDF velocity limits",
                        parameters.float_range(0.01, 1.0)),
     "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
                      "in this namespace (empty: any single publisher)", {"read_only": True}),
-    "idle_null_space_motion": (False, "with no target, allow null-space motion (kfm ascent, "
-                               "limit avoidance); otherwise hold still", {}),
-    "observability.enabled": (False, "null-space excursions of joints not commanded for "
-                              "observability.idle_time, so that a lock on them shows up", {}),
-    "observability.idle_time": (5.0, "s a joint may go uncommanded before an excursion",
-                                parameters.float_range(0.01, 3600.0)),
-    "observability.speed": (0.3, "rad/s, peak joint velocity of an excursion",
+    "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
+                               "null-space motion (kfm ascent, limit avoidance); otherwise "
+                               "hold still", {}),
+    "observability.enabled": (_CYCLE.observability is not None, "null-space excursions of "
+                              "joints not commanded for observability.idle_time, so that a "
+                              "lock on them shows up", {}),
+    "observability.idle_time": (_OBSERVABILITY.idle_time, "s a joint may go uncommanded "
+                                "before an excursion", parameters.float_range(0.01, 3600.0)),
+    "observability.speed": (_OBSERVABILITY.speed, "rad/s, peak joint velocity of an excursion",
                             parameters.float_range(0.06, 10.0)),
-    "observability.duration": (1.0, "s, one excursion (out and back)",
+    "observability.duration": (_OBSERVABILITY.duration, "s, one excursion (out and back)",
                                parameters.float_range(0.01, 60.0)),
 }
 
@@ -197,7 +204,7 @@ class ControllerNode(SuiteNode):
             resolution=value["resolution"], kfm_gain=value["kfm_gain"],
             swing_gain=value["swing_gain"],
             jump_gain=value["jump_gain"], limit_gain=value["limit_gain"],
-            failure_probabilities=probabilities,
+            failure_probabilities=tuple(probabilities),
             soft_lower=() if box is None else box[0], soft_upper=() if box is None else box[1],
             release_soft_limits_on_failure=value["release_soft_limits_on_failure"],
             dt=1.0 / value["control_rate"], velocity_scale=value["velocity_scale"])

@@ -117,7 +117,7 @@ class EngineConfig:
     soft_upper: Sequence[float] = ()
     release_soft_limits_on_failure: bool = True
     dt: float = 0.004
-    velocity_scale: float = 1.0
+    velocity_scale: float = 0.5
     damping: Damping = field(default_factory=Damping)
     kfm_temperature: float = 0.005
     limit_buffer: float = 0.15

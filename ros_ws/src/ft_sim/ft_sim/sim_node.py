@@ -45,6 +45,8 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+#: The plant's parameters default to `PlantConfig`'s own values.
+_PLANT = PlantConfig()
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     "initial_positions": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: the "
@@ -53,16 +55,18 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
              {"read_only": True, **parameters.float_range(1.0, 10000.0)}),
     "position_noise": (0.0, "rad, standard deviation of the published positions",
                        parameters.float_range(0.0, 1.0)),
-    "command_latency": (0.0, "s from a command's arrival to its effect",
+    "command_latency": (_PLANT.latency, "s from a command's arrival to its effect",
                         parameters.float_range(0.0, 10.0)),
-    "command_timeout": (0.1, "s; older commands are dropped (the arm stops)",
+    "command_timeout": (_PLANT.timeout, "s; older commands are dropped (the arm stops)",
                         parameters.float_range(0.001, 60.0)),
-    "response_time": (0.0, "s, first-order time constant of the velocity loop (0: instant)",
+    "response_time": (_PLANT.response_time, "s, first-order time constant of the velocity "
+                      "loop (0: instant)",
                       parameters.float_range(0.0, 10.0)),
-    "acceleration_limit": ([0.0], "rad/s^2, one for all joints or one per joint (0: none)",
+    "acceleration_limit": (list(_PLANT.acceleration_limit), "rad/s^2, one for all joints or "
+                           "one per joint (0: none)",
                            {}),
-    "hold_last_command": (False, "execute the last command forever (ros2_control) instead "
-                          "of stopping after command_timeout", {}),
+    "hold_last_command": (_PLANT.hold_last_command, "execute the last command forever "
+                          "(ros2_control) instead of stopping after command_timeout", {}),
     "publish_clock": (False, "own the time: start at 0 and publish /clock", {"read_only": True}),
     "seed": (0, "seed of the position noise", {"read_only": True}),
     "failure.joint": ("", "joint to lock at failure.time (empty: none)", {}),
