@@ -1,4 +1,4 @@
-"""Small test robots built as URDF strings, and the open-loop control of seed 002's Theorem 1."""
+"""Small test robots as URDF strings, and the open-loop control of Maciejewski et al. Theorem 1."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ DT = 0.005
 
 
 def pseudoinverse_control(q0, x_d, locked: int, seconds: float = 20.0, gain: float = 1.0):
-    """Seed 002 eq 15 with G = J+ (W = I): qd_c = J+ gain (x_d - x).
+    """Maciejewski et al. eq 15 with G = J+ (W = I): qd_c = J+ gain (x_d - x).
 
     The locked joint does not move and nobody knows. Returns (final q, final command,
     channel, first suspicion).

@@ -63,7 +63,7 @@ def test_demo_runs_from_the_install_space(install_space: Path) -> None:
 
 
 def test_every_executable_is_also_an_ft_console_script_in_the_venv(install_space: Path) -> None:
-    """`controller_node` -> `ft-controller`, `demo` -> `ft-demo` (INTERFACE.md), on PATH."""
+    """`controller_node` -> `ft-controller`, `demo` -> `ft-demo` (the README's table), on PATH."""
     declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
     bin_dir = Path(sys.executable).parent
     for pkg in PACKAGES:

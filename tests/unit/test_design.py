@@ -1,4 +1,4 @@
-"""ft_core.design, design7r, multicase and `ft-design`: the design tools of seed 001 ch. 3.
+"""ft_core.design, design7r, multicase and `ft-design`: the design tools of Xie 2019 ch. 3.
 
 Tolerances against the chapter are stated at each check (published entries are rounded
 to 0.01); readings of garbled equations are in the modules' docstrings.
@@ -48,8 +48,8 @@ def test_equal_weights_give_the_canonical_optimal_jacobians() -> None:
         [-math.sqrt(3 / 4), math.sqrt(1 / 12), math.sqrt(1 / 12), math.sqrt(1 / 12)],
         [0, -math.sqrt(2 / 3), math.sqrt(1 / 6), math.sqrt(1 / 6)],
         [0, 0, -math.sqrt(1 / 2), math.sqrt(1 / 2)],
-    ], atol=1e-12)  # seed 002 eq 10
-    canonical = np.zeros((6, 7))  # seed 001 eq 2.6
+    ], atol=1e-12)  # Maciejewski et al. eq 10
+    canonical = np.zeros((6, 7))  # Xie 2019 eq 2.6
     for i in range(1, 7):
         canonical[i - 1, i - 1] = -math.sqrt((7 - i) / (8 - i))
         canonical[i - 1, i:] = math.sqrt(1 / ((7 - i) * (8 - i)))

@@ -198,7 +198,7 @@ def test_a_stall_at_a_joint_limit_is_not_a_lock() -> None:
 def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare() -> None:
     """Only the locked joint commanded: no following joint vouches for the plant.
 
-    The detector declares nothing (seed 002's stuck arm); its candidate flag is what
+    The detector declares nothing (Maciejewski et al.'s stuck arm); its candidate flag is what
     the monitor confirms a task-space suspect with.
     """
     alone = np.zeros(7)

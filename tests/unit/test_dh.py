@@ -1,4 +1,4 @@
-"""ft_core.dh: DH parameters from a Jacobian and the 7! designs of eq 2.7 (seed 001 sec. 2.3).
+"""ft_core.dh: DH parameters from a Jacobian and the 7! designs of eq 2.7 (Xie 2019 sec. 2.3).
 
 Tolerances against the chapter: its numbers are computed from the unrounded J*, the
 code gets the rounded eq 2.7 (entries +-0.005), so printed alphas and a's are met

@@ -309,7 +309,7 @@ def simulate_panda(mode: str) -> dict[str, float]:
     """10 s on the Panda (position task): a 0.1 m vertical circle every 5 s, Euler at 100 Hz.
 
     Also returns the largest excess of the cycle's jump index over least norm's at
-    the same configuration (seed 004 eq 14 says it is never positive for min_jump).
+    the same configuration (Zhao & Li eq 14 says it is never positive for min_jump).
     """
     robot = PANDA_POSITION
     dt = 0.01
@@ -341,7 +341,7 @@ def test_panda_trajectory_max_kfm_and_min_jump_beat_least_norm() -> None:
     max_kfm nearly doubles the mean K of least norm (0.22 against 0.12). min_jump's
     jump index is below least norm's at every configuration it passes (eq 14); its
     mean over the run is lower too, but only just (0.2734 against 0.2737): with four
-    degrees of redundancy least norm is already close to the minimum, as seed 004
+    degrees of redundancy least norm is already close to the minimum, as Zhao & Li
     remarks, and the two modes follow different joint paths.
     """
     runs = {mode: simulate_panda(mode) for mode in ("least_norm", "max_kfm", "min_jump")}

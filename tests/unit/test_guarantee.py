@@ -1,4 +1,4 @@
-"""The guarantee of seed 000: inside a critical point's box, any single lock is survivable.
+"""Lewis & Maciejewski 1997's guarantee: inside a critical point's box, any one lock is survivable.
 
 For critical points of the Panda (position task) and of the PUMA 560, random
 configurations inside the point's bounding box that reach a nearby task point

@@ -10,7 +10,7 @@ from ft_core import measures, robots
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-# Seed 002 eq 10: an optimally failure tolerant 3x4 Jacobian.
+# Maciejewski et al. eq 10: an optimally failure tolerant 3x4 Jacobian.
 EQ10 = np.array([
     [-math.sqrt(3 / 4), math.sqrt(1 / 12), math.sqrt(1 / 12), math.sqrt(1 / 12)],
     [0.0, -math.sqrt(2 / 3), math.sqrt(1 / 6), math.sqrt(1 / 6)],
@@ -30,7 +30,7 @@ def w(A: np.ndarray) -> float:
     return math.sqrt(max(np.linalg.det(A @ A.T), 0.0))
 
 
-def test_seed_002_eq_10_attains_the_bound_of_eq_9() -> None:
+def test_maciejewski_eq_10_attains_the_bound_of_eq_9() -> None:
     sigmas = measures.post_failure_sigmas(EQ10)
     np.testing.assert_allclose(sigmas, 0.5, atol=1e-12)
     assert measures.kfm(EQ10) == pytest.approx(math.sqrt((4 - 3) / 4), abs=1e-12)
@@ -146,7 +146,7 @@ def test_k_never_exceeds_the_isotropic_bound_of_eq_9(n: int, data: st.DataObject
     Q = np.linalg.qr(np.random.default_rng(seed).normal(size=(n, n)))[0]
     J = sigma * Q[:m]
     assert measures.kfm(J) <= sigma * math.sqrt((n - m) / n) + 1e-9
-    # s_i = sigma |n_i| for isotropic J (seed 001 eq 3.27).
+    # s_i = sigma |n_i| for isotropic J (Xie 2019 eq 3.27).
     np.testing.assert_allclose(measures.post_failure_sigmas(J),
                                sigma * measures.relative_manipulability(J), atol=1e-9)
 

@@ -1,4 +1,4 @@
-"""ft_core.parallel: the fast steering mirror of seed 003, Table I."""
+"""ft_core.parallel: the fast steering mirror of Yi et al. 2006, Table I."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from ft_core import measures, parallel
 
-# Four-strut FSM at its home configuration (seed 003, Section IV).
+# Four-strut FSM at its home configuration (Yi et al. 2006, Section IV).
 T = np.array([[0.707, 0, 0.5], [0, 0.707, 0.5], [-0.707, 0, 0.5], [0, -0.707, 0.5]])
 J = np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, 0.5]])
 J_m = J[:2]  # only the rotations about x and y are critical

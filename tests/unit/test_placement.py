@@ -1,9 +1,9 @@
 """`ft-map`: the fault-tolerance map over the workspace and placement suggestions.
 
-Seed 000 sec. II: for the planar 3R with unit links, a point at distance 1 from the
+Lewis & Maciejewski 1997 sec. II: for the planar 3R with unit links, a point at distance 1 from the
 base has a self-motion manifold spanning every joint's full range (normalised box
 volume 1) and a point on the workspace boundary has a single configuration (volume 0).
-Seed 000 sec. III / fig. 7: the PUMA 560 at height 0.5 m, reduced to a few points.
+Lewis & Maciejewski 1997 sec. III / fig. 7: the PUMA 560 at height 0.5 m, reduced to a few points.
 """
 
 from __future__ import annotations
@@ -48,7 +48,8 @@ def test_unit_planar_3r_full_manifold_at_distance_one_and_a_point_at_the_boundar
     q0 = planar.home()
     ring = placement.evaluate_point(planar, np.array([0.6, -0.8]), q0, step=0.05)
     assert ring.reachable and ring.continued
-    assert ring.volume == pytest.approx(1.0)  # every joint turns fully (seed 000 sec. II)
+    # Every joint turns fully (Lewis & Maciejewski 1997 sec. II).
+    assert ring.volume == pytest.approx(1.0)
     assert np.all(np.isinf(ring.lower)) and np.all(np.isinf(ring.upper))
     assert ring.volume_rad == pytest.approx((2 * math.pi) ** 3)
     boundary = placement.evaluate_point(planar, np.array([3.0, 0.0]), q0, step=0.05)
@@ -242,8 +243,8 @@ def test_figures_for_lines_planes_and_volumes(tmp_path: Path, shape: tuple) -> N
 
 
 def test_puma_560_fig_7_reduced(tmp_path: Path) -> None:
-    # Seed 000 fig. 7: distance from joint 1's axis at height 0.5 m; P1 (Table II) at
-    # 0.9 m, with theta1 in [-0.64, 0.27] and theta4 over its whole range.
+    # Lewis & Maciejewski 1997 fig. 7: distance from joint 1's axis at height 0.5 m; P1
+    # (Table II) at 0.9 m, with theta1 in [-0.64, 0.27] and theta4 over its whole range.
     status, prefix = run(tmp_path, "--robot", "puma560", "--x", "0.1:0.9:2", "--y", "0",
                          "--z", "0.5", "--joints", "1,2,3,4,5", "--no-plot")
     assert status == 0

@@ -1,4 +1,4 @@
-"""Probability of task failure and the planner of seed 001 ch. 4 (ft_core.reliability, planning).
+"""Probability of task failure and the planner of Xie 2019 ch. 4 (ft_core.reliability, planning).
 
 The chapter's examples are a planar 2R arm of which only the end effector's x is
 controlled (sec. 4.4: one degree of redundancy). Its manifolds are written here in

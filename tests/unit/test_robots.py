@@ -94,7 +94,7 @@ def test_planar3r_is_the_unit_link_arm() -> None:
     assert robot.reach == pytest.approx(3.0)
 
 
-def test_puma560_follows_table_i_of_seed_000() -> None:
+def test_puma560_follows_table_i_of_lewis_and_maciejewski() -> None:
     robot = robots.load("puma560")
     rows = [(0.0, 0.0, -np.pi / 2), (0.432, 0.149, 0.0), (0.0, 0.0, np.pi / 2),
             (0.0, 0.433, -np.pi / 2), (0.0, 0.0, np.pi / 2), (0.0, 0.392, 0.0)]

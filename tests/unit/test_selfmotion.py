@@ -41,7 +41,7 @@ def brute_force_box(links: int, radius: float, grid: int = 1601) -> tuple[np.nda
 
 
 def test_point_one_link_from_the_base_spans_every_joints_full_range() -> None:
-    target = np.array([0.6, 0.8])  # distance 1 (seed 000 sec. II)
+    target = np.array([0.6, 0.8])  # distance 1 (Lewis & Maciejewski 1997 sec. II)
     manifold = selfmotion.trace(PLANAR, target, np.array([0.5, 1.5, 1.5]))
     assert manifold.method == "curve" and manifold.closed
     lower, upper = manifold.box
@@ -186,13 +186,13 @@ def test_intersection_volume_and_reachability() -> None:
         pytest.approx(1 / 8))
 
 
-#: Seed 000 Table II, point P1: (min, max) of joints 1-5 (rad) and volume (rad^5).
+#: Lewis & Maciejewski 1997 Table II, point P1: (min, max) of joints 1-5 (rad) and volume (rad^5).
 TABLE_II_P1 = [(-0.64, 0.27), (-0.98, 0.75), (0.06, 3.53), (-1.89, 2.94), (-1.72, 1.72)]
 TABLE_II_P1_VOLUME = 91.0
 
 
 def test_puma_first_task_point_compared_with_table_ii() -> None:
-    """PUMA 560 at P1: 0.9 m from the first joint axis, 0.5 m high (seed 000 sec. V).
+    """PUMA 560 at P1: 0.9 m from joint 1's axis, 0.5 m high (Lewis & Maciejewski 1997 sec. V).
 
     As in the paper, joint 6 is held (the tool point lies on its axis), leaving the
     2-D self-motion surface of joints 1-5, traced with the spiral. The paper does

@@ -1,4 +1,4 @@
-"""Issue 16, part 3 (in part): the swing angles and measure of seed 002 eqs 11-14."""
+"""Issue 16, part 3 (in part): the swing angles and measure of Maciejewski et al. eqs 11-14."""
 
 from __future__ import annotations
 
@@ -101,7 +101,7 @@ def test_on_the_real_world_panda_descent_reduces_the_swings() -> None:
 
 
 def test_the_engine_descends_the_swing_measure_in_the_null_space() -> None:
-    """`swing_gain` (seed 002: grad h in eq 3): with the tool held still, h falls.
+    """`swing_gain` (Maciejewski et al.: grad h in eq 3): with the tool held still, h falls.
 
     The tool stays where it was, to the integration error of 0.4 s at 4 ms.
     """

@@ -1,4 +1,4 @@
-"""Issue 16, part 2: undetected locks (seed 002 Theorem 1) and the task-space channel."""
+"""Issue 16, part 2: undetected locks (Maciejewski et al. Theorem 1) and the task-space channel."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from models import DT, PLANAR, pseudoinverse_control
 
 
 def test_theorem_1_an_undetected_lock_of_joint_2_still_converges() -> None:
-    """Seed 002 fig. 3: from x_i = (2, -1.4) to x_d = (1.5, 1.5) with joint 2 locked."""
+    """Maciejewski et al. fig. 3: from x_i = (2, -1.4) to x_d = (1.5, 1.5) with joint 2 locked."""
     q0 = selfmotion.find_seed(PLANAR, np.array([2.0, -1.4]), np.array([-0.48, -0.97, 1.51]))
     q, _, _, suspected = pseudoinverse_control(q0, np.array([1.5, 1.5]), locked=1)
     assert np.linalg.norm(PLANAR.forward(q) - [1.5, 1.5]) < 1e-3
@@ -18,7 +18,7 @@ def test_theorem_1_an_undetected_lock_of_joint_2_still_converges() -> None:
 
 
 def test_theorem_1_an_undetected_lock_of_joint_1_converges_wrongly_and_is_caught() -> None:
-    """Seed 002 fig. 4: from x_i = (-0.9, 1.8) with joint 1 locked.
+    """Maciejewski et al. fig. 4: from x_i = (-0.9, 1.8) with joint 1 locked.
 
     The arm stops far from x_d = (1.5, 1.5), which the crippled arm could reach, where
     the reduced Jacobian [j2 j3] is rank deficient and all the commanded motion is on

@@ -1,4 +1,4 @@
-"""Minimum joint-velocity jump (seed 004) and its planar 3R simulation."""
+"""Minimum joint-velocity jump (Zhao & Li) and its planar 3R simulation."""
 
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ def test_only_joint_k_may_fail_so_it_stays_still(k: int) -> None:
     p = np.zeros(4)
     p[k] = 1.0
     qd = velocity_jump.min_jump_velocity(J, xd, p)
-    assert qd[k] == pytest.approx(0.0, abs=1e-10)  # seed 004 eq 8
+    assert qd[k] == pytest.approx(0.0, abs=1e-10)  # Zhao & Li eq 8
     np.testing.assert_allclose(J @ qd, xd, atol=1e-10)
     assert velocity_jump.jump_index(J, qd, xd, p) == pytest.approx(0.0, abs=1e-18)
 
@@ -79,7 +79,7 @@ def test_bad_task_velocities_are_rejected() -> None:
 
 
 def simulate_004(resolution_mode: str, probabilities: tuple = ()) -> dict[str, float]:
-    """Seed 004 sec. IV-A: 1 s circle at 1 ms from X = [0.35, 0]; mean indexes over the run."""
+    """Zhao & Li sec. IV-A: 1 s circle at 1 ms from X = [0.35, 0]; mean indexes over the run."""
     arm = planar_arm([0.5, 0.5, 0.5], velocity=50.0)
     q = START_004.copy()
     config = EngineConfig(resolution=resolution_mode, dt=0.001, kfm_gain=5.0, limit_gain=0.0,
@@ -110,8 +110,8 @@ def test_start_configuration_reaches_the_papers_start_point() -> None:
     np.testing.assert_allclose(arm.forward(START_004), [0.35, 0.0], atol=1e-6)
 
 
-def test_seed_004_planar_3r_all_joints_may_fail() -> None:
-    """All three joints may fail (seed 004 Fig. 2), max_kfm standing in for the paper's MDA.
+def test_zhao_li_planar_3r_all_joints_may_fail() -> None:
+    """All three joints may fail (Zhao & Li Fig. 2), max_kfm standing in for the paper's MDA.
 
     Holds, as in the paper: minimum jump has the lowest mean jump index and max_kfm
     the highest, least norm in the middle and close to minimum jump; on the reduced
@@ -125,8 +125,8 @@ def test_seed_004_planar_3r_all_joints_may_fail() -> None:
     assert runs["max_kfm"]["rcn"] < runs["least_norm"]["rcn"] < runs["min_jump"]["rcn"]
 
 
-def test_seed_004_planar_3r_only_joints_2_and_3_may_fail() -> None:
-    """Only joints 2 and 3 may fail (seed 004 Fig. 4).
+def test_zhao_li_planar_3r_only_joints_2_and_3_may_fail() -> None:
+    """Only joints 2 and 3 may fail (Zhao & Li Fig. 4).
 
     Holds, as in the paper: minimum jump's advantage in the jump index is larger
     than with all joints (here its mean is under 70 % of least norm's) while the

@@ -4,10 +4,10 @@ Modules:
     robots: URDF chains through Pinocchio, forward kinematics, Jacobians and their derivatives.
     measures: post-failure singular values, kfm, weighted and relative measures.
     design: optimally fault tolerant null vectors and isotropic Jacobians.
-    parallel: failure-tolerance measures of parallel manipulators (seed 003).
+    parallel: failure-tolerance measures of parallel manipulators (Yi et al. 2006).
     pseudoinverse: damped pseudo-inverse acting only near singularities.
     postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
-    velocity_jump: minimum joint-velocity jump (seed 004).
+    velocity_jump: minimum joint-velocity jump (Zhao & Li).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
     controller: the controller's per-cycle logic around the engine (targets, soft-limit

@@ -8,7 +8,7 @@ chosen (`selfmotion.points_around`) and printed. For each critical point it trac
 self-motion manifold (from a configuration that reaches the point, found from `--seed`,
 else the built-in's home or, for other arms, `selfmotion.bent_configuration`), prints
 the point's bounding box and normalised volume, then the intersection of the boxes and
-whether every point is still reachable inside it (seed 000 sec. III, steps 3-5). On
+whether every point is still reachable inside it (Lewis & Maciejewski 1997 sec. III, steps 3-5). On
 success it writes a ROS 2 parameters file that the controller accepts
 (`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with the model
 selection), for every node (`/**`).
@@ -146,8 +146,9 @@ def main(argv: list[str] | None = None) -> int:
               "them all from one posture", file=sys.stderr)
         return 4
     print("every point is reachable inside the intersection")
-    args.output.write_text("# Soft limits from ft-bounds (seed 000 sec. III).\n" + yaml.safe_dump(
-        parameters(args, lower, upper, flat), sort_keys=False))
+    header = "# Soft limits from ft-bounds (Lewis & Maciejewski 1997 sec. III).\n"
+    args.output.write_text(header + yaml.safe_dump(parameters(args, lower, upper, flat),
+                                                   sort_keys=False))
     print(f"wrote {args.output}")
     return 0
 

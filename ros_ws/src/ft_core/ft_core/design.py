@@ -1,11 +1,11 @@
-"""Design tools: optimally fault tolerant null spaces and Jacobians (seed 001, ch. 2-3).
+"""Design tools: optimally fault tolerant null spaces and Jacobians (Xie 2019, ch. 2-3).
 
-Given failure probabilities p (weights w = p / sum p, seed 001 eq 3.4), the
+Given failure probabilities p (weights w = p / sum p, Xie 2019 eq 3.4), the
 isotropic Jacobian that maximises the weighted fault tolerance F_w has a null
 vector with |n_i| = w_i / |w| (eq 3.15); its post-failure singular values are then
 s_i = sigma |n_i| (eq 3.12). `optimal_jacobian` builds it with the triangular
 construction of eq 3.18, which for equal weights is the canonical optimal
-Jacobian (seed 001 eq 2.6, seed 002 eq 10). `redundant_optimal_jacobian` extends it
+Jacobian (Xie 2019 eq 2.6, Maciejewski et al. eq 10). `redundant_optimal_jacobian` extends it
 to several degrees of redundancy (eqs 3.26-3.29).
 
 The command line `ft-design` (`main`) runs these and the tools of `ft_core.dh`
@@ -29,14 +29,14 @@ from ft_core.measures import failure_weights
 
 
 def optimal_null_vector(probabilities: Iterable[float]) -> np.ndarray:
-    """Unit null vector with |n_i| = w_i / |w| (seed 001 eq 3.15), entries >= 0."""
+    """Unit null vector with |n_i| = w_i / |w| (Xie 2019 eq 3.15), entries >= 0."""
     p = np.asarray(list(probabilities), dtype=float)
     w = failure_weights(p, p.size)
     return w / np.linalg.norm(w)
 
 
 def optimal_null_space_norms(probabilities: Iterable[float], m: int) -> np.ndarray:
-    """Row norms |n_i| of an optimal orthonormal null-space basis (seed 001 eq 3.29).
+    """Row norms |n_i| of an optimal orthonormal null-space basis (Xie 2019 eq 3.29).
 
     |n_i| = w_i sqrt((n - m) / sum w^2), capped at 1; as the text after eq 3.29
     says, a capped row keeps norm 1 and the others share the remaining n - m - k
@@ -63,7 +63,7 @@ def optimal_null_space_norms(probabilities: Iterable[float], m: int) -> np.ndarr
 def optimal_jacobian(probabilities: Iterable[float], m: int) -> np.ndarray:
     """Isotropic m x n Jacobian (singular value 1) with null vector w / |w| (m = n - 1).
 
-    Seed 001 eq 3.18: sort the weights ascending, fill the upper-triangular form
+    Xie 2019 eq 3.18: sort the weights ascending, fill the upper-triangular form
     j_pp = -sqrt(S_{p+1} / S_p), j_pq = w_p w_q / sqrt(S_p S_{p+1}) (q > p) with
     S_p = sum_{i >= p} w_i^2, then permute the columns back.
     """
@@ -149,7 +149,7 @@ def redundant_optimal_jacobian(probabilities: Iterable[float], m: int,
                                sigma: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Isotropic m x n Jacobian maximising F_w with n - m >= 1 degrees of redundancy.
 
-    Seed 001 eqs 3.25-3.29: J = sigma U_1 with U = [U_1; U_2] orthogonal, and the
+    Xie 2019 eqs 3.25-3.29: J = sigma U_1 with U = [U_1; U_2] orthogonal, and the
     post-failure singular values are sigma |n_i| (eq 3.27) with |n_i| the row norms
     of the null-space basis U_2^T, so the optimum has the norms of eq 3.29
     (`optimal_null_space_norms`). A null-space basis with those row norms is built
@@ -405,7 +405,7 @@ def _probabilities(text: str) -> list[float]:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="ft-design", description="Design tools of seed 001 ch. 2-3: DH parameters and the"
+        prog="ft-design", description="Design tools of Xie 2019 ch. 2-3: DH parameters and the"
         " 7! designs, 7R-realisable optima, several degrees of redundancy, eq 3.30.")
     commands = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)

@@ -1,4 +1,4 @@
-"""Optimally fault tolerant Jacobians a 7R arm can realise (seed 001 sec. 3.3.5, eqs 3.20-3.24).
+"""Optimally fault tolerant Jacobians a 7R arm can realise (Xie 2019 sec. 3.3.5, eqs 3.20-3.24).
 
 A revolute column is j_i = [v_i; w_i] with |w_i| = 1 and v_i perpendicular to w_i
 (eq 3.20); eq 3.22 writes it with three angles (alpha_i, beta_i, gamma_i) and |v_i|.
@@ -33,7 +33,7 @@ from ft_core.measures import failure_weights, null_space_basis
 N_JOINTS = 7
 SIGMA = float(np.sqrt(7.0 / 3.0))  # singular value of the isotropic 6 x 7 Jacobian (eq 3.21)
 
-# Seed 001 eq 3.24 (rounded to 0.01 in the text) and its weights (footnote 5 reading).
+# Xie 2019 eq 3.24 (rounded to 0.01 in the text) and its weights (footnote 5 reading).
 J_324 = np.array([
     [-0.38, -1.02, 0.52, -0.39, -0.10, 0.48, 0.69],
     [0.04, -0.30, 0.39, 0.79, -0.70, 0.59, -0.79],

@@ -1,4 +1,4 @@
-"""Locked-joint detection against an identified model of the plant (shared/MATH.md, Detection).
+"""Locked-joint detection against an identified model of the plant (docs/detection.md).
 
 **Plant model.** A velocity command u(t) takes effect after a latency L and is
 followed through a first-order lag of time constant T (the driver's velocity loop):
@@ -39,7 +39,7 @@ identification the best model is only a guess). A joint is
   max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
   [min(0, p_min), max(0, p_max)] over the plausible predictions p: at rest while
   commanded to stay, against its command, or well beyond it. Held for `persistence` s
-  (with no plant fault), the joint is declared free-swinging (seed 002: a joint that
+  (with no plant fault), the joint is declared free-swinging (Maciejewski et al.: a joint that
   lost its torque moves under gravity), reported in `swinging`, never as a lock. A
   free-swinging joint moving against its command passes through a stall, so it may
   first be declared locked: a locked joint (declared, restored or detected) that then

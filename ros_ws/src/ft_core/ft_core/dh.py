@@ -1,6 +1,6 @@
-"""DH parameters from a Jacobian and the 7! designs of one optimal Jacobian (seed 001 ch. 2).
+"""DH parameters from a Jacobian and the 7! designs of one optimal Jacobian (Xie 2019 ch. 2).
 
-A revolute joint contributes the Jacobian column j_i = [z x p; z] (seed 001 eq 2.8,
+A revolute joint contributes the Jacobian column j_i = [z x p; z] (Xie 2019 eq 2.8,
 eq 3.20): z the unit axis, p the vector from a point of the axis to the tool point.
 With the tool point at the origin the axis is the line through r = z x v (|z| = 1,
 v perpendicular to z), so a Jacobian fixes every joint axis, and the Denavit-Hartenberg
@@ -28,7 +28,7 @@ Readings taken where the chapter leaves a choice (docstrings say which):
 - The base frame is arbitrary: x_0 = x_1 and its origin on the foot of x_1, so
   d_1 = theta_1 = 0. The tool frame takes alpha_n = 0 and x_n from the last axis
   towards the tool point, so a_n is the distance of the last axis from the tool
-  point (1 at an optimal 7R design; [35] in seed 001 sets alpha_7 = 0, a_7 = 1).
+  point (1 at an optimal 7R design; [35] in Xie 2019 sets alpha_7 = 0, a_7 = 1).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ import numpy as np
 
 from ft_core.measures import as_matrix
 
-# Seed 001 eq 2.7: the realisable 7R Jacobian closest to optimally fault tolerant
+# Xie 2019 eq 2.7: the realisable 7R Jacobian closest to optimally fault tolerant
 # (entries rounded to 0.01 in the text; rows vx, vy, vz, wx, wy, wz).
 J_STAR = np.array([
     [1, 0.43, 0.75, -0.54, 0.14, 0.33, -0.38],
@@ -266,7 +266,7 @@ def planar_links_from_jacobian(J: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class PermutationFamily:
-    """The n! column orders of one Jacobian, organised as in seed 001 sec. 2.3.
+    """The n! column orders of one Jacobian, organised as in Xie 2019 sec. 2.3.
 
     Attributes:
         pairs: the C(n, 2) unordered column pairs (i, k), i < k (0-based).
@@ -333,7 +333,7 @@ class PermutationFamily:
 def organise_permutations(J: np.ndarray, tolerance: float = 0.05) -> PermutationFamily:
     """Tabulate the {alpha, a} pairs and {d, theta} triples of every column order of J.
 
-    Seed 001 sec. 2.3: the pair table is computed once per unordered column pair and
+    Xie 2019 sec. 2.3: the pair table is computed once per unordered column pair and
     the triple table once per ordered triple; every design is a row of indices into
     them. `verify_family` recomputes designs from their own axes to check the tables.
 

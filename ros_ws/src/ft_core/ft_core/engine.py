@@ -1,25 +1,24 @@
 """One control cycle of fault-tolerant redundancy resolution.
 
 `ResolutionEngine.step(q, xd, locked)` turns joint positions, a desired task
-velocity and the set of locked joints into joint velocities (shared/MATH.md,
-Redundancy resolution):
+velocity and the set of locked joints into joint velocities (docs/engine.md):
 
-    qd = J# xd + (I - J# J) z            (seed 000 eq 4, seed 002 eq 3)
+    qd = J# xd + (I - J# J) z            (Lewis & Maciejewski 1997 eq 4, Maciejewski et al. eq 3)
 
 on the reduced robot (the Jacobian columns of locked joints removed; their
 velocity is exactly 0). J# is the damped pseudo-inverse of `pseudoinverse`;
 singular values are compared on `Robot.scale_task(J)` (angular rows times the
 characteristic length). The null-space preference z sums, by `resolution`:
 
-- `max_kfm` and `blend`: kfm_gain * grad K (seed 002 eq 8, soft-min remedy for
+- `max_kfm` and `blend`: kfm_gain * grad K (Maciejewski et al. eq 8, soft-min remedy for
   ties, see `measures.kfm_gradient`), or the gradient of the failure-probability
-  weighted measure F_w (seed 001 eq 3.3) when probabilities are given;
-- `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (seed 004 eq 5; gain 1 is
+  weighted measure F_w (Xie 2019 eq 3.3) when probabilities are given;
+- `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (Zhao & Li eq 5; gain 1 is
   the exact minimum-jump solution);
 - always, when a box applies: limit_gain * `limits.avoidance` away from the edges
   of the effective box (soft limits intersected with the URDF limits);
 - in every mode, when swing_gain > 0: -swing_gain * grad h, descent on the swing
-  measure of free-swinging failures (`swing`, seed 002 eq 14 used in eq 3 as the
+  measure of free-swinging failures (`swing`, Maciejewski et al. eq 14 used in eq 3 as the
   paper proposes; zero for a URDF without inertias). About 0.6 ms a cycle on 7
   joints (numpy over every joint pair, not compiled): off by default.
 
@@ -191,7 +190,7 @@ BOX_ROWS = ("lower", "upper", "velocity", "weights")
 @njit(cache=True, error_model="numpy")
 def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
                 weights: np.ndarray) -> float:
-    """The weighted jump index n sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2, seed 004 eq 9)."""
+    """The weighted jump index n sum_i w_i |scale iqd' - qd|^2 (rad^2/s^2, Zhao & Li eq 9)."""
     n = qd.size
     total = 0.0
     for i in range(n):

@@ -4,7 +4,7 @@
   [lower, upper] and within the velocity limits. A joint already outside (or on)
   a limit may stay or move back, never further out, so 0 is always allowed.
 - `avoidance`: a null-space preference pushing joints away from the edges of a box
-  (the bounding-box soft limits of seed 000 sec. III, smooth functions): exactly 0
+  (the bounding-box soft limits of Lewis & Maciejewski 1997 sec. III, smooth functions): exactly 0
   more than `buffer` away from an edge, growing quadratically (C1) inside it.
 - `saturate_in_null_space`: Saturation in the Null Space (Flacco, De Luca and
   Khatib, ICRA 2012, Algorithm 1): joints that would break their bounds are held

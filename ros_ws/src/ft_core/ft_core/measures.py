@@ -2,7 +2,7 @@
 
 Every function takes a plain m x n matrix J (no robot needed) and the indices of
 joints already locked (`locked`). Locking joint i removes column i of J; here it
-is zeroed, which leaves the nonzero singular values unchanged (seed 002, eq 5).
+is zeroed, which leaves the nonzero singular values unchanged (Maciejewski et al., eq 5).
 All post-failure Jacobians are decomposed in one batched SVD.
 
 For a pose task, pass `Robot.scale_task(J)` so that angular rows are in m/s.
@@ -83,7 +83,7 @@ def post_failure_singular_values(J: np.ndarray, locked: Iterable[int] = ()) -> n
 
 
 def post_failure_sigmas(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
-    """s_i = sigma_m(J without columns locked + {i}) for every joint i (seed 002 eq 6).
+    """s_i = sigma_m(J without columns locked + {i}) for every joint i (Maciejewski et al. eq 6).
 
     Returns an (n,) array; nan for joints in `locked`.
     """
@@ -91,7 +91,9 @@ def post_failure_sigmas(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray
 
 
 def kfm(J: np.ndarray, locked: Iterable[int] = ()) -> float:
-    """Worst-case fault tolerance K = min_i s_i over healthy joints (seed 000 eq 5, 002 eq 6).
+    """Worst-case fault tolerance K = min_i s_i over healthy joints.
+
+    Lewis & Maciejewski 1997 eq 5, Maciejewski et al. eq 6.
 
     0 when no healthy joint is left.
     """
@@ -102,7 +104,7 @@ def kfm(J: np.ndarray, locked: Iterable[int] = ()) -> float:
 
 def failure_weights(probabilities: Iterable[float] | None, n: int,
                     locked: Iterable[int] = ()) -> np.ndarray:
-    """Weights w_i = p_i / sum(p) over healthy joints (seed 001 eq 3.4); 0 for locked joints.
+    """Weights w_i = p_i / sum(p) over healthy joints (Xie 2019 eq 3.4); 0 for locked joints.
 
     `probabilities=None` (or empty) means equally likely failures. Raises ValueError
     for a wrong length, negative or non-finite entries, or no positive weight left.
@@ -123,7 +125,7 @@ def failure_weights(probabilities: Iterable[float] | None, n: int,
 
 def weighted_fault_tolerance(J: np.ndarray, probabilities: Iterable[float] | None,
                              locked: Iterable[int] = ()) -> float:
-    """F_w = sum_i w_i s_i with w from the failure probabilities (seed 001 eqs 3.3-3.4)."""
+    """F_w = sum_i w_i s_i with w from the failure probabilities (Xie 2019 eqs 3.3-3.4)."""
     J = as_matrix(J)
     w = failure_weights(probabilities, J.shape[1], locked)
     sigmas = np.nan_to_num(post_failure_sigmas(J, locked))
@@ -133,8 +135,8 @@ def weighted_fault_tolerance(J: np.ndarray, probabilities: Iterable[float] | Non
 def manipulability(A: np.ndarray) -> float:
     """Manipulability w(A) = max(sqrt(det(A A^T)), sqrt(det(A^T A))).
 
-    The product of the min(rows, cols) singular values (seed 003, after eq 8;
-    seed 001 eq 2.10).
+    The product of the min(rows, cols) singular values (Yi et al. 2006, after eq 8;
+    Xie 2019 eq 2.10).
     """
     return float(np.prod(np.linalg.svd(as_matrix(A), compute_uv=False)))
 
@@ -152,10 +154,10 @@ def null_space_basis(A: np.ndarray) -> np.ndarray:
 
 
 def relative_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
-    """rho_i = w(iJ) / w(J) with w(A) = sqrt(det(A A^T)) (seed 003 eqs 8-10, T = I).
+    """rho_i = w(iJ) / w(J) with w(A) = sqrt(det(A A^T)) (Yi et al. 2006 eqs 8-10, T = I).
 
     Computed as the norm of row i of an orthonormal null-space basis of the healthy
-    columns (seed 003 eq 10; seed 001 eq 3.26), which equals the ratio wherever J
+    columns (Yi et al. 2006 eq 10; Xie 2019 eq 3.26), which equals the ratio wherever J
     has full row rank and is its continuous extension elsewhere. nan for locked joints.
     """
     J = as_matrix(J)
@@ -166,7 +168,7 @@ def relative_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> np.nda
 
 
 def reduced_condition_numbers(J: np.ndarray, locked: Iterable[int] = ()) -> np.ndarray:
-    """k_i = sigma_1(iJ) / sigma_m(iJ) for every joint (seed 004 eq 15); inf when singular."""
+    """k_i = sigma_1(iJ) / sigma_m(iJ) for every joint (Zhao & Li eq 15); inf when singular."""
     values = post_failure_singular_values(J, locked)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = values[:, 0] / values[:, -1]
@@ -175,7 +177,7 @@ def reduced_condition_numbers(J: np.ndarray, locked: Iterable[int] = ()) -> np.n
 
 
 def worst_case_inverse_condition(J: np.ndarray, locked: Iterable[int] = ()) -> float:
-    """min_f sigma_m(fJ) / sigma_1(fJ): reciprocal of kappa* of seed 001 eq 2.11 (0 to 1)."""
+    """min_f sigma_m(fJ) / sigma_1(fJ): reciprocal of kappa* of Xie 2019 eq 2.11 (0 to 1)."""
     values = post_failure_singular_values(J, locked)
     healthy = values[~np.isnan(values[:, 0])]
     if not healthy.size:
@@ -186,7 +188,7 @@ def worst_case_inverse_condition(J: np.ndarray, locked: Iterable[int] = ()) -> f
 
 
 def worst_case_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> float:
-    """w* = min_f w(fJ), the product of the m post-failure singular values (seed 001 eq 2.12)."""
+    """w* = min_f w(fJ), the product of the m post-failure singular values (Xie 2019 eq 2.12)."""
     values = post_failure_singular_values(J, locked)
     healthy = values[~np.isnan(values[:, 0])]
     return float(np.prod(healthy, axis=1).min()) if healthy.size else 0.0
@@ -194,7 +196,9 @@ def worst_case_manipulability(J: np.ndarray, locked: Iterable[int] = ()) -> floa
 
 def sigma_gradients(U: np.ndarray, Vt: np.ndarray, dJ: np.ndarray,
                     locked: np.ndarray) -> np.ndarray:
-    """G[i, k] = ds_i/dq_k = u_i^T (d iJ/dq_k) v_i from a `post_failure_svd` (seed 002 eq 8).
+    """G[i, k] = ds_i/dq_k = u_i^T (d iJ/dq_k) v_i from a `post_failure_svd`.
+
+    Maciejewski et al. eq 8.
 
     `locked` is the boolean mask of joints already removed; dJ is (n, m, n).
     """
@@ -208,7 +212,7 @@ def sigma_gradients(U: np.ndarray, Vt: np.ndarray, dJ: np.ndarray,
 
 def post_failure_sigma_gradients(J: np.ndarray, dJ: np.ndarray,
                                  locked: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
-    """Post-failure singular values s_i and their gradients ds_i/dq_k (seed 002 eqs 7-8).
+    """Post-failure singular values s_i and their gradients ds_i/dq_k (Maciejewski et al. eqs 7-8).
 
     Args:
         J: m x n Jacobian (m <= n).
@@ -257,11 +261,11 @@ def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
     """Weights (n,) such that grad K = weights @ G; 0 for nan (locked) entries.
 
     K = min_i s_i is not differentiable where two joints tie for the minimum
-    (seed 002 footnote 2). Remedy taken here: with `temperature` tau > 0 the
+    (Maciejewski et al. footnote 2). Remedy taken here: with `temperature` tau > 0 the
     weights are softmax(-s_i / tau), the exact gradient of `soft_kfm`, which blends
     the joints within a few tau of the minimum so the ascent direction changes
     continuously when the minimising joint changes. With tau = 0 all weight goes to
-    the (first) minimising joint: seed 002 eq 8. Compiled (numba): the engine's
+    the (first) minimising joint: Maciejewski et al. eq 8. Compiled (numba): the engine's
     cycle calls it.
     """
     weights = np.zeros(sigmas.size)
@@ -282,7 +286,7 @@ def kfm_weights(sigmas: np.ndarray, temperature: float = 0.0) -> np.ndarray:
 
 def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),
                  temperature: float = 0.0) -> np.ndarray:
-    """Gradient of K over q (n,), zero for locked joints (seed 002 eq 8; `kfm_weights`)."""
+    """Gradient of K over q (n,), 0 for locked joints (Maciejewski et al. eq 8; `kfm_weights`)."""
     sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
     return (kfm_weights(sigmas, temperature) @ np.nan_to_num(grads)) * ~np.isnan(sigmas)
 
@@ -290,7 +294,10 @@ def kfm_gradient(J: np.ndarray, dJ: np.ndarray, locked: Iterable[int] = (),
 def weighted_fault_tolerance_gradient(J: np.ndarray, dJ: np.ndarray,
                                       probabilities: Iterable[float] | None,
                                       locked: Iterable[int] = ()) -> np.ndarray:
-    """Gradient of F_w = sum_i w_i s_i over q (n,), 0 for locked joints (001 eq 3.3, 002 eq 8)."""
+    """Gradient of F_w = sum_i w_i s_i over q (n,), 0 for locked joints.
+
+    Xie 2019 eq 3.3, Maciejewski et al. eq 8.
+    """
     sigmas, grads = post_failure_sigma_gradients(J, dJ, locked)
     weights = failure_weights(probabilities, sigmas.size, locked)
     return (weights @ np.nan_to_num(grads)) * ~np.isnan(sigmas)

@@ -1,4 +1,4 @@
-"""Design for several cases of failure probabilities: planar 3R (seed 001 sec. 3.4, eq 3.30).
+"""Design for several cases of failure probabilities: planar 3R (Xie 2019 sec. 3.4, eq 3.30).
 
 The objective of eq 3.30 for an n-joint arm of total length 1,
 

@@ -1,6 +1,6 @@
 """Observability motion: null-space excursions that let a lock on an idle joint show up.
 
-Nothing can be detected for a joint that is not commanded (MATH.md, Detection): in a
+Nothing can be detected for a joint that is not commanded (docs/detection.md): in a
 Panda position task the tool point lies on joint 7's axis, so joint 7 is never
 commanded and its lock goes unseen until the task changes, and then the controller
 commands a joint that cannot move. With this option the controller gives each joint

@@ -1,4 +1,4 @@
-"""Failure-tolerance measures of parallel manipulators (Yi, McInroy and Chen, seed 003).
+"""Failure-tolerance measures of parallel manipulators (Yi, McInroy and Chen, Yi et al. 2006).
 
 A parallel manipulator's actuator velocities are theta_a = T theta'_a (eq 2) with T
 an N x n matrix of orthonormal columns, and its task velocity v_m = J_m theta'_a
@@ -23,7 +23,7 @@ def _rows(T: np.ndarray, indices: Iterable[int]) -> np.ndarray:
 
 
 def position_failure_measure(T: np.ndarray, J_m: np.ndarray, failed: Iterable[int]) -> float:
-    """Position-failure measure p = w((T N)_failed) / w(T_failed) (seed 003 eq 9).
+    """Position-failure measure p = w((T N)_failed) / w(T_failed) (Yi et al. 2006 eq 9).
 
     The failed actuators are stuck in place.
     N is an orthonormal basis of the null space of the major-task Jacobian J_m.
@@ -41,7 +41,7 @@ def position_failure_measure(T: np.ndarray, J_m: np.ndarray, failed: Iterable[in
 
 
 def torque_failure_measure(T: np.ndarray, failed: Iterable[int]) -> float:
-    """Torque-failure measure t = w(T_r) (seed 003 eq 14).
+    """Torque-failure measure t = w(T_r) (Yi et al. 2006 eq 14).
 
     T_r holds the rows of T of the remaining actuators.
     """

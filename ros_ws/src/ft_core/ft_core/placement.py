@@ -6,7 +6,7 @@
 
 (A range that starts with a minus sign needs the `=` form: `--y=-0.3:0.3:13`.)
 
-Seed 000 sec. III, steps 1-2 (and fig. 7): the size of a task point's self-motion
+Lewis & Maciejewski 1997 sec. III, steps 1-2 (and fig. 7): the size of a task point's self-motion
 manifold says how fault tolerant the point is, so a critical task is best placed
 where that size is large. For every point of a grid of task positions (a line, a
 plane or a volume: each of `--x`, `--y` (and `--z`) is a value or a range
@@ -23,12 +23,12 @@ plane or a volume: each of `--x`, `--y` (and `--z`) is a value or a range
 2. traces the connected component of the self-motion manifold through that seed
    (`selfmotion.trace`) and takes its bounding box;
 3. records the box's normalised volume over `--joints` (each side divided by its
-   joint's range, so 1 is the whole joint space) and its volume in rad^k (seed 000
-   Table II), the local measure kfm (seed 000 eq 5, with `Robot.scale_task`) at the
+   joint's range, so 1 is the whole joint space) and its volume in rad^k (Lewis & Maciejewski 1997
+   Table II), the local measure kfm (Lewis & Maciejewski 1997 eq 5, with `Robot.scale_task`) at the
    seed, and the largest kfm over at most `KFM_SAMPLES` samples of the component;
 4. with `--restarts K`, traces up to K further components from seeded random
    configurations and records the largest volume of all of them (`best_volume`):
-   seed 000 traces one component per point, and which one depends on the seed.
+   Lewis & Maciejewski 1997 traces one component per point, and which one depends on the seed.
 
 Grid points are shared among `--jobs` worker processes (default: every core),
 started with the "spawn" method; each builds its own robot from the model arguments.
@@ -36,7 +36,7 @@ started with the "spawn" method; each builds its own robot from the model argume
 `--suggest "dx,dy(,dz);..."` takes critical points as offsets from a reference point
 (a rigid set, translated but not rotated): the grid then holds placements of the
 reference, every critical point is evaluated at each placement, and a placement's
-score is the normalised volume of the intersection of the points' boxes (seed 000
+score is the normalised volume of the intersection of the points' boxes (Lewis & Maciejewski 1997
 sec. III, steps 3-4; 0 when it is empty or a point is out of reach). The `--top`
 best placements are checked as step 5 asks (every point reachable inside the
 intersection, `selfmotion.reachability`) and the best that passes is suggested, with
@@ -95,7 +95,7 @@ class PointResult:
         volume_rad: the same box's volume in rad^k (k chosen joints; m for prismatic).
         best_volume: largest normalised volume over the traced components (restarts).
         components: components traced (1 + distinct restarts; 0 if unreachable).
-        kfm: kfm (seed 000 eq 5) at the seed, m/rad (scaled task rows).
+        kfm: kfm (Lewis & Maciejewski 1997 eq 5) at the seed, m/rad (scaled task rows).
         kfm_max: largest kfm over at most `KFM_SAMPLES` samples of the component.
         seed: the seed configuration (n,), rad.
         q_kfm: the sample where kfm_max was found (n,), rad.
@@ -125,7 +125,7 @@ class PointResult:
 
 
 def kfm_of(robot: robots.Robot, q: np.ndarray) -> float:
-    """kfm(q) = min_i sigma_m(iJ) (seed 000 eq 5) of the task-scaled Jacobian, m/rad."""
+    """kfm(q) = min_i sigma_m(iJ) of the task-scaled J (Lewis & Maciejewski 1997 eq 5), m/rad."""
     return measures.kfm(robot.scale_task(robot.jacobian(q)))
 
 
@@ -370,7 +370,7 @@ def collect(results: Sequence[PointResult], placements: int, points: int) -> dic
 def scores(robot: robots.Robot, data: dict, joints: Sequence[int] | None) -> np.ndarray:
     """Per placement: normalised volume of the intersection of its points' boxes.
 
-    0 when a point is unreachable or the intersection is empty (seed 000 sec. III,
+    0 when a point is unreachable or the intersection is empty (Lewis & Maciejewski 1997 sec. III,
     steps 3-4). With a single point, its own volume.
     """
     placements = data["volume"].shape[0]
@@ -506,7 +506,8 @@ def _parser() -> argparse.ArgumentParser:
                "  the base link's frame (m). One range makes a line (line plot), two a plane\n"
                "  (heat map), three a volume (heat-map slices). A range starting with a minus\n"
                "  sign needs the = form: --y=-0.3:0.3:13.\n"
-               "  Seed 000 fig. 7 (PUMA 560, distance from joint 1's axis at height 0.5 m):\n"
+               "  Lewis & Maciejewski 1997 fig. 7 (PUMA 560, distance from joint 1's axis at\n"
+               "  height 0.5 m):\n"
                "    ft-map --robot puma560 --x 0.05:1.15:45 --y 0 --z 0.5 --joints 1,2,3,4,5\n"
                "outputs: PREFIX.npz, PREFIX.csv, PREFIX.png (see the module docstring).\n"
                "exit status: 0 ok, 1 bad input, 2 usage, 3 nothing reachable, 4 no placement.")
@@ -523,7 +524,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: the built-in's home, else a bent configuration)")
     parser.add_argument("--joints", metavar="I,J,...",
                         help="joints (1-based) spanning the volume, e.g. 1,2,3,4,5 for "
-                        "the PUMA's rad^5 of seed 000 Table II (default: all)")
+                        "the PUMA's rad^5 of Lewis & Maciejewski 1997 Table II (default: all)")
     parser.add_argument("--restarts", type=int, default=0,
                         help="further components traced from random configurations per "
                         "point, for best_volume (default %(default)s)")
@@ -621,7 +622,7 @@ def main(argv: list[str] | None = None) -> int:
                                args.restarts, jobs, progress=True)
     data = collect(results, len(placements), len(offsets))
     score = scores(robot, data, joints)
-    # Per placement, the worst point's largest kfm on its component (seed 000 eq 5).
+    # Per placement, the worst point's largest kfm on its component (Lewis & Maciejewski 1997 eq 5).
     kfm = np.min(np.where(data["reachable"], data["kfm_max"], np.inf), axis=1)
     kfm = np.where(np.isfinite(kfm), kfm, np.nan)
     args.output.parent.mkdir(parents=True, exist_ok=True)

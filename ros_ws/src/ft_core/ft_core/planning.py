@@ -1,4 +1,4 @@
-"""The trajectory with minimum probability of task failure (seed 001, sec. 4.3), and `ft-plan`.
+"""The trajectory with minimum probability of task failure (Xie 2019, sec. 4.3), and `ft-plan`.
 
     ft-plan --robot planar3r --points "1.2,0.6;0.3,1.4" --start 0.2,0.9,0.9 --rates 0.002
 

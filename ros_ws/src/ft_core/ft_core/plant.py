@@ -1,4 +1,4 @@
-"""A velocity-commanded arm as real drivers execute commands (shared/MATH.md, Detection).
+"""A velocity-commanded arm as real drivers execute commands (docs/detection.md).
 
 The command path of a real arm, step by step (`Plant.step`):
 1. transport and driver latency: a command takes effect `latency` s after it arrived;

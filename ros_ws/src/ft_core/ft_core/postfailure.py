@@ -200,7 +200,7 @@ def in_eigenbasis(J: np.ndarray, V: np.ndarray) -> np.ndarray:
 @njit(cache=True, error_model="numpy")
 def weighted_sigma_gradient(J: np.ndarray, dJ: np.ndarray, sigmas: np.ndarray,
                             vectors: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """g_k = sum_i w_i ds_i/dq_k, with ds_i/dq_k = u_i^T dJ[k] v_i (seed 002 eq 8).
+    """g_k = sum_i w_i ds_i/dq_k, with ds_i/dq_k = u_i^T dJ[k] v_i (Maciejewski et al. eq 8).
 
     v_i = iJ^T u_i / s_i. dJ is (n, m, n), dJ[k] = dJ/dq_k. Only the weighted sum is
     needed (the kfm ascent), so it is formed as g_k = sum_ab dJ[k, a, b] M[a, b] with

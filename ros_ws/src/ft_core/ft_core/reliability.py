@@ -1,4 +1,4 @@
-"""Probability of task failure along a joint trajectory (seed 001, ch. 4, sec. 4.2).
+"""Probability of task failure along a joint trajectory (Xie 2019, ch. 4, sec. 4.2).
 
 A point-to-point task visits task points 1..K in order. While the arm heads for
 point k, the points k..K remain; a joint i that locks at q_i fails the task when a
@@ -9,12 +9,12 @@ each point is reached). Inside, the lock is survived unless a second joint locks
 during the post-failure trajectory (scenarios C and D of Table 4.1: with one degree
 of redundancy the reduced arm has none left).
 
-Readings taken (the extracted eqs 4.3-4.8 lost their minus signs; MATH.md,
-Reliability): a joint with exponential failure rate lambda fails in [t0, t1] with
-probability exp(-lambda t0) - exp(-lambda t1) (eqs 4.3-4.4), and eqs 4.7-4.8 are
-that probability for the first joint over a segment times the same for the second
-over the post-failure time Delta t2. With more than two joints, "the second joint"
-is any other joint (a sum over them). Like the chapter, the probabilities of the
+Readings taken (the extracted eqs 4.3-4.8 lost their minus signs; docs/planning.md): a
+joint with exponential failure rate lambda fails in [t0, t1] with probability
+exp(-lambda t0) - exp(-lambda t1) (eqs 4.3-4.4), and eqs 4.7-4.8 are that probability
+for the first joint over a segment times the same for the second over the
+post-failure time Delta t2. With more than two joints, "the second joint" is any other
+joint (a sum over them). Like the chapter, the probabilities of the
 pieces are summed without survival factors for the other joints (first order in
 lambda t: `monte_carlo` samples the exact competing failures, and the two agree to
 O((sum lambda t)^2)). Times follow eq 4.2: every leg of a trajectory takes
@@ -76,7 +76,7 @@ class TaskPoint:
         """Configurations on the manifold with q[joint] = value, (c, n), interpolated.
 
         With `joint` locked at `value` the reduced arm reaches the point at any of
-        them (seed 000 sec. III); none when `value` is outside the manifold's range.
+        them (Lewis & Maciejewski 1997 sec. III); none when `value` is outside the manifold's range.
         """
         found = []
         for path in self.paths:

@@ -5,7 +5,7 @@
 Pinocchio; the rest of the URDF (gripper fingers, other branches, joints above
 `base_link`) is locked at its neutral value with `pinocchio.buildReducedModel`.
 
-Conventions (see shared/MATH.md, Notation):
+Conventions (docs/robots.md):
 
 - Joint vectors are in chain order, base to tip. Revolute joints in rad,
   prismatic in m.
@@ -15,7 +15,7 @@ Conventions (see shared/MATH.md, Notation):
 - `jacobian_derivatives(q)[k]` is dJ/dq_k (same rows and columns as `jacobian`).
 - Before singular values of a pose Jacobian are compared, its angular rows are
   multiplied by a characteristic length L (m): `Robot.scale_task` is the one
-  place that does it (seed 000 eq 5 remark; seed 001 normalises by the reach).
+  place that does it (Lewis & Maciejewski 1997 eq 5 remark; Xie 2019 normalises by the reach).
 """
 
 from __future__ import annotations
@@ -398,7 +398,7 @@ class Robot:
 
         axes[i]: the unit axis of joint i (zero for a prismatic joint); moments[i]: the
         first moment of inertia m (c - p_i) (kg m) of everything outboard of joint i
-        about its origin p_i, c being that composite body's centre of mass (seed 002's
+        about its origin p_i, c being that composite body's centre of mass (Maciejewski et al.'s
         s*_{i-1}). Through Pinocchio's subtree centres of mass.
         """
         model, data = self._model, self._data
@@ -484,7 +484,7 @@ class Robot:
         """Multiply the angular task rows of A (..., m, k) by the characteristic length.
 
         Measures that compare singular values across rows must see `scale_task(J)`,
-        so every row is in m/s (seed 000, remark on eq 5).
+        so every row is in m/s (Lewis & Maciejewski 1997, remark on eq 5).
         """
         return np.asarray(A) * self.task_scale[:, None]
 

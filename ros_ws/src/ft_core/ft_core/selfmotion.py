@@ -1,15 +1,17 @@
-"""Self-motion manifolds of critical task points and their bounding boxes (seed 000, II-IV).
+"""Self-motion manifolds of critical task points and their bounding boxes.
+
+Lewis & Maciejewski 1997, secs. II-IV.
 
 The configurations that put the tool at a task point x* form the self-motion
 manifold of x*, of dimension r = n - m; the null space of J is its tangent space.
 If a joint locks anywhere inside the manifold's bounding box (per joint, min and
 max over the manifold), some configuration of the manifold still has that joint
-at that value, so the reduced robot can still reach x* (seed 000 sec. II-III).
+at that value, so the reduced robot can still reach x* (Lewis & Maciejewski 1997 sec. II-III).
 
 Tracing starts at a seed configuration and never leaves its connected component:
 every path starts at the seed and moves by small null-space steps, each followed
 by Newton drift correction J+ (x* - x) (`project`). Components found from other
-starting points are never merged (seed 000, end of sec. IV).
+starting points are never merged (Lewis & Maciejewski 1997, end of sec. IV).
 
 - r = 1: the curve is followed both ways until it closes or meets a physical limit.
   Where it passes a singular configuration (smallest singular value of J below
@@ -20,8 +22,8 @@ starting points are never merged (seed 000, end of sec. IV).
   its component. Without this, the planar 3R at (1, 0) traced from the seed
   `find_seed` gives (on the folded branch q3 = pi, where joint 2 turns freely)
   yields a box of normalised volume 1e-29, where the component spans every joint's
-  full circle (seed 000 sec. II).
-- r = 2: the spiral of seed 000 eqs 6-7, phi' = v / r, r = gamma phi, with
+  full circle (Lewis & Maciejewski 1997 sec. II).
+- r = 2: the spiral of Lewis & Maciejewski 1997 eqs 6-7, phi' = v / r, r = gamma phi, with
   theta' = sin(phi) v1 + cos(phi) v2 + J+ (x* - x). Reading taken for eqs 8-9
   (the extraction garbles eq 9): the new null-space basis is the rotation of the
   current one nearest the previous basis, computed exactly by the orthogonal
@@ -292,7 +294,7 @@ def _branches(walker: _Walker, paths: list[np.ndarray], step: float,
 
 def _extremal(walker: _Walker, start: np.ndarray, joint: int, sign: float, step: float,
               max_steps: int) -> np.ndarray:
-    """Seed 000 eq 10: move along the null-space projection of +-e_joint to its extremum."""
+    """Along the null-space projection of +-e_joint to its extremum (Lewis & Maciejewski eq 10)."""
     robot = walker.robot
     q, path = start, [start]
     pinned = np.zeros(robot.n, dtype=bool)
@@ -355,7 +357,7 @@ def _nearest_rotation(basis: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 def _spiral(walker: _Walker, seed: np.ndarray, step: float, spacing: float,
             max_steps: int) -> np.ndarray:
-    """Seed 000 eqs 6-7 on a 2-D manifold: a spiral of growing radius from the seed."""
+    """A spiral of growing radius from the seed on a 2-D manifold (Lewis & Maciejewski eqs 6-7)."""
     robot = walker.robot
     gamma = spacing / (2 * math.pi)
     phi = 2 * math.pi  # start one turn out: radius `spacing`
@@ -468,9 +470,9 @@ def box_volume(robot: Robot, lower: np.ndarray, upper: np.ndarray,
                joints: Sequence[int] | None = None, normalized: bool = True) -> float:
     """Volume of a box over `joints` (default all).
 
-    Normalized (seed 000, end of sec. V): each side divided by its joint's range,
+    Normalized (Lewis & Maciejewski 1997, end of sec. V): each side divided by its joint's range,
     so 1 is the whole joint space (a joint without limits has range 2 pi).
-    Otherwise in rad^k (as seed 000 Table II).
+    Otherwise in rad^k (as Lewis & Maciejewski 1997 Table II).
     """
     joints = list(range(robot.n)) if joints is None else list(joints)
     sides = np.maximum(np.asarray(upper) - np.asarray(lower), 0.0)[joints]
@@ -501,7 +503,7 @@ def reachability(robot: Robot, targets: Sequence[np.ndarray], lower: np.ndarray,
                  ) -> list[np.ndarray | None]:
     """For each target a configuration inside [lower, upper] reaching it, or None.
 
-    Seed 000 sec. III, step five: check that every critical point is still
+    Lewis & Maciejewski 1997 sec. III, step five: check that every critical point is still
     reachable under the intersected soft limits.
     """
     found: list[np.ndarray | None] = []
@@ -549,7 +551,7 @@ def recover(manifold: Manifold, q: np.ndarray, joint: int) -> np.ndarray | None:
 
     Inside the manifold's range for that joint, the other joints move in a straight
     line (inside the limits, which are a box) to `recovery_configuration`, where
-    the target is reached exactly: the guarantee of seed 000 sec. III. Otherwise
+    the target is reached exactly: the guarantee of Lewis & Maciejewski 1997 sec. III. Otherwise
     nothing guarantees success: the reduced Jacobian's closed loop (Newton on the
     healthy joints, inside the limits) runs from q and may stop short. Returns the
     final configuration, or None when the target was not reached.
@@ -606,7 +608,9 @@ def flat_from_targets(robot: Robot, targets: Sequence[np.ndarray]) -> list[float
 
 @dataclass(frozen=True)
 class CriticalBoxes:
-    """The bounding boxes of critical points and their intersection (seed 000 sec. III).
+    """The bounding boxes of critical points and their intersection.
+
+    Lewis & Maciejewski 1997 sec. III.
 
     Attributes:
         manifolds: each point's traced component (steps 1-2).
@@ -629,7 +633,7 @@ def critical_boxes(robot: Robot, targets: Sequence[np.ndarray], q: np.ndarray,
                    progress: Callable[[int, str], None] | None = None) -> CriticalBoxes:
     """Trace each critical point from the configuration nearest q, box, intersect, check.
 
-    The pipeline of seed 000 sec. III shared by the controller and `ft-bounds`.
+    The pipeline of Lewis & Maciejewski 1997 sec. III shared by the controller and `ft-bounds`.
     `progress(point index, text)` is called before each point ("") and while tracing.
     Raises UnreachableError ("point k: ...") when a point is out of reach.
     """
@@ -655,8 +659,8 @@ def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
                 ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
     """Critical points -> intersected self-motion boxes -> (soft limits, number of points).
 
-    Seed 000 sec. III (`critical_boxes`). Raises UnreachableError when a point is out
-    of reach, the boxes do not intersect or a point cannot be reached inside the
+    Lewis & Maciejewski 1997 sec. III (`critical_boxes`). Raises UnreachableError when a
+    point is out of reach, the boxes do not intersect or a point cannot be reached inside the
     intersection. Slow (0.1 to a few seconds): run it off the control loop:
     `soft_limits_for_model` in another process.
     """

@@ -1,7 +1,7 @@
-"""Free-swinging joint failures: the swing angle of each joint and its measure (seed 002).
+"""Free-swinging joint failures: the swing angle of each joint and its measure (Maciejewski et al.).
 
 A joint that loses its torque swings under gravity until the centre of mass of
-everything outboard of it hangs lowest. The swing angle of joint i (seed 002 sec. 2.3,
+everything outboard of it hangs lowest. The swing angle of joint i (Maciejewski et al. sec. 2.3,
 eqs 11-13) is the angle between the projections of s (the first moment of inertia of
 the outboard composite body about the joint's origin) and of the downward direction
 onto the plane normal to the joint's axis z:

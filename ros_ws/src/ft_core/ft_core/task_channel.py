@@ -1,6 +1,6 @@
 """A second detection channel, in task space, for locks the monitor has not seen.
 
-Seed 002 Theorem 1 (eqs 15-17): under a generalized-inverse law qd = G xd with an
+Maciejewski et al. Theorem 1 (eqs 15-17): under a generalized-inverse law qd = G xd with an
 undetected lock, the arm can converge to a configuration where the reduced Jacobian
 is rank deficient and all the commanded motion is on the locked joint: xd lies in the
 span of the locked joints' columns, so qd = sum alpha_i e_i. There the monitor's joint

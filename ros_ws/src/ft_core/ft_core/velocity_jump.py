@@ -1,13 +1,13 @@
-"""Minimum joint-velocity jump (Zhao and Li, seed 004), generalised to failure probabilities.
+"""Minimum joint-velocity jump (Zhao and Li, Zhao & Li), generalised to failure probabilities.
 
 If joint i locks now, the task velocity xd is carried on by the reduced robot with
-the least-norm velocity iqd' = (iJ)+ xd, re-embedded with 0 at joint i (seed 004
+the least-norm velocity iqd' = (iJ)+ xd, re-embedded with 0 at joint i (Zhao & Li
 eqs 2, 6). The jump a lock causes is iqd' - qd (eq 1). Weighting the failures by
-w_i = p_i / sum p (seed 001 eq 3.4) and minimising
+w_i = p_i / sum p (Xie 2019 eq 3.4) and minimising
 
     jump index = sum_i c_i |iqd' - qd|^2,   c_i = n w_i,   subject to J qd = xd
 
-gives qd = J+ xd + (I - J+ J) sum_i w_i iqd' (seed 004 eq 5 when w_i = 1/n).
+gives qd = J+ xd + (I - J+ J) sum_i w_i iqd' (Zhao & Li eq 5 when w_i = 1/n).
 With equal probabilities c_i = 1 and the index is the paper's eqs 9-10, so
 least norm exceeds the optimum by exactly n |qd_H|^2 (eq 14). With all weight on
 joint k the optimum is kqd' itself: joint k stays still (eq 8).
@@ -44,7 +44,7 @@ def post_failure_velocities(J: np.ndarray, xd: np.ndarray,
                             damping: Damping | None = None) -> np.ndarray:
     """Row i: the velocity iqd' = (iJ)+ xd the robot would have if joint i locked (n, n).
 
-    Entry (i, i) is 0 (seed 004 eqs 2 and 6).
+    Entry (i, i) is 0 (Zhao & Li eqs 2 and 6).
     """
     J = as_matrix(J)
     xd = _task_velocity(xd, J.shape[0])
@@ -55,7 +55,7 @@ def post_failure_velocities(J: np.ndarray, xd: np.ndarray,
 def min_jump_velocity(J: np.ndarray, xd: np.ndarray,
                       probabilities: Iterable[float] | None = None,
                       damping: Damping | None = None) -> np.ndarray:
-    """Joint velocity with the least weighted jump index that tracks xd (seed 004 eq 5)."""
+    """Joint velocity with the least weighted jump index that tracks xd (Zhao & Li eq 5)."""
     J = as_matrix(J)
     xd = _task_velocity(xd, J.shape[0])
     n = J.shape[1]
@@ -67,7 +67,7 @@ def min_jump_velocity(J: np.ndarray, xd: np.ndarray,
 def jump_index(J: np.ndarray, qd: np.ndarray, xd: np.ndarray,
                probabilities: Iterable[float] | None = None,
                damping: Damping | None = None) -> float:
-    """sum_i c_i |iqd' - qd|^2 with c_i = n w_i (seed 004 eqs 9-10 for equal probabilities)."""
+    """sum_i c_i |iqd' - qd|^2 with c_i = n w_i (Zhao & Li eqs 9-10 for equal probabilities)."""
     J = as_matrix(J)
     qd = np.asarray(qd, dtype=float)
     n = J.shape[1]
@@ -79,5 +79,5 @@ def jump_index(J: np.ndarray, qd: np.ndarray, xd: np.ndarray,
 
 def joint_velocity_jumps(J: np.ndarray, qd: np.ndarray, xd: np.ndarray,
                          damping: Damping | None = None) -> np.ndarray:
-    """Per-joint jumps |iqd'_j - qd_j| (n, n): row i for a lock of joint i (seed 004 eq 1)."""
+    """Per-joint jumps |iqd'_j - qd_j| (n, n): row i for a lock of joint i (Zhao & Li eq 1)."""
     return np.abs(post_failure_velocities(J, xd, damping) - np.asarray(qd, dtype=float))

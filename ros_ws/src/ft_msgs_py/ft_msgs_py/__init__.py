@@ -1,4 +1,4 @@
-"""The suite's ROS 2 interface contract in code (shared/INTERFACE.md).
+"""The suite's ROS 2 interface contract in code (the README's topic table).
 
 Modules:
     names: topic and service names.

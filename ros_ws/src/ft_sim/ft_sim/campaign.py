@@ -1,7 +1,7 @@
-"""`ft-campaign` (used by `make bench`): the fault experiment of seed 000 sec. V at scale.
+"""`ft-campaign` (used by `make bench`): Lewis & Maciejewski 1997 sec. V's experiment at scale.
 
 Does keeping the joints inside the critical points' bounding boxes while healthy
-keep every critical point reachable after a lock (seed 000 sec. III-V)? Each run
+keep every critical point reachable after a lock (Lewis & Maciejewski 1997 sec. III-V)? Each run
 is a `scenario` on the arm (the Panda by default, or `--robot` with its chain
 options; position task): it wanders for a long time between three critical points
 and `WAYPOINTS` far, non-critical waypoints, so that an arm without soft limits can
@@ -166,7 +166,7 @@ def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: n
     """How many critical points the arm can reach at all with `joint` locked where q has it.
 
     Inverse kinematics with that joint pinned, from q and 30 seeded random starts
-    (`selfmotion.find_seed`): what the bounding boxes guarantee (seed 000 sec. III),
+    (`selfmotion.find_seed`): what the bounding boxes guarantee (Lewis & Maciejewski 1997 sec. III),
     whatever a local controller then manages.
     """
     lower, upper = robot.lower.copy(), robot.upper.copy()

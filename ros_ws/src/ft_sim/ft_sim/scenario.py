@@ -10,7 +10,7 @@ and locks `lock_joint` through `ft/inject_failure` `lock_time` after the task
 started. The task starts once the controller has its soft limits (the critical
 points' boxes are traced in the background while the arm holds still), so that runs
 with and without them wander for the same time. After the lock
-it tours the critical points once, each until reached or `goal_timeout` (seed 000
+it tours the critical points once, each until reached or `goal_timeout` (Lewis & Maciejewski 1997
 sec. V: can every critical point still be reached?), and the run ends. Every
 step is recorded for the report.
 """
