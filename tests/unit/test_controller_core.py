@@ -85,47 +85,41 @@ def test_observability_excursions_move_an_idle_joint_in_the_null_space() -> None
 
 
 def test_critical_points_become_soft_limits_from_a_worker_process() -> None:
+    """Traced in the worker while the cycle goes on; unreachable points are reported."""
     reports: list[tuple] = []
     c = Controller(PANDA, EngineConfig(dt=DT), ControllerConfig(), ("panda", (None, None,
                    "position")), report=lambda *args: reports.append(args))
-    c.set_critical_points([0.5, 0.1, 0.4, 0.45, -0.15, 0.35])
+
+    def wait_for_the_worker() -> None:
+        deadline = time.monotonic() + 60.0
+        while c.soft_limits_pending and time.monotonic() < deadline:
+            time.sleep(0.01)
+            assert np.all(np.isfinite(c.step(Q, 0.0, 0.0).qd))
+        assert not c.soft_limits_pending, "no answer from the worker after 60 s"
+
     try:
+        c.set_critical_points([0.5, 0.1, 0.4, 0.45, -0.15, 0.35])
         assert c.soft_limits_pending
         c.step(Q, 0.0, 0.0)
         assert c.soft_limits_note.startswith("computing soft limits")
         assert len(c.engine.config.soft_lower) == 0  # the cycle goes on meanwhile
-        deadline = time.monotonic() + 60.0
-        while c.soft_limits_pending and time.monotonic() < deadline:
-            c.step(Q, 0.0, 0.0)
-            time.sleep(0.01)
-        assert not c.soft_limits_pending, "no soft limits after 60 s"
+        wait_for_the_worker()
         assert c.soft_limits_note == "2 critical points"
         assert reports == [("critical points", None)]
         lower, upper = (np.array(side) for side in (c.engine.config.soft_lower,
                                                     c.engine.config.soft_upper))
         assert lower.shape == (7,) and np.all(lower <= Q) and np.all(Q <= upper)
         assert np.any(upper - lower < PANDA.upper - PANDA.lower - 0.1)  # a box, not the limits
+        c.set_critical_points([1.5, 0.0, 0.3])  # out of reach
+        c.step(Q, 0.0, 0.0)
+        wait_for_the_worker()
+        assert c.soft_limits_note == "none (critical points failed)"
+        kind, message = reports[-1]
+        assert kind == "critical points" and "running without their soft limits" in message
+        assert len(c.engine.config.soft_lower) == 0
         c.set_critical_points([])
         c.step(Q, 0.0, 0.0)
-        assert c.soft_limits_note == "none" and len(c.engine.config.soft_lower) == 0
-    finally:
-        c.close()
-
-
-def test_unreachable_critical_points_are_reported_and_the_loop_goes_on() -> None:
-    reports: list[tuple] = []
-    c = Controller(PANDA, EngineConfig(dt=DT), ControllerConfig(), ("panda", (None, None,
-                   "position")), report=lambda *args: reports.append(args))
-    c.set_critical_points([1.5, 0.0, 0.3])
-    try:
-        deadline = time.monotonic() + 60.0
-        c.step(Q, 0.0, 0.0)
-        while c.soft_limits_pending and time.monotonic() < deadline:
-            time.sleep(0.01)
-            assert np.all(np.isfinite(c.step(Q, 0.0, 0.0).qd))
-        assert c.soft_limits_note == "none (critical points failed)"
-        (kind, message), = reports
-        assert kind == "critical points" and "running without their soft limits" in message
+        assert c.soft_limits_note == "none" and reports[-1] == ("critical points", None)
     finally:
         c.close()
 

@@ -1,4 +1,4 @@
-"""ft_core.workers: a pool worker ends when the process that started it is killed."""
+"""ft_core.workers: a `pool` worker ends when the process that started it is killed."""
 
 from __future__ import annotations
 
@@ -10,16 +10,15 @@ import time
 from pathlib import Path
 
 import pytest
+from ft_core import workers
 
 PARENT = """
 import multiprocessing, os, sys, time
 from concurrent.futures import ProcessPoolExecutor
 from ft_core import workers
 if __name__ == "__main__":
-    use = sys.argv[1] == "watch"
-    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                               **({"initializer": workers.exit_with_parent,
-                                   "initargs": (os.getpid(),)} if use else {}))
+    pool = (workers.pool() if sys.argv[1] == "watch"
+            else ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")))
     print(pool.submit(os.getpid).result(), flush=True)
     time.sleep(60)
 """
@@ -34,7 +33,7 @@ def running(pid: int) -> bool:
 
 
 def orphan_after_kill(tmp_path: Path, mode: str) -> tuple[int, bool]:
-    """(worker pid, whether it still runs 3 s after its parent's kill -9)."""
+    """(worker pid, whether it still runs 1.5 s (3 watch periods) after its parent's kill -9)."""
     script = tmp_path / "parent.py"
     script.write_text(PARENT)
     parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE,
@@ -43,7 +42,7 @@ def orphan_after_kill(tmp_path: Path, mode: str) -> tuple[int, bool]:
     assert running(worker)
     parent.kill()
     parent.wait(timeout=10)
-    deadline = time.monotonic() + 3.0
+    deadline = time.monotonic() + 3 * workers.PERIOD
     while running(worker) and time.monotonic() < deadline:
         time.sleep(0.05)
     alive = running(worker)
