@@ -44,6 +44,6 @@ def test_the_monitor_reports_a_free_swinging_joint_and_can_brake_it(brake: bool)
         else:
             assert monitor.locked == {}
             assert list(monitor.detector.swinging) == [1]
-            assert scenario.controller._locked == {}
+            assert scenario.controller.locked_joints == []
     finally:
         scenario.close()

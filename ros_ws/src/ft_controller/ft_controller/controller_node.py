@@ -119,7 +119,6 @@ class ControllerNode(SuiteNode):
         self._command_msg = JointState()
         self._metrics_msg = Float64MultiArray()
         self._q: np.ndarray | None = None
-        self._locked: dict[str, float] = {}
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
         self._rate_window = (0, self.now())
@@ -270,6 +269,13 @@ class ControllerNode(SuiteNode):
         return "none" if self.core is None else self.core.soft_limits_note
 
     @property
+    def locked_joints(self) -> list[str]:
+        """The joints the monitor announced locked (the core holds them as indices)."""
+        if self.core is None:
+            return []
+        return [self.robot.joint_names[j] for j in self.core.locked]
+
+    @property
     def soft_limits_pending(self) -> bool:
         """Whether soft limits from the critical points are still to be computed or taken."""
         return self.core is not None and self.core.soft_limits_pending
@@ -347,9 +353,8 @@ class ControllerNode(SuiteNode):
             return
         if unknown:
             self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored")
-        if set(locked) != set(self._locked):
+        if set(locked) != set(self.locked_joints):
             self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
-        self._locked = locked
         self.core.set_locked([self.robot.joint_names.index(name) for name in locked])
 
     # ------------------------------------------------------------------- cycle
@@ -416,9 +421,10 @@ class ControllerNode(SuiteNode):
         self._rate_window = (self.accounting.cycles, now)
         statuses = [self._controller_status(now)]
         last = None if self.core is None else self.core.last
+        locked_names = set(self.locked_joints)
         if last is not None:
             for joint, i in zip(self.command_joints, self._order, strict=True):
-                locked = joint in self._locked
+                locked = joint in locked_names
                 level = (diagnostics.ERROR if locked else
                          diagnostics.WARN if last.at_hard_limit[i] else diagnostics.OK)
                 statuses.append(self.status(
@@ -444,7 +450,7 @@ class ControllerNode(SuiteNode):
                   "state_age_s": now - self.state_stamp if self._q is not None else "none",
                   "target": target.kind if target else "none",
                   "target_age_s": now - target.stamp if target else "none",
-                  "locked_joints": sorted(self._locked), "soft_limits": self.soft_limits_note,
+                  "locked_joints": sorted(self.locked_joints), "soft_limits": self.soft_limits_note,
                   "observability": self._observability_note(),
                   "suspected_lock": self.suspected_lock or "none"}
         if last is not None:
