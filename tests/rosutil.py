@@ -12,7 +12,7 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import convert, qos
-from ft_msgs_py.spin import LockStepExecutor, spin_until
+from ft_msgs_py.spin import LockStepExecutor, harness_node, spin_until
 from rclpy.context import Context
 from rclpy.executors import Executor
 from rosgraph_msgs.msg import Clock
@@ -65,7 +65,7 @@ class FakePlant:
 
     def __init__(self, context: Context, executor: Executor,
                  joints: list[str], q0, dt: float = 0.01, command_topic: str = "ft/command_raw"):
-        self.node = rclpy.create_node("fake_plant", context=context)
+        self.node = harness_node("fake_plant", context)
         self.executor = executor
         executor.add_node(self.node)
         self.joints, self.q, self.dt = list(joints), np.array(q0, dtype=float), dt

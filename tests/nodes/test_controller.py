@@ -15,7 +15,7 @@ from ft_controller.controller_node import PARAMETERS, ControllerNode
 from ft_core import robots
 from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
 from ft_msgs_py import convert, diagnostics, metrics, qos
-from ft_msgs_py.spin import spin_until
+from ft_msgs_py.spin import harness_node, spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import REPO
 from rclpy.executors import Executor, SingleThreadedExecutor
@@ -61,7 +61,7 @@ def twist_sender(plant: FakePlant, twist: np.ndarray = TWIST, frame: str = ""):
 
 def monitor_publisher(plant: FakePlant, name: str = "monitor"):
     """A `ft/locked_joints` publisher on a node of that name, as the monitor's."""
-    node = rclpy.create_node(name, context=plant.node.context)
+    node = harness_node(name, plant.node.context)
     plant.executor.add_node(node)
     return node.create_publisher(JointState, "ft/locked_joints", qos.LATCHED)
 

@@ -10,12 +10,11 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, qos
-from ft_msgs_py.spin import spin_until
+from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim.sim_node import SimNode
 from rclpy.parameter import Parameter
 from rosutil import ros_context
@@ -32,7 +31,7 @@ class Loop:
 
     def __init__(self, context, executor, sim: SimNode, monitor: MonitorNode):
         self.executor, self.sim, self.monitor = executor, sim, monitor
-        self.node = rclpy.create_node("commander", context=context)
+        self.node = harness_node("commander", context)
         executor.add_node(self.node)
         self.raw = self.node.create_publisher(JointState, "ft/command_raw", qos.RELIABLE)
         self.inject = self.node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
@@ -61,7 +60,7 @@ class Loop:
     def step(self, command: Callable[[Loop], None] | None = None) -> None:
         before = len(self.commands)
         if command is not None:
-            measured = self.monitor._q
+            measured = self.monitor.core.q
             self.q_at_command = None if measured is None else measured.copy()
             command(self)
             assert spin_until(self.executor, lambda: len(self.commands) > before, 2.0), (
@@ -70,8 +69,8 @@ class Loop:
             assert spin_until(self.executor, lambda: self.sim.command_time >= self.sim.t, 2.0), (
                 "the sim did not receive the monitor's command within 2 s")
         self.sim.step()
-        assert spin_until(self.executor,
-                          lambda: self.monitor.detector.latest_time >= self.sim.t - 1e-9, 2.0), (
+        detector = self.monitor.core.detector
+        assert spin_until(self.executor, lambda: detector.latest_time >= self.sim.t - 1e-9, 2.0), (
             "the monitor did not take the sim's joint state within 2 s")
 
     def diagnostics_after(self, time: float, command: Callable[[Loop], None] | None = None,
@@ -146,8 +145,8 @@ def test_healthy_motion_with_noise_declares_no_lock() -> None:
         for _ in range(30 * 250):
             lp.step(sweep)
         assert lp.locked_names() == [] and lp.monitor.locked == {}
-        assert lp.monitor.detector.not_observing is None
-        estimate = lp.monitor.detector.estimate()
+        assert lp.monitor.core.detector.not_observing is None
+        estimate = lp.monitor.core.detector.estimate()
         assert estimate.identified
         assert estimate.latency + estimate.response_time == pytest.approx(0.1, abs=0.03)
 
@@ -208,7 +207,7 @@ def test_no_decision_while_nobody_subscribes_to_the_command_output(tmp_path) -> 
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"),
             Parameter("state_directory", value=str(tmp_path))])
-        node = rclpy.create_node("lonely_plant", context=context)
+        node = harness_node("lonely_plant", context)
         for n in (monitor, node):
             executor.add_node(n)
         raw = node.create_publisher(JointState, "ft/command_raw", qos.RELIABLE)
@@ -218,10 +217,10 @@ def test_no_decision_while_nobody_subscribes_to_the_command_output(tmp_path) -> 
             stamp = node.get_clock().now().to_msg()
             raw.publish(convert.joint_state(PANDA.joint_names, stamp, velocity=[0.2] * 7))
             states.publish(convert.joint_state(PANDA.joint_names, stamp, position=START))
-            return monitor.detector.latest_time > -math.inf
+            return monitor.core.detector.latest_time > -math.inf
 
         assert spin_until(executor, exchange, 5.0)
-        assert monitor.detector.not_observing == "nobody subscribes to ft/command(_array)"
+        assert monitor.core.detector.not_observing == "nobody subscribes to ft/command(_array)"
         assert monitor.locked == {}
 
 
@@ -264,7 +263,7 @@ def test_each_injected_lock_is_detected_on_the_right_joint_quickly() -> None:
             command = constant(np.full(7, 0.2))
             for _ in range(250):  # the detector first sees the plant follow (start-up)
                 lp.step(command)
-            assert lp.monitor.detector.not_observing is None
+            assert lp.monitor.core.detector.not_observing is None
             lp.inject.publish(JointState(name=[joint]))
             assert spin_until(lp.executor, lambda j=joint: j in lp.sim.locked, 2.0)
             injected = lp.sim.t
@@ -380,7 +379,7 @@ def test_fault_injector_zeroes_the_locked_joints_on_the_command_path() -> None:
     with ros_context() as (context, executor):
         proxy = FaultInjectorNode(context=context,
                                   parameter_overrides=[Parameter("joints", value=joints)])
-        node = rclpy.create_node("plant_side", context=context)
+        node = harness_node("plant_side", context)
         for n in (proxy, node):
             executor.add_node(n)
         commands, arrays = [], []
@@ -438,12 +437,12 @@ def test_velocity_arrays_in_joints_order_are_accepted_as_commands() -> None:
 def test_joint_states_going_back_in_time_are_rejected() -> None:
     with loop() as lp:
         lp.step(constant(np.full(7, 0.1)))
-        latest = lp.monitor._q.copy()
+        latest = lp.monitor.core.q.copy()
         old = convert.joint_state(PANDA.joint_names, convert.stamp_from_nanoseconds(1),
                                   position=np.zeros(7))
         lp.node.create_publisher(JointState, "joint_states", qos.RELIABLE).publish(old)
         assert spin_until(lp.executor, lambda: "joint_states" in lp.monitor.problems.active, 2.0)
-        np.testing.assert_array_equal(lp.monitor._q, latest)  # the older state is not used
+        np.testing.assert_array_equal(lp.monitor.core.q, latest)  # the older state is not used
 
 
 def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:

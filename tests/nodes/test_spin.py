@@ -48,13 +48,26 @@ def test_the_lock_step_executor_drops_qos_event_handlers_and_still_delivers() ->
         node = rclpy.create_node("lock_step_probe", context=context)
         heard: list[str] = []
         publisher = node.create_publisher(String, "probe", 10)
-        node.create_subscription(String, "probe", lambda m: heard.append(m.data), 10)
-        assert publisher.event_handlers and list(node.waitables)  # rclpy's defaults
         executor.add_node(node)
+        # An entity created after add_node: its handlers go at the next spin too.
+        node.create_subscription(String, "probe", lambda m: heard.append(m.data), 10)
+        assert publisher.event_handlers and len(list(node.waitables)) > 1  # rclpy's defaults
+        executor.spin_once(timeout_sec=0.0)
         assert list(node.waitables) == []
         assert all(e.event_handlers == [] for e in (*node.publishers, *node.subscriptions))
         publisher.publish(String(data="step"))
         assert spin.spin_until(executor, lambda: heard == ["step"], 5.0), heard
         executor.remove_node(node)
         assert node.destroy_publisher(publisher)
+        node.destroy_node()
+
+
+def test_a_harness_node_offers_no_services() -> None:
+    from rosutil import ros_context
+
+    with ros_context() as (context, _executor):
+        node = spin.harness_node("bare", context)
+        assert list(node.services) == []
+        plain_services = len(list(spin.rclpy.create_node("plain", context=context).services))
+        assert plain_services >= 7  # six parameter services and the type description
         node.destroy_node()

@@ -34,16 +34,16 @@ def test_the_monitor_reports_a_free_swinging_joint_and_can_brake_it(brake: bool)
         scenario.hold(0, 1.0)
         assert abs(scenario.sim.q[1] - start) > 0.05  # it fell
         monitor = scenario.monitor
-        declared = monitor.detector.joints[1].swinging_at
+        declared = monitor.core.detector.joints[1].swinging_at
         assert declared is not None
         print(f"free swing declared {1e3 * (declared - injected):.0f} ms after it began")
         assert 0 < declared - injected < 0.5
         if brake:
             assert list(monitor.locked) == ["panda_joint2"]
-            assert monitor.detector.swinging == {}
+            assert monitor.core.detector.swinging == {}
         else:
             assert monitor.locked == {}
-            assert list(monitor.detector.swinging) == [1]
+            assert list(monitor.core.detector.swinging) == [1]
             assert scenario.controller.locked_joints == []
     finally:
         scenario.close()

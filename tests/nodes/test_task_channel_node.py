@@ -63,7 +63,7 @@ def test_the_monitor_refuses_a_suspect_its_measurements_contradict() -> None:
         moving = 0
         for _ in range(round(1.5 * config.rate)):
             scenario.step()
-            evidence = scenario.monitor.detector.joints[0]
+            evidence = scenario.monitor.core.detector.joints[0]
             if evidence.following:
                 moving += 1
                 suspect.publish(JointState(name=["panda_joint1"]))

@@ -1,5 +1,8 @@
 """monitor_node: detect locked joints and keep the task going around them.
 
+The node is wiring (parameters, message conversion, the watchdog, publishing and
+diagnostics); the logic below is `ft_core.monitor.Monitor`'s, usable without ROS.
+
 Inputs: `ft/command_raw` (what a controller commands; or `ft/command_raw_array`,
 a Float64MultiArray of velocities in `joints` order, as MoveIt Servo publishes
 them) and `joint_states` (what happened). It republishes every command on
@@ -19,8 +22,9 @@ stream and the settling time after it, too few joint states, a plant not yet see
 following, or nobody subscribed to `ft/command` and `ft/command_array`; the reason
 is in `/diagnostics`. Most joints stopping at once is a plant fault (ERROR), not
 locks. A lock stays until `~/reset`. `ft/declare_failure` locks joints at once.
-The full locked set goes out on `ft/locked_joints` (transient local) and is kept
-in a file under `state_directory` (`ft_core.locked_set`), restored at start-up.
+The full locked set is kept in a file under `state_directory` (`ft_core.locked_set`),
+restored at start-up, and goes out on `ft/locked_joints` (transient local) only once
+that file holds it.
 
 Safety: a malformed command (NaN, wrong lengths, unknown, missing or duplicate
 names, more than `convert.MAX_NAMES` names, a stamp ahead of the clock or older than
@@ -37,8 +41,9 @@ import time
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_core import locked_set, remap, robots
-from ft_core.detection import DetectorConfig, LockDetector
+from ft_core import locked_set, robots
+from ft_core.detection import DetectorConfig
+from ft_core.monitor import Change, Monitor, MonitorConfig
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
@@ -49,7 +54,7 @@ from std_srvs.srv import Trigger
 DIAGNOSTICS_PERIOD = 0.5
 
 
-_DETECTION = DetectorConfig()
+_DETECTION, _MONITOR = DetectorConfig(), MonitorConfig()
 #: Detector parameters whose negative value means "identified online" (None in the config).
 _IDENTIFIED = ("detection.latency", "detection.response_time")
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
@@ -72,17 +77,23 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                              parameters.float_range(0.5, 50.0)),
     "detection.follow_time": (_DETECTION.follow_time, "s the plant must be seen following "
                               "commands before any decision", parameters.float_range(0.0, 10.0)),
-    "brake_free_swinging": (False, "declare a free-swinging joint locked where it is (ask "
-                            "for its brake) instead of only reporting it", {}),
-    "remap_commands": (True, "remap commands through the reduced Jacobian once joints lock",
-                       {}),
+    "brake_free_swinging": (_MONITOR.brake_free_swinging, "declare a free-swinging joint "
+                            "locked where it is (ask for its brake) instead of only "
+                            "reporting it", {}),
+    "remap_commands": (_MONITOR.remap_commands, "remap commands through the reduced "
+                       "Jacobian once joints lock", {}),
     "command_timeout": (0.2, "s without a command before the watchdog publishes zeros",
                         parameters.float_range(0.001, 60.0)),
-    "velocity_scale": (1.0, "fraction of the URDF velocity limits for remapped commands",
-                       parameters.float_range(0.01, 1.0)),
+    "velocity_scale": (_MONITOR.velocity_scale, "fraction of the URDF velocity limits for "
+                       "remapped commands", parameters.float_range(0.01, 1.0)),
     "state_directory": ("", "directory of the persisted locked set (empty: "
                         "$ROS_HOME/ft_arms, or ~/.ros/ft_arms)", {"read_only": True}),
 }
+
+
+#: The parameters the core's settings come from.
+_CORE_PARAMETERS = [*(k for k in PARAMETERS if k.startswith("detection.")),
+                    "remap_commands", "velocity_scale", "brake_free_swinging"]
 
 
 class MonitorNode(SuiteNode):
@@ -93,15 +104,12 @@ class MonitorNode(SuiteNode):
         parameters.declare(self, PARAMETERS)
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.robot: robots.Robot | None = None
-        self.detector: LockDetector | None = None
-        self._store = None  # path of the persisted locked set, once the model is known
+        self.core: Monitor | None = None  #: the logic, once the model is known
         self._order: list[int] = []
         self.command_joints: list[str] = []  #: joint names in command order
         # Built once per model, refilled for every command (`_publish_command`).
         self._command_msg = JointState()
         self._array_msg = Float64MultiArray()
-        self._velocity_limits = np.zeros(0)
-        self._q: np.ndarray | None = None
         self._last_command = -math.inf
         self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
@@ -120,8 +128,8 @@ class MonitorNode(SuiteNode):
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
                                  qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
-        self._read_command_parameters()
-        parameters.on_change(self, self._detector_config, self._configure_detector)
+        self._command_timeout = self.param("command_timeout")
+        parameters.on_change(self, self._configs, self._configure)
         parameters.request_model(self, self._set_model)
         # On steady time: with use_sim_time and no /clock the watchdog must still run.
         self._last_command_steady = time.monotonic()
@@ -130,30 +138,26 @@ class MonitorNode(SuiteNode):
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
 
     # ------------------------------------------------------------------ set-up
-    def _detector_config(self, changes: dict | None = None) -> DetectorConfig:
-        value = {**{k: self.param(k) for k in PARAMETERS if k.startswith("detection.")},
-                 **(changes or {})}
+    def _configs(self, changes: dict | None = None) -> tuple[DetectorConfig, MonitorConfig]:
+        """The core's settings from the parameters, with `changes` (name: value) applied."""
+        value = {**{k: self.param(k) for k in _CORE_PARAMETERS}, **(changes or {})}
         for name in _IDENTIFIED:
             value[name] = None if value[name] < 0 else value[name]
-        return DetectorConfig(
+        detection = DetectorConfig(
             window=value["detection.window"], min_command=value["detection.min_command"],
             latency=value["detection.latency"],
             response_time=value["detection.response_time"],
             persistence=value["detection.persistence"], ratio=value["detection.ratio"],
             confidence=value["detection.confidence"],
             follow_time=value["detection.follow_time"])
+        return detection, MonitorConfig(
+            remap_commands=value["remap_commands"], velocity_scale=value["velocity_scale"],
+            brake_free_swinging=value["brake_free_swinging"])
 
-    def _configure_detector(self) -> None:
-        self._read_command_parameters()
-        if self.detector is not None:
-            self.detector.configure(self._detector_config())
-
-    def _read_command_parameters(self) -> None:
-        """The parameters every command reads, read once per change, not per command."""
+    def _configure(self) -> None:
         self._command_timeout = self.param("command_timeout")
-        self._remap = self.param("remap_commands")
-        if self.robot is not None:
-            self._velocity_limits = self.robot.velocity_limits * self.param("velocity_scale")
+        if self.core is not None:
+            self.core.configure(*self._configs())
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
@@ -168,91 +172,46 @@ class MonitorNode(SuiteNode):
         self._command_msg = convert.joint_state(joints, Time())
         self._array_msg = Float64MultiArray(layout=MultiArrayLayout(dim=[MultiArrayDimension(
             label="joints", size=len(joints), stride=len(joints))]))
-        self._read_command_parameters()
-        self.detector = LockDetector(robot.lower, robot.upper, self._detector_config())
+        store = locked_set.path_for(self.param("state_directory"),
+                                    self.get_fully_qualified_name(), robot.name)
+        self.core = Monitor(robot, *self._configs(), store, self.problems.report)
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
-        self._store = locked_set.path_for(self.param("state_directory"),
-                                          self.get_fully_qualified_name(), robot.name)
-        self._restore_locked()
+        self._announce(self.core.restore(self.now()), self.now())
         self._publish_locked(self.now())
-
-    def _restore_locked(self) -> None:
-        try:
-            stored = locked_set.load(self._store, self.robot.name, list(self.robot.joint_names))
-        except locked_set.LockedSetError as error:
-            self.problems.report("state_directory", f"{error}: starting with no locked joint",
-                                 warning=True)
-            return
-        now = self.now()
-        for name, position in stored.items():
-            self.detector.lock(self.robot.joint_names.index(name), position, now)
-        if stored:
-            self.get_logger().error(f"restored locked joints {sorted(stored)} from "
-                                    f"{self._store} (call ~/reset after a repair)")
 
     @property
     def locked(self) -> dict[str, float]:
-        """{joint name: position at lock (rad)} of every locked joint (the detector's)."""
-        if self.detector is None:
-            return {}
-        return {self.robot.joint_names[j]: p for j, p in self.detector.locked.items()}
+        """{joint name: position at lock (rad)} of every locked joint (the core's)."""
+        return {} if self.core is None else self.core.locked
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
-        if self.robot is None:
+        if self.core is None:
             return
-        q = self.read_joint_state(msg, self.robot.joint_names)
+        q = self.read_joint_state(msg, self.core.robot.joint_names)
         if q is None:
             return
-        self._q, stamp = q, self.state_stamp
-        if self.detector.fill_unknown_positions(q):
-            self._locked_changed(stamp)
         listeners = (self._command_pub.get_subscription_count()
                      + self._array_pub.get_subscription_count())
-        update = self.detector.measure(
-            stamp, q, None if listeners else "nobody subscribes to ft/command(_array)")
-        self.problems.report("plant", self.detector.plant_fault)
-        if update.swinging:
-            self._free_swinging(update.swinging, q, stamp)
-        if update.locked:
-            for j in update.locked:
-                name = self.robot.joint_names[j]
-                evidence = self.detector.joints[j]
-                self.get_logger().error(
-                    f"joint {name} locked at {evidence.position:.4f} rad (t = {stamp:.3f} s): "
-                    f"measured {evidence.measured:.4f} rad/s against at least "
-                    f"{evidence.commanded:.4f} expected")
-            self._locked_changed(stamp)
-
-    def _free_swinging(self, joints: tuple[int, ...], q: np.ndarray, stamp: float) -> None:
-        """Report joints newly found moving on their own; with the option, brake them."""
-        brake = self.param("brake_free_swinging")
-        for j in joints:
-            evidence = self.detector.joints[j]
-            self.get_logger().error(
-                f"joint {self.robot.joint_names[j]} free-swinging (t = {stamp:.3f} s): measured "
-                f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
-                + ("; declaring it locked where it is (brake)" if brake else ""))
-            if brake:
-                self.detector.lock(j, float(q[j]), stamp)
-        self._locked_changed(stamp)  # a lock taken back, or the brake applied
+        stamp = self.state_stamp
+        self._announce(self.core.observe(
+            q, stamp, None if listeners else "nobody subscribes to ft/command(_array)"), stamp)
 
     def _on_suspect(self, msg: JointState) -> None:
         """A joint the controller's task channel suspects: locked if the measurements agree."""
-        if self.robot is None or self._q is None:
+        if self.core is None or self.core.q is None:
             return
         try:
             known = convert.names_to_indices(list(msg.name)[:convert.MAX_NAMES],
-                                             self.robot.joint_names)
+                                             self.core.robot.joint_names)
         except convert.MessageError as error:
             self.get_logger().warning(f"ft/suspected_failure ignored: {error}",
                                       throttle_duration_sec=5.0)
             return
         now = self.now()
-        for j in known.values():
-            answer = self.detector.confirm(j, float(self._q[j]), now)
-            name = self.robot.joint_names[j]
+        for name, j in known.items():
+            answer, change = self.core.suspect(j, now)
             evidence = answer.evidence
             if answer.decision == "refused":
                 reason = " at a joint limit" if evidence.at_limit else ""
@@ -260,19 +219,13 @@ class MonitorNode(SuiteNode):
                     f"suspected lock of {name} not confirmed{reason}: measured "
                     f"{evidence.measured:.4f} rad/s (+-{evidence.standard_error:.4f}), "
                     f"commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
-            if answer.decision != "locked":
-                continue
-            self.get_logger().error(
-                f"joint {name} locked (suspected by the task-space channel, confirmed: measured "
-                f"{evidence.measured:.4f} rad/s against {evidence.commanded:.4f} commanded)")
-            self._locked_changed(now)
+            self._announce(change, now)
 
     def _on_declare(self, msg: JointState) -> None:
-        if self.robot is None:
+        if self.core is None:
             return
-        now = self.now()
         try:
-            known = convert.names_to_indices(list(msg.name), self.robot.joint_names)
+            known = convert.names_to_indices(list(msg.name), self.core.robot.joint_names)
         except convert.MessageError as error:
             self.get_logger().error(f"ft/declare_failure ignored: {error}",
                                     throttle_duration_sec=5.0)
@@ -280,25 +233,21 @@ class MonitorNode(SuiteNode):
         if len(known) < len(msg.name):
             self.get_logger().warning(f"ft/declare_failure: {len(msg.name) - len(known)} unknown "
                                       "joint names ignored", throttle_duration_sec=5.0)
-        for j in known.values():
-            name = self.robot.joint_names[j]
-            if j not in self.detector.locked:
-                position = float(self._q[j]) if self._q is not None else math.nan
-                self.detector.lock(j, position, now)
-                self.get_logger().error(f"joint {name} declared locked")
-        self._locked_changed(now)
+        now = self.now()
+        change = self.core.declare(known.values(), now)
+        change.changed = True  # announced again even when nothing new: the sender asked
+        self._announce(change, now)
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
-        released = sorted(self.locked)
-        if self.detector is not None:
-            self.detector.reset()
-            self._locked_changed(self.now())
+        released = [] if self.core is None else self.core.reset()
+        if self.core is not None:
+            self._publish_locked(self.now())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
 
     def _on_command(self, msg: JointState) -> None:
-        if self.robot is None:
+        if self.core is None:
             return
         now = self.now()
         stamp = self.problems.message_time("ft/command_raw", msg.header.stamp, now)
@@ -307,70 +256,56 @@ class MonitorNode(SuiteNode):
                 raise convert.MessageError("stamp ahead of the clock")
             if now - stamp > self._command_timeout:
                 raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
-            qd = convert.joint_vector(msg, self.robot.joint_names, "velocity")
+            qd = convert.joint_vector(msg, self.core.robot.joint_names, "velocity")
         except convert.MessageError as error:
-            self._refuse("ft/command_raw", error, msg.header.stamp)
+            self._refuse("ft/command_raw", error, msg.header.stamp, now)
             return
-        self._forward("ft/command_raw", qd, msg.header.stamp, now)
+        self.forward("ft/command_raw", qd, msg.header.stamp, now)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
-        if self.robot is None:
+        if self.core is None:
             return
         stamp = self.get_clock().now().to_msg()
         try:
             qd = convert.array_vector(msg.data, self._order)
         except convert.MessageError as error:
-            self._refuse("ft/command_raw_array", error, stamp)
+            self._refuse("ft/command_raw_array", error, stamp, self.now())
             return
-        self._forward("ft/command_raw_array", qd, stamp, self.now())
+        self.forward("ft/command_raw_array", qd, stamp, self.now())
 
-    def _refuse(self, topic: str, error: convert.MessageError, stamp) -> None:
+    def _refuse(self, topic: str, error: convert.MessageError, stamp: Time, now: float) -> None:
         """A malformed command: reported, and replaced by explicit zeros."""
         self.problems.report(topic, f"{error}: commanding zeros")
-        self._publish_command(np.zeros(self.robot.n), stamp)
+        self._publish_command(self.core.zeros(now), stamp)
 
-    def _forward(self, topic: str, qd: np.ndarray, stamp, now: float) -> None:
-        """A good command (chain order): locked joints zeroed or remapped, then published."""
-        self.problems.report(topic, None)
+    def forward(self, source: str, qd: np.ndarray, stamp: Time, now: float) -> None:
+        """A good command from `source` (chain order, rad/s): filtered by the core, published."""
+        self.problems.report(source, None)
         self._last_command = now
         self._last_command_steady = time.monotonic()
-        locked = sorted(self.detector.locked)
-        limits = self._velocity_limits
-        if locked and self._remap and self._q is not None:
-            qd = remap.remap(self.robot, self._q, qd, locked, limits)
-        else:
-            qd = qd.copy()
-            qd[locked] = 0.0
-            qd = remap.within_limits(qd, limits)
-        if not np.all(np.isfinite(qd)):
-            qd = np.zeros(self.robot.n)
-        self._publish_command(qd, stamp, now)
+        self._publish_command(self.core.command(qd, now), stamp)
 
     # ----------------------------------------------------------------- outputs
-    def _publish_command(self, qd_chain: np.ndarray, stamp, now: float | None = None) -> None:
-        """Publish a command and tell the detector it is in force from `now` (this clock)."""
+    def _publish_command(self, qd_chain: np.ndarray, stamp: Time) -> None:
         ordered = qd_chain[self._order].tolist()
         self._command_msg.header.stamp = stamp
         self._command_msg.velocity = ordered
         self._command_pub.publish(self._command_msg)
         self._array_msg.data = ordered
         self._array_pub.publish(self._array_msg)
-        self.detector.command(self.now() if now is None else now, qd_chain)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""
-        if self.robot is not None:
-            self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
+        if self.core is not None:
+            self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
 
-    def _locked_changed(self, time: float) -> None:
-        """Publish the locked set and keep it on disk."""
-        self._publish_locked(time)
-        try:
-            locked_set.save(self._store, self.robot.name, self.locked)
-            self.problems.report("state_directory", None)
-        except OSError as error:
-            self.problems.report("state_directory", f"cannot keep the locked set: {error}")
+    def _announce(self, change: Change, time: float) -> None:
+        """Log what happened and, if the locked set changed (on disk already), publish it."""
+        for event in change.events:
+            self.get_logger().error(event)
+        if change.changed:
+            self._publish_locked(time)
 
     def _publish_locked(self, time: float) -> None:
         msg = convert.locked_message(self.locked,
@@ -378,25 +313,11 @@ class MonitorNode(SuiteNode):
         self._locked_pub.publish(msg)
 
     def _check_watchdog(self) -> None:
-        if self.robot is None:
+        if self.core is None:
             return
         age = time.monotonic() - self._last_command_steady
-        if age > self.param("command_timeout"):
-            self._publish_command(np.zeros(self.robot.n), self.get_clock().now().to_msg())
-
-    def _plant_values(self) -> dict[str, object]:
-        """The detector's view of the plant, for /diagnostics."""
-        estimate = self.detector.estimate()
-        values: dict[str, object] = {
-            "observing": self.detector.not_observing or "yes",
-            "plant_model": "identified" if estimate.identified else "prior (not yet identified)",
-            "latency_range_s": list(estimate.latency_range),
-            "response_time_range_s": list(estimate.response_time_range),
-            "identification_data_s": estimate.excitation}
-        if estimate.identified:
-            values["latency_s"] = estimate.latency
-            values["response_time_s"] = estimate.response_time
-        return values
+        if age > self._command_timeout:
+            self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
 
     def _publish_diagnostics(self) -> None:
         now = self.now()
@@ -408,22 +329,18 @@ class MonitorNode(SuiteNode):
                   "scheduling": self.scheduling}
         stalls = []
         statuses = []
-        swinging = [] if self.detector is None else sorted(
-            self.robot.joint_names[j] for j in self.detector.swinging)
+        core = self.core
+        swinging = [] if core is None else core.swinging
         values["free_swinging_joints"] = swinging
-        if self.robot is not None:
-            values.update(self._plant_values())
-            for name in self.command_joints:
-                evidence = self.detector.joints[self.robot.joint_names.index(name)]
-                level, message = diagnostics.OK, "ok"
-                if name in locked:
-                    level, message = diagnostics.ERROR, "locked"
-                elif name in swinging:
-                    level, message = diagnostics.ERROR, "free-swinging"
-                elif evidence.at_limit:
-                    level, message = diagnostics.WARN, "stalled at a joint limit"
+        if core is not None:
+            values.update(core.plant_values())
+            for name, j in zip(self.command_joints, self._order, strict=True):
+                joint = core.joint_report(j)
+                level = _LEVELS[joint.state]
+                if joint.state == "stalled at a joint limit":
                     stalls.append(name)
-                statuses.append(self.status(level, message, {
+                evidence = joint.evidence
+                statuses.append(self.status(level, joint.state, {
                     "observable": evidence.observable, "following": evidence.following,
                     "measured_velocity": evidence.measured,
                     "expected_velocity": evidence.commanded,
@@ -436,14 +353,19 @@ class MonitorNode(SuiteNode):
                 + [f"free-swinging: {swinging}"] * bool(swinging))
         elif stalls:
             level, message = diagnostics.WARN, f"stalled at a limit: {stalls}"
-        elif age > self.param("command_timeout"):
+        elif age > self._command_timeout:
             level, message = diagnostics.WARN, "no fresh command: publishing zeros"
-        elif self.detector is not None and self.detector.not_observing:
-            level, message = diagnostics.OK, f"not observing: {self.detector.not_observing}"
+        elif core is not None and core.detector.not_observing:
+            level, message = diagnostics.OK, f"not observing: {core.detector.not_observing}"
         else:
             level, message = diagnostics.OK, "no locked joint"
         statuses.insert(0, self.status(level, message, values))
         self._diagnostics_pub.publish(diagnostics.array(statuses, self.get_clock().now().to_msg()))
+
+
+#: Diagnostic level of each joint state of `Monitor.joint_report`.
+_LEVELS = {"ok": diagnostics.OK, "locked": diagnostics.ERROR,
+           "free-swinging": diagnostics.ERROR, "stalled at a joint limit": diagnostics.WARN}
 
 
 def main(args: list[str] | None = None) -> None:

@@ -29,13 +29,16 @@ from collections.abc import Callable, Sequence
 from typing import cast
 
 import rclpy
+from rclpy.context import Context
 from rclpy.event_handler import EventHandler
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 #: Longest time (s) between two checks of the stop flag.
 CHECK_PERIOD = 0.1
@@ -59,25 +62,50 @@ class LockStepExecutor(SingleThreadedExecutor):
     (`ft_sim.scenario`, the node tests): the SingleThreadedExecutor (not the
     EventsExecutor the executables spin, whose timers live on a thread of their own)
     keeps every run deterministic, but rebuilds its wait set in Python on each spin,
-    some 9 times a simulated step. `add_node` drops the QoS-event handlers rclpy gives
-    every publisher and subscription by default (incompatible QoS or type): in one
-    process, on topics whose QoS the harness chose, they never fire, and they were 68
-    of the wait set's entities: a step took 4.6 ms with them, 2.8 ms without (one core,
-    the demo's scenario). Entities the node creates after `add_node` keep theirs.
+    some 9 times a simulated step, at a cost that grows with its entities. It drops
+    the QoS-event handlers rclpy gives every publisher and subscription by default
+    (incompatible QoS or type): in one process, on topics whose QoS the harness chose,
+    they never fire, and they were 68 of the wait set's entities: a step took 4.6 ms
+    with them, 2.8 ms without (one core, the demo's scenario). Entities created after
+    `add_node` lose theirs at the next spin.
     """
 
-    def add_node(self, node: Node) -> bool:
-        """Add `node` (as rclpy does), without the QoS-event handlers of its entities."""
-        added = super().add_node(node)
-        entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
-        for entity in entities:
-            # A list of handlers, whatever rclpy's annotation (one EventHandler) says.
-            handlers = cast("list[EventHandler]", entity.event_handlers)
-            for handler in handlers:
-                node.remove_waitable(handler)
-                handler.destroy()
-            handlers.clear()  # so destroy_publisher/subscription skips them too
-        return added
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._entities_seen = 0
+
+    def spin_once(self, timeout_sec: float | None = None) -> None:
+        """Spin once (as rclpy does), after dropping the event handlers of new entities."""
+        nodes = self.get_nodes()
+        count = sum(len([*node.publishers, *node.subscriptions]) for node in nodes)
+        if count != self._entities_seen:
+            for node in nodes:
+                _drop_event_handlers(node)
+            self._entities_seen = count
+        super().spin_once(timeout_sec)
+
+
+def _drop_event_handlers(node: Node) -> None:
+    """Remove the QoS-event handlers of the node's publishers and subscriptions."""
+    entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
+    for entity in entities:
+        # A list of handlers, whatever rclpy's annotation (one EventHandler) says.
+        handlers = cast("list[EventHandler]", entity.event_handlers)
+        for handler in handlers:
+            node.remove_waitable(handler)
+            handler.destroy()
+        handlers.clear()  # so destroy_publisher/subscription skips them too
+
+
+def harness_node(name: str, context: Context) -> Node:
+    """A plain node for a lock-step harness's own publishers and subscriptions.
+
+    No parameter or type-description services: nobody calls them, and each service is
+    one more entity in every wait set the LockStepExecutor rebuilds.
+    """
+    return rclpy.create_node(name, context=context, start_parameter_services=False,
+                             parameter_overrides=[Parameter(
+                                 START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
 
 
 def spin_until(executor: Executor, condition: Callable[[], bool],

@@ -179,8 +179,7 @@ class Scenario:
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, state_directory=self._state.name, command_timeout=60.0))
-        self.driver = rclpy.create_node("driver", context=self.context,
-                                        start_parameter_services=False)
+        self.driver = spin.harness_node("driver", self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
         self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,

@@ -1,0 +1,257 @@
+"""The monitor's logic without ROS: filter the commands, decide on locks, keep the set.
+
+The counterpart of `ft_core.controller` for the monitor node (and for `ft-stack`,
+which hands the controller's command to `Monitor.command` as a call): the node
+converts messages, runs the watchdog and publishes; everything between is here.
+
+- **Commands** (`command`, `zeros`): the locked joints get exactly 0 and, with
+  `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
+  velocity J qd is kept (`ft_core.remap`); every command is scaled, direction kept,
+  into `velocity_scale` times the URDF velocity limits, and is recorded by the
+  detector as in force from the time given.
+- **Detection** (`observe`, `suspect`): the measured configurations go to the
+  `ft_core.detection.LockDetector`; a joint it declares free-swinging is, with
+  `brake_free_swinging`, declared locked where it is (its brake applied). A suspect
+  from elsewhere (the controller's task-space channel) is decided by the detector's
+  own confirm rule.
+- **Declared failures and reset** (`declare`, `reset`).
+- **Persist, then announce.** The locked set is written to its file
+  (`ft_core.locked_set`, atomic) inside every call that changes it, before the call
+  returns: whatever the caller announces afterwards is already on disk.
+
+Each call that changes the locked set says so (`Change.changed`) and carries the
+lines to log (`Change.events`, errors, about the arm); problems with the state file
+go to `report` as with the controller's core.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ft_core import locked_set, remap
+from ft_core.detection import Confirmation, DetectorConfig, JointEvidence, LockDetector
+from ft_core.robots import Robot
+
+#: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
+Report = Callable[..., None]
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """What the monitor does with commands and declarations besides detecting.
+
+    Attributes:
+        remap_commands: remap commands through the reduced Jacobian once joints lock
+            (otherwise only zero the locked joints).
+        velocity_scale: fraction of the URDF velocity limits every command is scaled into.
+        brake_free_swinging: declare a free-swinging joint locked where it is.
+    """
+
+    remap_commands: bool = True
+    velocity_scale: float = 1.0
+    brake_free_swinging: bool = False
+
+
+@dataclass
+class Change:
+    """What a call did to the locked set.
+
+    Attributes:
+        changed: the locked set changed (and is on disk unless `report` said otherwise).
+        events: what happened to the arm, one line each, for the error log.
+    """
+
+    changed: bool = False
+    events: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class JointReport:
+    """One joint's state for diagnostics.
+
+    Attributes:
+        state: "ok", "locked", "free-swinging" or "stalled at a joint limit".
+        evidence: the detector's evidence at its last update (a copy).
+    """
+
+    state: str
+    evidence: JointEvidence
+
+
+class Monitor:
+    """The monitor's logic; see the module docstring.
+
+    Args:
+        robot: the chain.
+        detection: the detector's settings.
+        config: the command filter's settings.
+        store: the file of the persisted locked set (None: kept in memory only).
+        report: called with ("state_directory", problem or None, warning=...) and
+            ("plant", fault or None).
+    """
+
+    def __init__(self, robot: Robot, detection: DetectorConfig, config: MonitorConfig,
+                 store: Path | None, report: Report = lambda *_args, **_kwargs: None):
+        self.robot = robot
+        self.detector = LockDetector(robot.lower, robot.upper, detection)
+        self.store = store
+        self._report = report
+        self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
+        self.configure(detection, config)
+
+    def configure(self, detection: DetectorConfig, config: MonitorConfig) -> None:
+        """New settings; a change of the detector's model grid restarts identification."""
+        self.config = config
+        self._limits = self.robot.velocity_limits * config.velocity_scale
+        self.detector.configure(detection)
+
+    # ----------------------------------------------------------------- state
+    @property
+    def locked(self) -> dict[str, float]:
+        """{joint name: position at lock (rad)} of every locked joint."""
+        names = self.robot.joint_names
+        return {names[j]: p for j, p in self.detector.locked.items()}
+
+    @property
+    def swinging(self) -> list[str]:
+        """Names of the joints declared free-swinging (and not locked since), sorted."""
+        return sorted(self.robot.joint_names[j] for j in self.detector.swinging)
+
+    def restore(self, now: float) -> Change:
+        """Take the locked set kept in the store (at start-up)."""
+        if self.store is None:
+            return Change()
+        try:
+            stored = locked_set.load(self.store, self.robot.name, list(self.robot.joint_names))
+        except locked_set.LockedSetError as error:
+            self._report("state_directory", f"{error}: starting with no locked joint",
+                         warning=True)
+            return Change()
+        for name, position in stored.items():
+            self.detector.lock(self.robot.joint_names.index(name), position, now)
+        if not stored:
+            return Change()
+        return Change(True, [f"restored locked joints {sorted(stored)} from {self.store} "
+                             "(call ~/reset after a repair)"])
+
+    # -------------------------------------------------------------- commands
+    def command(self, qd: np.ndarray, now: float) -> np.ndarray:
+        """The command to send for `qd` (rad/s, chain order), in force from `now` (s)."""
+        locked = sorted(self.detector.locked)
+        if locked and self.config.remap_commands and self.q is not None:
+            qd = remap.remap(self.robot, self.q, qd, locked, self._limits)
+        else:
+            qd = np.array(qd, dtype=float)
+            qd[locked] = 0.0
+            qd = remap.within_limits(qd, self._limits)
+        if not np.all(np.isfinite(qd)):
+            qd = np.zeros(self.robot.n)
+        self.detector.command(now, qd)
+        return qd
+
+    def zeros(self, now: float) -> np.ndarray:
+        """Explicit zeros, in force from `now` (s): a refused command, the watchdog."""
+        qd = np.zeros(self.robot.n)
+        self.detector.command(now, qd)
+        return qd
+
+    # ------------------------------------------------------------- detection
+    def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
+        """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
+        self.q = q
+        change = Change(self.detector.fill_unknown_positions(q))
+        update = self.detector.measure(now, q, blind)
+        self._report("plant", self.detector.plant_fault)
+        names, joints = self.robot.joint_names, self.detector.joints
+        brake = self.config.brake_free_swinging
+        for j in update.swinging:
+            evidence = joints[j]
+            change.events.append(
+                f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
+                f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
+                + ("; declaring it locked where it is (brake)" if brake else ""))
+            if brake:
+                self.detector.lock(j, float(q[j]), now)
+        for j in update.locked:
+            evidence = joints[j]
+            change.events.append(
+                f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
+                f"measured {evidence.measured:.4f} rad/s against at least "
+                f"{evidence.commanded:.4f} expected")
+        # A swing takes a lock back, or the brake applies one: the set changes either way.
+        change.changed |= bool(update.swinging or update.locked)
+        return self._persisted(change)
+
+    def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
+        """Decide on a lock of `joint` suspected elsewhere, on the detector's own evidence."""
+        if self.q is None:
+            return Confirmation("refused", JointEvidence()), Change()
+        answer = self.detector.confirm(joint, float(self.q[joint]), now)
+        if answer.decision != "locked":
+            return answer, Change()
+        evidence = answer.evidence
+        return answer, self._persisted(Change(True, [
+            f"joint {self.robot.joint_names[joint]} locked (suspected by the task-space "
+            f"channel, confirmed: measured {evidence.measured:.4f} rad/s against "
+            f"{evidence.commanded:.4f} commanded)"]))
+
+    def declare(self, joints: Iterable[int], now: float) -> Change:
+        """Lock `joints` (chain indices) at once, where they are now (nan before any state)."""
+        change = Change()
+        for j in joints:
+            if j not in self.detector.locked:
+                position = float(self.q[j]) if self.q is not None else math.nan
+                self.detector.lock(j, position, now)
+                change.events.append(f"joint {self.robot.joint_names[j]} declared locked")
+                change.changed = True
+        return self._persisted(change)
+
+    def reset(self) -> list[str]:
+        """Release every lock (after a repair) and forget the history; the names released."""
+        released = sorted(self.locked)
+        self.detector.reset()
+        self._persisted(Change(True))
+        return released
+
+    def joint_report(self, joint: int) -> JointReport:
+        """The state of `joint` (chain index) for diagnostics."""
+        evidence = self.detector.joints[joint]
+        if evidence.locked_at is not None:
+            state = "locked"
+        elif joint in self.detector.swinging:
+            state = "free-swinging"
+        elif evidence.at_limit:
+            state = "stalled at a joint limit"
+        else:
+            state = "ok"
+        return JointReport(state, JointEvidence(**vars(evidence)))
+
+    def plant_values(self) -> dict[str, object]:
+        """The detector's view of the plant, for diagnostics."""
+        estimate = self.detector.estimate()
+        values: dict[str, object] = {
+            "observing": self.detector.not_observing or "yes",
+            "plant_model": "identified" if estimate.identified else "prior (not yet identified)",
+            "latency_range_s": list(estimate.latency_range),
+            "response_time_range_s": list(estimate.response_time_range),
+            "identification_data_s": estimate.excitation}
+        if estimate.identified:
+            values["latency_s"] = estimate.latency
+            values["response_time_s"] = estimate.response_time
+        return values
+
+    # ----------------------------------------------------------- persistence
+    def _persisted(self, change: Change) -> Change:
+        """Write the locked set if `change` changed it, before anyone announces it."""
+        if change.changed and self.store is not None:
+            try:
+                locked_set.save(self.store, self.robot.name, self.locked)
+                self._report("state_directory", None)
+            except OSError as error:
+                self._report("state_directory", f"cannot keep the locked set: {error}")
+        return change

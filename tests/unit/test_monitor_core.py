@@ -1,0 +1,119 @@
+"""ft_core.monitor: the monitor's logic without ROS, in closed loop with ft_core.plant."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ft_core import locked_set, remap, robots
+from ft_core.detection import DetectorConfig
+from ft_core.monitor import Monitor, MonitorConfig
+from ft_core.plant import Plant, PlantConfig
+
+PANDA = robots.load("panda")
+START = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+DT = 0.004
+
+
+class Loop:
+    """A Monitor between a commander and the sim's plant, stepped at 250 Hz."""
+
+    def __init__(self, store: Path | None, config: MonitorConfig | None = None):
+        self.problems: dict[str, str | None] = {}
+        self.monitor = Monitor(PANDA, DetectorConfig(), config or MonitorConfig(), store,
+                               self.report)
+        self.plant = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, START,
+                           PlantConfig(latency=0.01, response_time=0.02))
+        self.t = 0.0
+
+    def report(self, name: str, problem: str | None, warning: bool = False) -> None:
+        self.problems[name] = problem
+
+    def step(self, qd: np.ndarray):
+        """Command `qd`, let the plant run one period, show the monitor the result."""
+        sent = self.monitor.command(qd, self.t)
+        self.plant.command(self.t, sent)
+        self.t += DT
+        self.plant.step(self.t)
+        q = self.plant.q + np.random.default_rng(round(self.t / DT)).normal(0, 1e-4, 7)
+        return sent, self.monitor.observe(q, self.t)
+
+
+def test_a_lock_is_on_disk_when_the_call_that_found_it_returns(tmp_path: Path) -> None:
+    store = tmp_path / "monitor--panda.json"
+    lp = Loop(store)
+    for _ in range(500):  # 2 s of healthy motion: identification, nothing decided
+        _, change = lp.step(np.full(7, 0.2))
+        assert not change.changed
+    lp.plant.lock(3)
+    for _ in range(100):
+        _, change = lp.step(np.full(7, 0.2))
+        if change.changed:
+            break
+    assert change.changed, "the lock was not found within 0.4 s"
+    assert change.events and change.events[0].startswith("joint panda_joint4 locked at")
+    assert list(lp.monitor.locked) == ["panda_joint4"]
+    assert json.loads(store.read_text())["locked"] == pytest.approx(lp.monitor.locked)
+    assert lp.problems["state_directory"] is None
+    # From now on the locked joint gets exactly 0, the rest are remapped (test_remap.py).
+    qd = np.full(7, 0.1)
+    sent = lp.monitor.command(qd, lp.t)
+    assert sent[3] == 0.0
+    np.testing.assert_array_equal(
+        sent, remap.remap(PANDA, lp.monitor.q, qd, [3], PANDA.velocity_limits))
+
+
+def test_without_remapping_locked_joints_are_only_zeroed_and_all_is_scaled(tmp_path) -> None:
+    lp = Loop(None, MonitorConfig(remap_commands=False, velocity_scale=0.5))
+    lp.monitor.declare([0], 0.0)
+    qd = PANDA.velocity_limits.copy()  # twice what the scale allows
+    sent = lp.monitor.command(qd, 0.0)
+    assert sent[0] == 0.0
+    np.testing.assert_allclose(sent[1:], 0.5 * qd[1:])
+    assert not np.any(lp.monitor.command(np.full(7, np.nan), 0.0))
+
+
+def test_declare_restore_and_reset_go_through_the_file(tmp_path: Path) -> None:
+    store = tmp_path / "monitor--panda.json"
+    first = Loop(store)
+    change = first.monitor.declare([1, 4], 1.0)
+    assert change.changed and change.events == ["joint panda_joint2 declared locked",
+                                                "joint panda_joint5 declared locked"]
+    assert not first.monitor.declare([1], 2.0).changed  # already locked
+    assert set(locked_set.load(store, "panda", list(PANDA.joint_names))) == {
+        "panda_joint2", "panda_joint5"}
+    # Declared before any joint state: the position is unknown until one arrives.
+    assert all(math.isnan(p) for p in first.monitor.locked.values())
+    second = Loop(store)
+    restored = second.monitor.restore(0.0)
+    assert restored.changed and "panda_joint2" in restored.events[0]
+    assert second.monitor.observe(START, 0.1).changed  # the unknown positions, filled in
+    assert second.monitor.locked == {"panda_joint2": START[1], "panda_joint5": START[4]}
+    assert second.monitor.reset() == ["panda_joint2", "panda_joint5"]
+    assert locked_set.load(store, "panda", list(PANDA.joint_names)) == {}
+
+
+def test_a_suspect_is_decided_by_the_detectors_evidence() -> None:
+    lp = Loop(None)
+    answer, change = lp.monitor.suspect(2, 0.0)
+    assert answer.decision == "refused" and not change.changed  # no joint state yet
+    for _ in range(500):
+        lp.step(np.full(7, 0.2))
+    answer, change = lp.monitor.suspect(2, lp.t)  # joint 3 follows its command
+    assert answer.decision == "refused" and not change.changed
+    assert answer.evidence.following
+    report = lp.monitor.joint_report(2)
+    assert report.state == "ok" and report.evidence.following
+
+
+def test_an_unwritable_state_directory_is_reported_and_the_lock_still_holds(tmp_path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    lp = Loop(blocker / "monitor--panda.json")  # a directory that cannot be made
+    change = lp.monitor.declare([6], 0.0)
+    assert change.changed and list(lp.monitor.locked) == ["panda_joint7"]
+    assert lp.problems["state_directory"].startswith("cannot keep the locked set")
+    assert lp.monitor.joint_report(6).state == "locked"
