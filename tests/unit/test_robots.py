@@ -304,3 +304,26 @@ def test_derivatives_of_a_chain_with_prismatic_joints_and_turned_frames() -> Non
         np.testing.assert_allclose(J, robot.jacobian(q), atol=1e-12)
         assert np.abs(dJ).max() > 0.1
         np.testing.assert_allclose(dJ, numeric, atol=1e-7)
+
+
+def test_one_kinematics_snapshot_gives_what_the_separate_calls_give() -> None:
+    """`Robot.kinematics` (one Pinocchio pass a cycle, issue 28) against the separate calls.
+
+    On the Panda and on a sub-chain whose base is turned (the rotated-axes path).
+    """
+    rng = np.random.default_rng(RNG_SEED)
+    for robot in (robots.load("panda"),
+                  robots.load("panda", base_link="panda_link3", task_space="position")):
+        for _ in range(5):
+            q = robot.random_configuration(rng)
+            snapshot = robot.kinematics(q)
+            np.testing.assert_allclose(snapshot.transform, robot.transform(q), atol=1e-14)
+            np.testing.assert_allclose(snapshot.base_jacobian, robot.base_jacobian(q),
+                                       atol=1e-14)
+            # Every consumer takes the snapshot in place of q (the same to rounding: other
+            # Pinocchio algorithms).
+            np.testing.assert_allclose(robot.jacobian(snapshot), robot.jacobian(q), atol=1e-14)
+            np.testing.assert_allclose(robot.forward(snapshot), robot.forward(q), atol=1e-14)
+            goal = robot.forward(robot.random_configuration(rng))
+            np.testing.assert_allclose(robot.task_error(goal, snapshot),
+                                       robot.task_error(goal, q), atol=1e-12)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -130,8 +131,10 @@ class ControllerNode(SuiteNode):
                                                   qos.RELIABLE)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
-        self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
-                                 qos.SENSOR_INPUT)
+        self._state_subscription = self.create_subscription(
+            JointState, names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
+        #: Takes each command as a call (`hand_commands_to`; ft-stack), or None.
+        self._command_taker: Callable[[JointState], None] | None = None
         self.create_subscription(TwistStamped, names.TARGET_TWIST, self._on_twist, qos.RELIABLE)
         self.create_subscription(PoseStamped, names.TARGET_POSE, self._on_pose, qos.RELIABLE)
         self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked, qos.LATCHED)
@@ -286,6 +289,19 @@ class ControllerNode(SuiteNode):
             self.core.close()
         super().destroy_node()
 
+    # ------------------------------------------------------- one-process wiring
+    def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
+        """Give every command to `take` as a call (the monitor's, in the same process).
+
+        `ft/command_raw` is then published only while someone else subscribes to it.
+        """
+        self._command_taker = take
+
+    def use_shared_joint_states(self) -> Callable[[JointState], None]:
+        """Stop taking `joint_states` here; returns what to call with each one instead."""
+        self.destroy_subscription(self._state_subscription)
+        return self._on_state
+
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
         if self.robot is not None:
@@ -398,12 +414,18 @@ class ControllerNode(SuiteNode):
                                                  name=[self.robot.joint_names[step.suspect]]))
 
     def _publish(self, qd_chain: np.ndarray, stamp: Time | None = None, result=None) -> None:
-        """The command (and with a cycle's result, the metrics), in preallocated messages."""
+        """The command (and with a cycle's result, the metrics), in preallocated messages.
+
+        The metrics only while someone subscribes to them (a recorder, a plot).
+        """
         msg = self._command_msg
         msg.header.stamp = self.get_clock().now().to_msg() if stamp is None else stamp
         msg.velocity = qd_chain[self._order].tolist()
-        self._command_pub.publish(msg)
-        if result is None:
+        if self._command_taker is None or self._command_pub.get_subscription_count():
+            self._command_pub.publish(msg)
+        if self._command_taker is not None:
+            self._command_taker(msg)
+        if result is None or not self._metrics_pub.get_subscription_count():
             return
         sigmas = result.post_failure_sigmas[self._order]
         metrics.fill(self._metrics_msg, [

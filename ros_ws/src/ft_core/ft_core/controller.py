@@ -32,7 +32,7 @@ import numpy as np
 from ft_core import selfmotion, workers
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.observability import Excursions, ObservabilityConfig
-from ft_core.robots import Robot, RobotModelError
+from ft_core.robots import Kinematics, Robot, RobotModelError
 from ft_core.targets import PoseTracking, pose_velocity, staleness_scale
 from ft_core.task_channel import TaskChannel
 
@@ -199,44 +199,47 @@ class Controller:
             self._take_boxes(*self._boxes_job)
         if self._boxes_dirty:
             self._start_boxes(q)
-        xd, idle, error = self._task_velocity(q, now)
         locked = list(self.locked)
         try:
-            result = self.engine.step(q, xd, locked)
-        except ValueError as problem:  # physically absurd state or target
+            kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
+            xd, idle, error = self._task_velocity(kinematics, now)
+            result = self.engine.step(q, xd, locked, kinematics)
+        except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(zeros, None, {"engine": f"{problem}: commanding zeros"})
         qd = result.qd
         if idle and not self.config.idle_null_space_motion:
             qd = zeros
             result.jump_index = 0.0
-        qd = self._excite(q, qd, locked, now)
-        if not np.all(np.isfinite(qd)):
+        qd = self._excite(kinematics, qd, locked, now)
+        if not np.isfinite(qd).all():
             qd = np.zeros(robot.n)
         self.last = result
         step = Step(qd, result, {"engine": None})
         if error is not None:
-            self._watch_task(step, q, locked, now, error)
+            self._watch_task(step, kinematics, locked, now, error)
         return step
 
-    def _task_velocity(self, q: np.ndarray, now: float) -> tuple[np.ndarray, bool, float | None]:
+    def _task_velocity(self, kinematics: Kinematics, now: float,
+                       ) -> tuple[np.ndarray, bool, float | None]:
         """(task velocity, idle, the pose goal's error norm or None) from the latest target."""
         target, robot = self.target, self.robot
         if target is None:
             return np.zeros(robot.m), True, None
         if target.kind == "pose":
-            error = robot.task_error(target.value, q)
+            error = robot.task_error(target.value, kinematics)
             xd, reached = pose_velocity(robot, error, self.config.tracking)
             return xd, reached, float(np.linalg.norm(error))
         scale = staleness_scale(now - target.stamp, self.config.target_timeout)
         return scale * target.value, scale == 0.0, None
 
-    def _excite(self, q: np.ndarray, qd: np.ndarray, locked: list[int], now: float) -> np.ndarray:
+    def _excite(self, kinematics: Kinematics, qd: np.ndarray, locked: list[int], now: float,
+                ) -> np.ndarray:
         """The command with the observability excursion under way, if any (null space only)."""
         if self.excursions is None:
             return qd
         for k, (joint, speed) in enumerate(self.excursions.update(now, qd, locked)):
-            moved = self.engine.excursion(q, qd, joint, speed, locked)
+            moved = self.engine.excursion(kinematics.q, qd, joint, speed, locked, kinematics)
             if moved is not None:
                 qd = moved
             elif k == 0:  # the idle joint itself cannot move: no excursion now
@@ -244,7 +247,7 @@ class Controller:
                 return qd
         return qd
 
-    def _watch_task(self, step: Step, q: np.ndarray, locked: list[int], now: float,
+    def _watch_task(self, step: Step, kinematics: Kinematics, locked: list[int], now: float,
                     error: float) -> None:
         """Feed the task channel the pose goal's error (m); its suspect goes into `step`.
 
@@ -253,7 +256,8 @@ class Controller:
         """
         if self.channel is None:
             return
-        joint = self.channel.update(now, q, step.qd, error, tuple(locked))
+        joint = self.channel.update(now, kinematics.q, step.qd, error, tuple(locked),
+                                    kinematics)
         step.suspect, step.new_suspect = joint, joint is not None and joint != self.suspect
         step.announce = joint is not None and (
             joint != self.suspect or now - self._suspect_sent >= self.channel.config.window)

@@ -46,7 +46,7 @@ from numba import njit
 from ft_core import limits, measures, postfailure, robots, swing
 from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
-from ft_core.robots import Robot
+from ft_core.robots import Kinematics, Robot
 
 RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
 #: Inputs beyond these are physically absurd and refused: a measured position further
@@ -392,7 +392,8 @@ class ResolutionEngine:
         return -self.config.swing_gain * swing.swing_gradient(self.robot, q, weights)[healthy]
 
     def excursion(self, q: np.ndarray, qd: np.ndarray, joint: int, speed: float,
-                  locked: Iterable[int] = ()) -> np.ndarray | None:
+                  locked: Iterable[int] = (), kinematics: Kinematics | None = None,
+                  ) -> np.ndarray | None:
         """The command qd plus a null-space motion moving `joint` at `speed` (rad/s), or None.
 
         The motion is N e_j speed / N_jj with N = V V^T the projector on the null space of
@@ -407,7 +408,8 @@ class ResolutionEngine:
         index = view.healthy
         if joint not in index:
             return None
-        J = self.robot.scale_task(self.robot.jacobian(np.asarray(q, dtype=float)))[:, index]
+        J = self.robot.scale_task(self.robot.jacobian(
+            kinematics if kinematics is not None else np.asarray(q, dtype=float)))[:, index]
         _, sigmas, Vt = np.linalg.svd(J)
         rank = int(np.sum(sigmas > 1e-12 * max(sigmas.max(initial=0.0), 1.0)))
         null = Vt[rank:].T
@@ -423,8 +425,11 @@ class ResolutionEngine:
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
-    def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = ()) -> CycleResult:
+    def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = (),
+             kinematics: Kinematics | None = None) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
+
+        `kinematics`: the snapshot of q (`Robot.kinematics`) when the caller has it.
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `ABSURD_POSITION` outside the joint
@@ -446,7 +451,8 @@ class ResolutionEngine:
         if nh < m:
             return self._infeasible(q, xd, view)
         (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
-         margin) = _cycle(robot.base_jacobian(q), xd, q, index, robot.task_scale, view.box,
+         margin) = _cycle(robot.base_jacobian(kinematics if kinematics is not None else q),
+                          xd, q, index, robot.task_scale, view.box,
                           self._gains, view.use_kfm, view.use_jump,
                           self._probabilities is not None, self._swing_descent(q, view),
                           self._limit_box, view.soft)

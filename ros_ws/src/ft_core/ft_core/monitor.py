@@ -149,7 +149,7 @@ class Monitor:
             qd = np.array(qd, dtype=float)
             qd[locked] = 0.0
             qd = remap.within_limits(qd, self._limits)
-        if not np.all(np.isfinite(qd)):
+        if not np.isfinite(qd).all():
             qd = np.zeros(self.robot.n)
         self.detector.command(now, qd)
         return qd

@@ -92,6 +92,22 @@ def task_jacobians(J: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(J[:m]), np.ascontiguousarray(dJ[:, :m, :])
 
 
+@dataclass(frozen=True)
+class Kinematics:
+    """The tool's kinematics at one configuration (`Robot.kinematics`), computed once.
+
+    Attributes:
+        q: the configuration (rad).
+        transform: 4x4 transform of the tool link in the base link.
+        base_jacobian: the tool point's 6 x n Jacobian in the base's axes, linear rows
+            first (`Robot.base_jacobian`).
+    """
+
+    q: np.ndarray
+    transform: np.ndarray
+    base_jacobian: np.ndarray
+
+
 class RobotModelError(ValueError):
     """A robot model could not be built; the message names the problem."""
 
@@ -375,7 +391,7 @@ class Robot:
             self.task_space
         ]
 
-    def task_error(self, target: np.ndarray, q: np.ndarray) -> np.ndarray:
+    def task_error(self, target: np.ndarray, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task error e (m,) from q to `target`, in the rows of `jacobian`.
 
         `target` is what `forward` returns: x-y or a position (m), or a 4x4 transform
@@ -442,28 +458,48 @@ class Robot:
             raise ValueError(f"q has non-finite entries: {q}")
         return q
 
-    def transform(self, q: np.ndarray) -> np.ndarray:
+    def kinematics(self, q: np.ndarray) -> Kinematics:
+        """The tool's transform and Jacobian at q from one Pinocchio pass (a cycle's snapshot).
+
+        Every method below that takes a configuration also takes this snapshot, so the
+        consumers of one control cycle (task error, engine, task channel, excursions)
+        share one forward-kinematics pass instead of one each.
+        """
+        model, data, tip = self._model, self._data, self._tip
+        q = self._check(q)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, tip)
+        J = pin.getFrameJacobian(model, data, tip, pin.LOCAL_WORLD_ALIGNED)
+        return Kinematics(q, (self._base_inverse * data.oMf[tip]).homogeneous,
+                          self._rotate @ J if not self._base_aligned
+                          else np.ascontiguousarray(J))
+
+    def transform(self, q: np.ndarray | Kinematics) -> np.ndarray:
         """Homogeneous transform (4x4) of `tip_link` in `base_link` at q."""
+        if isinstance(q, Kinematics):
+            return q.transform
         pin.framesForwardKinematics(self._model, self._data, self._check(q))
         return (self._base_inverse * self._data.oMf[self._tip]).homogeneous
 
-    def forward(self, q: np.ndarray) -> np.ndarray:
+    def forward(self, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task coordinates at q: (2,) x-y for planar, (3,) position (m), pose a 4x4 transform."""
         pose = self.transform(q)
         if self.task_space == "pose":
             return pose
         return pose[self._rows, 3].copy()
 
-    def base_jacobian(self, q: np.ndarray) -> np.ndarray:
+    def base_jacobian(self, q: np.ndarray | Kinematics) -> np.ndarray:
         """The tool point's full Jacobian (6 x n), axes of `base_link`.
 
         Linear rows above angular ones; C-contiguous (one layout for the compiled code).
         """
+        if isinstance(q, Kinematics):
+            return q.base_jacobian
         J = pin.computeFrameJacobian(self._model, self._data, self._check(q), self._tip,
                                      pin.LOCAL_WORLD_ALIGNED)
         return self._rotate @ J if not self._base_aligned else np.ascontiguousarray(J)
 
-    def jacobian(self, q: np.ndarray) -> np.ndarray:
+    def jacobian(self, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task Jacobian (m x n) at the tool point, axes of `base_link`."""
         return np.ascontiguousarray(self.base_jacobian(q)[self._rows])
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.robots import Robot
+from ft_core.robots import Kinematics, Robot
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,8 @@ class TaskChannel:
             raise ValueError("the task channel compares positions: a position or planar task")
         self.robot = robot
         self.config = config or TaskChannelConfig()
-        #: (time, q, task error, expected motion per joint until the next sample (m, n))
+        #: (time, task position, task error, expected motion per joint until the next
+        #: sample (m, n))
         self._samples: deque[tuple[float, np.ndarray, float, np.ndarray]] = deque()
         self._columns = np.zeros((robot.m, robot.n))
         self._last: tuple[float, np.ndarray] | None = None  # (time, J(q) qd) of the newest
@@ -80,11 +81,13 @@ class TaskChannel:
         self.residuals: np.ndarray = np.zeros(robot.n)  #: |r - c_i| / |r| at the last test
 
     def update(self, t: float, q: np.ndarray, qd: np.ndarray, error: float,
-               locked: tuple[int, ...] = ()) -> int | None:
+               locked: tuple[int, ...] = (), kinematics: Kinematics | None = None,
+               ) -> int | None:
         """Add a cycle (s, rad, commanded rad/s, task error norm); return the suspect.
 
         Joints in `locked` are already known and never suspected. Out-of-order times
-        restart the window.
+        restart the window. `kinematics`: the snapshot of q (`Robot.kinematics`) when
+        the caller has it.
         """
         robot = self.robot
         if self._last is not None and t <= self._last[0]:
@@ -95,8 +98,9 @@ class TaskChannel:
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
             self._columns += motion
-        self._samples.append((t, np.array(q, dtype=float), float(error), motion))
-        self._last = (t, robot.scale_task(robot.jacobian(q)) * np.asarray(qd, dtype=float))
+        at = kinematics if kinematics is not None else np.array(q, dtype=float)
+        self._samples.append((t, robot.forward(at), float(error), motion))
+        self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float))
         while self._samples[0][0] < t - self.config.window:
             self._samples.popleft()
             self._columns -= self._samples[0][3]  # the motion that led to the new first
@@ -111,7 +115,7 @@ class TaskChannel:
         if last[2] < (1 - cfg.progress) * first[2]:
             return None  # the task error is still going down
         expected = self._columns.sum(axis=1)
-        measured = robot.task_scale * (robot.forward(last[1]) - robot.forward(first[1]))
+        measured = robot.task_scale * (last[1] - first[1])
         residual = expected - measured
         size = float(np.linalg.norm(residual))
         if size < cfg.min_residual:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -117,12 +118,14 @@ class MonitorNode(SuiteNode):
         self._locked_pub = self.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
-        self.create_subscription(JointState, names.COMMAND_RAW, self._on_command,
-                                 qos.SENSOR_INPUT)
+        self._command_subscription = self.create_subscription(
+            JointState, names.COMMAND_RAW, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(Float64MultiArray, names.COMMAND_RAW_ARRAY, self._on_array,
                                  qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
                                  qos.SENSOR_INPUT)
+        #: Also given each joint state (`share_joint_states`; ft-stack).
+        self._state_listeners: list[Callable[[JointState], None]] = []
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
@@ -185,8 +188,20 @@ class MonitorNode(SuiteNode):
         """{joint name: position at lock (rad)} of every locked joint (the core's)."""
         return {} if self.core is None else self.core.locked
 
+    # ------------------------------------------------------- one-process wiring
+    def take_commands_by_call(self) -> Callable[[JointState], None]:
+        """Stop subscribing to `ft/command_raw`; returns what to call with each command."""
+        self.destroy_subscription(self._command_subscription)
+        return self._on_command
+
+    def share_joint_states(self, listener: Callable[[JointState], None]) -> None:
+        """Give `listener` every `joint_states` message this node takes."""
+        self._state_listeners.append(listener)
+
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
+        for listener in self._state_listeners:
+            listener(msg)
         if self.core is None:
             return
         q = self.read_joint_state(msg, self.core.robot.joint_names)
@@ -292,8 +307,9 @@ class MonitorNode(SuiteNode):
         self._command_msg.header.stamp = stamp
         self._command_msg.velocity = ordered
         self._command_pub.publish(self._command_msg)
-        self._array_msg.data = ordered
-        self._array_pub.publish(self._array_msg)
+        if self._array_pub.get_subscription_count():  # a JointGroupVelocityController
+            self._array_msg.data = ordered
+            self._array_pub.publish(self._array_msg)
 
     def stop(self) -> None:
         """Publish explicit zero velocities (used on shutdown)."""

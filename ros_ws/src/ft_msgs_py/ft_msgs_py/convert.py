@@ -86,7 +86,7 @@ def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position"
     if len(names) > MAX_NAMES:
         raise MessageError(f"{len(names)} joint names (more than {MAX_NAMES})")
     vector = values[list(_positions(tuple(names), tuple(joints)))]
-    if not np.all(np.isfinite(vector)):
+    if not np.isfinite(vector).all():
         bad = [j for j, v in zip(joints, vector, strict=True) if not np.isfinite(v)]
         raise MessageError(f"non-finite {field} for {bad}")
     return vector
@@ -102,7 +102,7 @@ def array_vector(values: Sequence[float], order: Sequence[int]) -> np.ndarray:
     if len(values) != indices.size:
         raise MessageError(f"array has {len(values)} values for {indices.size} joints")
     data = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(data)):
+    if not np.isfinite(data).all():
         raise MessageError(f"non-finite values at {np.flatnonzero(~np.isfinite(data))[:10]}")
     vector = np.empty(indices.size)
     vector[indices] = data

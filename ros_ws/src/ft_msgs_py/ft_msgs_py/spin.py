@@ -70,18 +70,12 @@ class LockStepExecutor(SingleThreadedExecutor):
     `add_node` lose theirs at the next spin.
     """
 
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self._entities_seen = 0
-
     def spin_once(self, timeout_sec: float | None = None) -> None:
         """Spin once (as rclpy does), after dropping the event handlers of new entities."""
         nodes = self.get_nodes()
-        count = sum(len([*node.publishers, *node.subscriptions]) for node in nodes)
-        if count != self._entities_seen:
+        if any(True for node in nodes for _ in node.waitables):
             for node in nodes:
                 _drop_event_handlers(node)
-            self._entities_seen = count
         super().spin_once(timeout_sec)
 
 
@@ -136,19 +130,22 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> No
     run_nodes([make_node], args)
 
 
-def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = None) -> None:
+def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = None,
+              wire: Callable[[list[Node]], None] = lambda _nodes: None) -> None:
     """`run_node` for several nodes in one process, on one executor (a component container).
 
-    Messages between them still go through the middleware (the same topics, QoS and
-    remappings as in separate processes), but no process boundary: one interpreter,
-    one heap, no context switch between them. On SIGINT or SIGTERM every node's
-    `stop()` runs, in order.
+    Messages between them go through the middleware (the same topics, QoS and
+    remappings as in separate processes) unless `wire`, called with the nodes once
+    made, connects some of them by calls instead; no process boundary either way: one
+    interpreter, one heap, no context switch between them. On SIGINT or SIGTERM every
+    node's `stop()` runs, in order.
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes = [make() for make in makers]
+    wire(nodes)
     settle_heap()
     executor = EventsExecutor()
     for node in nodes:

@@ -7,10 +7,16 @@ Like a component container: one interpreter and one executor (rclpy's
 EventsExecutor) spin the nodes, which keep their names (`controller`, `monitor`,
 `sim`), topics, parameters and services. A parameters file addresses each by name
 (`controller:`, `monitor:`, `sim:`) or all with `/**:`; `-p name:=value` on the
-command line sets it in every node. Compared with one process per node, a command
-is handled without a process switch between controller and monitor, and the
-Python interpreter, Pinocchio and numba's code are loaded once (`make bench`
-measures both layouts: docs/benchmarks.md).
+command line sets it in every node.
+
+The controller and the monitor are connected by calls (`compose`), not through the
+middleware: the controller hands each command to the monitor's command filter
+(`ft/command_raw` is still published while anyone else subscribes to it, for
+observers and recorders), and the monitor passes each `joint_states` message it
+takes to the controller, which no longer subscribes itself. A cycle then pays for
+the messages exchanged with the plant and little else; the Python interpreter,
+Pinocchio and numba's code are loaded once (`make bench` measures both layouts:
+docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -34,7 +40,13 @@ def main(args: list[str] | None = None) -> None:
                         help="also run the kinematic sim (for trials without hardware)")
     own = parser.parse_args(remove_ros_args(args=argv)[1:])
     makers = [ControllerNode, MonitorNode, *([SimNode] if own.sim else [])]
-    spin.run_nodes(makers, argv)
+    spin.run_nodes(makers, argv, wire=lambda nodes: compose(nodes[0], nodes[1]))
+
+
+def compose(controller: ControllerNode, monitor: MonitorNode) -> None:
+    """Connect the two nodes by calls: commands to the monitor, joint states to both."""
+    controller.hand_commands_to(monitor.take_commands_by_call())
+    monitor.share_joint_states(controller.use_shared_joint_states())
 
 
 if __name__ == "__main__":

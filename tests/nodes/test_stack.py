@@ -1,0 +1,67 @@
+"""ft-stack's wiring in one process: the controller and the monitor connected by calls."""
+
+from __future__ import annotations
+
+import tempfile
+
+import numpy as np
+from ft_controller.controller_node import ControllerNode
+from ft_monitor.monitor_node import MonitorNode
+from ft_msgs_py import convert, names, qos
+from ft_msgs_py.spin import harness_node, spin_until
+from ft_sim import stack
+from ft_sim.sim_node import SimNode
+from geometry_msgs.msg import TwistStamped
+from rclpy.parameter import Parameter
+from rosutil import ros_context
+from sensor_msgs.msg import JointState
+
+START = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]
+
+
+def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
+    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
+        sim = SimNode.stepped_by_hand(context, {"robot_model": "panda", "rate": 250.0,
+                                                "initial_positions": START})
+        common = {"robot_model": "panda", "task_space": "position", "use_sim_time": True}
+        controller = ControllerNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**common, "state_timeout": 60.0}.items()])
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**common, "state_directory": state,
+                                               "command_timeout": 60.0}.items()])
+        stack.compose(controller, monitor)
+        probe = harness_node("probe", context)
+        for node in (sim, controller, monitor, probe):
+            executor.add_node(node)
+        # Neither node takes these topics from the middleware any more (the graph first
+        # shows the entities made before and after those that are gone).
+        assert spin_until(executor, lambda: controller.count_publishers(names.COMMAND_RAW) == 1
+                          and controller.count_subscribers(names.COMMAND) == 1, 10.0)
+        assert controller.count_subscribers(names.COMMAND_RAW) == 0
+        assert controller.count_subscribers(names.JOINT_STATES) == 1  # the monitor's
+        outputs: list[JointState] = []
+        probe.create_subscription(JointState, names.COMMAND, outputs.append, qos.SENSOR_INPUT)
+        twist = probe.create_publisher(TwistStamped, names.TARGET_TWIST, qos.RELIABLE)
+        msg = TwistStamped()
+        msg.twist.linear.x = 0.05
+        start = None
+        for _ in range(100):
+            msg.header.stamp = convert.stamp_from_nanoseconds(round(sim.t * 1e9))
+            twist.publish(msg)
+            sim.advance(executor)
+            if start is None:
+                start = controller.robot.forward(np.array(sim.q))
+        # The monitor filtered the controller's commands (its detector has them), and the
+        # arm moved along x: commands reached the plant through the monitor's ft/command.
+        assert monitor.core.detector.history.last_time > 0.0
+        assert outputs and any(np.any(np.asarray(m.velocity)) for m in outputs)
+        moved = controller.robot.forward(np.array(sim.q)) - start
+        assert moved[0] > 0.01 and abs(moved[1]) < 0.2 * moved[0], moved
+        # ft/command_raw goes out again once someone else listens.
+        raw: list[JointState] = []
+        probe.create_subscription(JointState, names.COMMAND_RAW, raw.append, qos.SENSOR_INPUT)
+        assert spin_until(executor, lambda: controller._command_pub.get_subscription_count()
+                          == 1, 10.0), "the probe's subscription was never matched"
+        for _ in range(5):
+            sim.advance(executor)
+        assert raw, "no ft/command_raw although someone subscribes"
