@@ -8,7 +8,12 @@ process per core beside them (`ft_sim.load.busy_cores`):
 
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
-- one process: `ft-sim` and `ft-stack` (controller and monitor on one executor).
+- one process: `ft-sim` and `ft-stack` (controller and monitor on one executor,
+  connected by calls: `ft_sim.stack.compose`).
+
+These use the Panda's position task; at each of `--pose-rates` (250 and 1000 Hz) both
+layouts run once more with the pose task (idle, normal scheduler). The table also
+gives the controller's own CPU per cycle where it is a process of its own.
 
 After a warm-up, each process's CPU time (user + system, from /proc) is read
 before and after the timed run, and the controller's achieved rate comes from its
@@ -57,12 +62,13 @@ def cpu_seconds(pid: int) -> float:
 
 
 def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
-        busy: bool = False) -> dict:
+        busy: bool = False, task: str = "position") -> dict:
     """One layout at one rate and priority: CPU per process, the controller's rate, latencies.
 
     With `busy`, the timed runs share the machine with one busy process per core.
+    `task`: the Panda's task space (the probe's twist has six components).
     """
-    common = ["--ros-args", "-p", "robot_model:=panda", "-p", "task_space:=position",
+    common = ["--ros-args", "-p", "robot_model:=panda", "-p", f"task_space:={task}",
               "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
     commands = {name: [script, *common] for name, script in LAYOUTS[layout].items()}
     for name, argv in commands.items():
@@ -100,7 +106,7 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
             latencies = list(probe.latencies)
     share = {name: value / elapsed for name, value in used.items()}
     arm = sum(v for name, v in share.items() if name != "sim")
-    return {"rate_hz": rate, "thread_priority": priority, "busy": busy,
+    return {"rate_hz": rate, "thread_priority": priority, "busy": busy, "task": task,
             "scheduling": sorted(scheduling),
             "seconds": elapsed, "cpu_share": share,
             "arm_cpu_share": arm, "arm_cpu_ms_per_cycle": 1e3 * arm / rate,
@@ -121,18 +127,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=20.0,
                         help="timed run of each, and the latency run after it")
     parser.add_argument("--warm-up", type=float, default=10.0, help="discovery and warm-up")
+    parser.add_argument("--pose-rates", type=float, nargs="*", default=[250.0, 1000.0],
+                        help="rates also run with the pose task (idle, normal scheduler)")
     args = parser.parse_args(argv)
-    cases = [(rate, priority, busy, layout) for busy, rates in ((False, args.rates),
-                                                               (True, args.busy_rates))
+    cases = [(rate, priority, busy, layout, "position")
+             for busy, rates in ((False, args.rates), (True, args.busy_rates))
              for rate in rates for priority in args.priorities for layout in LAYOUTS]
-    results = [run(layout, rate, priority, args.seconds, args.warm_up, busy)
-               for rate, priority, busy, layout in cases]
+    cases += [(rate, 0, False, layout, "pose") for rate in args.pose_rates for layout in LAYOUTS]
+    results = [run(layout, rate, priority, args.seconds, args.warm_up, busy, task)
+               for rate, priority, busy, layout, task in cases]
     info = machine()
-    lines = ["| rate | machine | scheduling | layout | controller rate (Hz) | CPU per arm "
-             "(controller + monitor) | CPU per cycle (ms) | sim's CPU | arms on this machine "
-             "(bound) | joint_states to ft/command p50 / p99 (ms) |",
-             "|---:|---|---|---|---:|---:|---:|---:|---:|---:|"]
-    for r, (_, _, busy, layout) in zip(results, cases, strict=True):
+    lines = ["| task | rate | machine | scheduling | layout | controller rate (Hz) | CPU per arm "
+             "(controller + monitor) | CPU per cycle (ms) | controller's CPU per cycle (ms) | "
+             "sim's CPU | arms on this machine (bound) | joint_states to ft/command p50 / p99 "
+             "(ms) |",
+             "|---|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r, (_, _, busy, layout, task) in zip(results, cases, strict=True):
         latency = r["state_to_command_ms"]
         shown = (f"{latency['p50']:.2f} / {latency['p99']:.2f}" if latency["samples"]
                  else "-")
@@ -140,9 +150,12 @@ def main(argv: list[str] | None = None) -> int:
             f"SCHED_FIFO {r['thread_priority']}" if all(
                 s.startswith("SCHED_FIFO") for s in r["scheduling"]) else "refused")
         machine_load = "a busy process per core" if busy else "idle"
-        lines.append(f"| {r['rate_hz']:.0f} Hz | {machine_load} | {scheduling} | {layout} | "
-                     f"{r['controller_rate_hz']:.1f} | "
+        controller = r["cpu_share"].get("controller")
+        alone = "-" if controller is None else f"{1e3 * controller / r['rate_hz']:.3f}"
+        lines.append(f"| {task} | {r['rate_hz']:.0f} Hz | {machine_load} | {scheduling} | "
+                     f"{layout} | {r['controller_rate_hz']:.1f} | "
                      f"{100 * r['arm_cpu_share']:.0f} % | {r['arm_cpu_ms_per_cycle']:.3f} | "
+                     f"{alone} | "
                      f"{100 * r['cpu_share']['sim']:.0f} % | "
                      f"{'-' if busy else r['arms_per_machine']} | "
                      f"{shown} |")

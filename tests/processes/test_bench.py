@@ -130,14 +130,15 @@ def test_layouts_benchmark_measures_both_layouts(tmp_path: Path) -> None:
     env = {**os.environ, "FT_BENCH_DOMAIN_LAYOUTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "layouts.py"), "--out", str(tmp_path),
-         "--rates", "100", "--priorities", "0", "--busy-rates", "--seconds", "1.5",
-         "--warm-up", "4"],
+         "--rates", "100", "--priorities", "0", "--busy-rates", "--pose-rates",
+         "--seconds", "1.5", "--warm-up", "4"],
         capture_output=True, text=True, timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     runs = json.loads((tmp_path / "layouts.json").read_text())["runs"]
     assert [set(r["cpu_share"]) for r in runs] == [{"sim", "controller", "monitor"},
                                                    {"sim", "controller + monitor"}]
     assert [r["busy"] for r in runs] == [False, False]
+    assert [r["task"] for r in runs] == ["position", "position"]
     for run in runs:
         # Measured, not judged: on a busy machine under a loaded suite the rate can be
         # anything (docs/benchmarks.md has the figures of a quiet one).
