@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from ft_core import limits, measures, robots, velocity_jump
-from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine
+from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, check_config
 from ft_core.pseudoinverse import Damping, damped_pinv
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -264,10 +264,16 @@ def test_invalid_configurations_are_rejected(kwargs: dict, message: str) -> None
 
 def test_invalid_engine_inputs_are_rejected_before_arithmetic() -> None:
     robot = ROBOTS["planar3r"]
-    with pytest.raises(ValueError, match="soft limits"):
-        ResolutionEngine(robot, EngineConfig(soft_lower=[0.0], soft_upper=[1.0]))
-    with pytest.raises(ValueError, match="probabilities"):
-        ResolutionEngine(robot, EngineConfig(failure_probabilities=[1.0, 1.0]))
+    for config, match in ((EngineConfig(soft_lower=[0.0], soft_upper=[1.0]), "soft limits"),
+                          (EngineConfig(soft_lower=[1.0] * 3, soft_upper=[0.0] * 3), "above"),
+                          (EngineConfig(failure_probabilities=[1.0, 1.0]), "probabilities")):
+        # The same refusal with and without building an engine (the node's validation).
+        with pytest.raises(ValueError, match=match):
+            check_config(robot, config)
+        with pytest.raises(ValueError, match=match):
+            ResolutionEngine(robot, config)
+    probabilities, soft = check_config(robot, EngineConfig(failure_probabilities=[1, 2, 1]))
+    assert probabilities.tolist() == [1, 2, 1] and soft[0].size == 0
     engine = ResolutionEngine(robot)
     with pytest.raises(ValueError, match="finite"):
         engine.step(np.array([0.0, np.nan, 0.0]), np.zeros(2))

@@ -26,7 +26,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.controller import Controller, ControllerConfig
-from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, Status
+from ft_core.engine import RESOLUTIONS, EngineConfig, Status, check_config
 from ft_core.observability import ObservabilityConfig
 from ft_core.robots import Robot, RobotModelError
 from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
@@ -233,8 +233,7 @@ class ControllerNode(SuiteNode):
             self._controller_config(changes)
             if self.robot is not None:
                 robot = self.robot
-                config = self._engine_config(robot, self._order, changes)
-                ResolutionEngine(robot, config)  # validates lengths against the robot
+                check_config(robot, self._engine_config(robot, self._order, changes))
                 if "critical_points" in changes:
                     selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
         except (ValueError, TypeError) as error:

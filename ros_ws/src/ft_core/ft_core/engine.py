@@ -312,6 +312,33 @@ def _limit_report(q: np.ndarray, limit_box: np.ndarray,
     return margin, at_soft, np.minimum(q - limit_box[0], limit_box[1] - q) < AT_LIMIT
 
 
+def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
+                                                              tuple[np.ndarray, np.ndarray]]:
+    """What of `config` depends on the robot, checked: (failure probabilities, soft box).
+
+    Raises ValueError where the engine would refuse it (a probability per joint; soft
+    limits of n finite values each, lower below upper), without building an engine:
+    the node validates parameter changes with it. No probabilities: None; no soft
+    limits: two empty arrays.
+    """
+    n = robot.n
+    probabilities = None
+    if len(config.failure_probabilities):
+        probabilities = np.asarray(config.failure_probabilities, dtype=float)
+        measures.failure_weights(probabilities, n)  # validates
+    soft = (np.zeros(0), np.zeros(0))
+    if len(config.soft_lower):
+        lower = np.asarray(config.soft_lower, dtype=float)
+        upper = np.asarray(config.soft_upper, dtype=float)
+        if (lower.shape != (n,) or upper.shape != (n,)
+                or not np.all(np.isfinite(lower) & np.isfinite(upper))):
+            raise ValueError(f"soft limits need {n} finite values each")
+        if np.any(lower > upper):
+            raise ValueError("a soft lower limit is above its upper limit")
+        soft = (lower, upper)
+    return probabilities, soft
+
+
 class ResolutionEngine:
     """Fault-tolerant redundancy resolution for one robot and one configuration.
 
@@ -326,20 +353,8 @@ class ResolutionEngine:
     def __init__(self, robot: Robot, config: EngineConfig | None = None):
         self.robot = robot
         self.config = config or EngineConfig()
-        cfg, n = self.config, robot.n
-        self._probabilities = None
-        if len(cfg.failure_probabilities):
-            self._probabilities = np.asarray(cfg.failure_probabilities, dtype=float)
-            measures.failure_weights(self._probabilities, n)  # validates
-        self._soft = (np.zeros(0), np.zeros(0))
-        if len(cfg.soft_lower):
-            lower = np.asarray(cfg.soft_lower, dtype=float)
-            upper = np.asarray(cfg.soft_upper, dtype=float)
-            if lower.shape != (n,) or not np.all(np.isfinite(lower) & np.isfinite(upper)):
-                raise ValueError(f"soft limits need {n} finite values each")
-            if np.any(lower > upper):
-                raise ValueError("a soft lower limit is above its upper limit")
-            self._soft = (lower, upper)
+        cfg = self.config
+        self._probabilities, self._soft = check_config(robot, cfg)
         self._gains = np.array(Gains(
             kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
             kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer, dt=cfg.dt,
