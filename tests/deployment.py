@@ -14,7 +14,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -80,7 +80,9 @@ class Graph:
         self.commands: list[JointState] = []
         self.raw_commands: list[JointState] = []  # the controller's own output
         self.diagnostics: dict[str, list] = {}  # status name -> [(wall time, status)]
-        self.node.create_subscription(JointState, "ft/locked_joints", self.locked.append,
+        #: Called with each locked set as it arrives, before anything else (None: nothing).
+        self.on_locked: Callable[[JointState], None] | None = None
+        self.node.create_subscription(JointState, "ft/locked_joints", self._on_locked,
                                       qos.LATCHED)
         self.node.create_subscription(JointState, "joint_states", self.states.append,
                                       qos.SENSOR_INPUT)
@@ -93,7 +95,14 @@ class Graph:
         self._goal = self.node.create_publisher(PoseStamped, "ft/target_pose", qos.RELIABLE)
         self._inject = self.node.create_publisher(JointState, "ft/inject_failure", qos.RELIABLE)
         self._free = self.node.create_publisher(JointState, "ft/inject_free_swing", qos.RELIABLE)
+        self._declare = self.node.create_publisher(JointState, "ft/declare_failure",
+                                                   qos.RELIABLE)
         self._goal_index = 0
+
+    def _on_locked(self, msg: JointState) -> None:
+        if self.on_locked is not None:
+            self.on_locked(msg)
+        self.locked.append(msg)
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -170,6 +179,10 @@ class Graph:
     def inject(self, joint: str) -> None:
         """Lock a joint in the sim (the monitor is not told)."""
         self._inject.publish(JointState(name=[joint]))
+
+    def declare(self, joint: str) -> None:
+        """Tell the monitor a joint is locked (`ft/declare_failure`)."""
+        self._declare.publish(JointState(name=[joint]))
 
     def inject_free_swing(self, joint: str) -> None:
         """Make a joint of the sim lose its torque (the monitor is not told)."""

@@ -24,16 +24,18 @@ _contexts = itertools.count()
 
 @contextmanager
 def ros_context(shared: bool = False, executor_type: type[Executor] = LockStepExecutor,
-                ) -> Iterator[tuple[Context, Executor]]:
+                domain: int | None = None) -> Iterator[tuple[Context, Executor]]:
     """A fresh rclpy context with its own executor, shut down afterwards.
 
     Each context gets a DDS domain of its own, so a latched message of a node from
     an earlier test cannot reach this one; `shared` uses the session's
-    ROS_DOMAIN_ID instead, to talk with nodes in subprocesses. `executor_type` is
-    the lock-step harnesses' `LockStepExecutor` or the EventsExecutor the executables
+    ROS_DOMAIN_ID instead, to talk with nodes in subprocesses, and `domain` a given
+    one (a restart in the same domain, from `fresh_domain`). `executor_type` is the
+    lock-step harnesses' `LockStepExecutor` or the EventsExecutor the executables
     spin.
     """
-    domain = int(os.environ["ROS_DOMAIN_ID"]) if shared else fresh_domain()
+    if domain is None:
+        domain = int(os.environ["ROS_DOMAIN_ID"]) if shared else fresh_domain()
     context = Context()
     rclpy.init(context=context, domain_id=domain)
     executor = executor_type(context=context)

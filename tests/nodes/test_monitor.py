@@ -17,7 +17,7 @@ from ft_msgs_py import convert, qos
 from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim.sim_node import SimNode
 from rclpy.parameter import Parameter
-from rosutil import ros_context
+from rosutil import fresh_domain, ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -100,8 +100,9 @@ class Loop:
 
 @contextmanager
 def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
-         sim_parameters: dict | None = None) -> Iterator[Loop]:
-    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
+         sim_parameters: dict | None = None, domain: int | None = None) -> Iterator[Loop]:
+    with ros_context(domain=domain) as (context, executor), \
+            tempfile.TemporaryDirectory() as state:
         sim = SimNode.stepped_by_hand(context, {
             "robot_model": "panda", "rate": 250.0, "position_noise": noise,
             "initial_positions": START, "seed": 3, **(sim_parameters or {})})
@@ -226,15 +227,22 @@ def test_no_decision_while_nobody_subscribes_to_the_command_output(tmp_path) -> 
 
 def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:
     state = {"state_directory": str(tmp_path)}
-    with loop(monitor_parameters=state) as lp:
+    domain = fresh_domain()
+    with loop(monitor_parameters=state, domain=domain) as lp:
         lp.step(constant(np.full(7, 0.1)))
         lp.declare.publish(JointState(name=["panda_joint5"]))
         assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
         lp.step(constant(np.full(7, 0.1)))
         position = lp.monitor.locked["panda_joint5"]
         assert math.isfinite(position)
-    assert [p.name for p in tmp_path.iterdir()] == ["monitor--panda.json"]
-    with loop(monitor_parameters=state) as lp:  # a new monitor process, the same directory
+    assert [p.name for p in tmp_path.iterdir()] == [f"monitor--panda--domain{domain}.json"]
+    # Another ROS domain (a sim session beside the arm): nothing inherited.
+    with loop(monitor_parameters=state) as lp:
+        assert spin_until(lp.executor, lambda: bool(lp.locked), 2.0)
+        assert lp.monitor.context.get_domain_id() != domain
+        assert lp.locked_names() == [] and lp.monitor.locked == {}
+    # The same domain: a new monitor process, the same directory.
+    with loop(monitor_parameters=state, domain=domain) as lp:
         assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
         assert lp.locked[-1].position[0] == pytest.approx(position)
         lp.step(constant(np.full(7, 0.1)))
@@ -243,14 +251,15 @@ def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:
         assert client.wait_for_service(timeout_sec=5.0)
         future = client.call_async(Trigger.Request())
         assert spin_until(lp.executor, future.done, 5.0) and future.result().success
-    with loop(monitor_parameters=state) as lp:  # reset cleared the file too
+    with loop(monitor_parameters=state, domain=domain) as lp:  # reset cleared the file too
         spin_until(lp.executor, lambda: bool(lp.locked), 2.0)
         assert lp.locked and lp.locked_names() == []
 
 
 def test_a_corrupt_state_file_is_reported_and_ignored(tmp_path) -> None:
-    (tmp_path / "monitor--panda.json").write_text("{not json")
-    with loop(monitor_parameters={"state_directory": str(tmp_path)}) as lp:
+    domain = fresh_domain()
+    (tmp_path / f"monitor--panda--domain{domain}.json").write_text("{not json")
+    with loop(monitor_parameters={"state_directory": str(tmp_path)}, domain=domain) as lp:
         assert spin_until(lp.executor, lambda: bool(lp.locked), 2.0)
         assert lp.locked_names() == []
         assert "cannot read" in lp.monitor.problems.active["state_directory"]

@@ -10,6 +10,7 @@ On main before issue 13, the same graphs locked 6 of 7 joints within a minute.
 from __future__ import annotations
 
 import os
+import signal
 import time
 from itertools import pairwise
 from pathlib import Path
@@ -162,6 +163,40 @@ def test_a_lock_is_found_and_survives_monitor_and_controller_restarts(tmp_path: 
                            for v in g.values("/controller")[-3:]), 30.0,
                "the restarted controller's locked joints")
         assert g.ever_locked() == {"panda_joint4"}
+
+
+@pytest.mark.slow
+def test_a_lock_announced_survives_a_kill_at_the_announcement(tmp_path: Path) -> None:
+    """Persist, then announce (issue 29): kill -9 of the monitor as its locked set arrives.
+
+    Three times, a joint more each time: the restarted monitor must restore every joint
+    it had announced. Publishing first and writing after lost it 0 of 5 times killed
+    this way.
+    """
+    with graph(tmp_path, parameters(tmp_path, WATCHDOG_PLANT),
+               processes=("sim", "monitor")) as g:
+        declared: list[str] = []
+        count = 0  # locked sets seen before the current monitor's first
+        for joint in ("panda_joint2", "panda_joint5", "panda_joint7"):
+            g.wait(lambda c=count: len(g.locked) > c, 30.0, "the monitor's first locked set")
+            assert g.locked_names() == sorted(declared), g.log("monitor")[-3000:]
+            pid = g.processes["monitor"].pid
+
+            def kill_on_arrival(msg: JointState, joint: str = joint, pid: int = pid) -> None:
+                if joint in msg.name:
+                    os.kill(pid, signal.SIGKILL)
+
+            g.on_locked = kill_on_arrival
+            g.declare(joint)
+            declared.append(joint)
+            g.wait(lambda: g.processes["monitor"].poll() is not None, 10.0,
+                   f"the monitor killed as it announced {joint}")
+            g.on_locked = None
+            g.kill("monitor")
+            count = len(g.locked)
+            g.start("monitor")
+        g.wait(lambda: len(g.locked) > count, 30.0, "the last restarted monitor's locked set")
+        assert g.locked_names() == sorted(declared), g.log("monitor")[-3000:]
 
 
 @pytest.mark.slow

@@ -117,3 +117,14 @@ def test_an_unwritable_state_directory_is_reported_and_the_lock_still_holds(tmp_
     assert change.changed and list(lp.monitor.locked) == ["panda_joint7"]
     assert lp.problems["state_directory"].startswith("cannot keep the locked set")
     assert lp.monitor.joint_report(6).state == "locked"
+
+
+def test_the_state_file_is_keyed_by_namespace_robot_and_domain(tmp_path: Path) -> None:
+    paths = {locked_set.path_for(tmp_path, node, robot, domain)
+             for node in ("/monitor", "/arm1/monitor") for robot in ("panda", "iiwa")
+             for domain in (0, 7)}
+    assert len(paths) == 8 and all(p.parent == tmp_path for p in paths)
+    assert locked_set.path_for(tmp_path, "/arm1/monitor", "panda", 7).name == (
+        "arm1__monitor--panda--domain7.json")
+    assert locked_set.path_for("", "/monitor", "panda", 0).parent == (
+        locked_set.default_directory())

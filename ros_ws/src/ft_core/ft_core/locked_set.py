@@ -1,13 +1,15 @@
 """The locked set on disk, so that it survives a restart of the monitor.
 
-One small JSON file per monitor and robot in a state directory (default
+One small JSON file per monitor, robot and ROS domain in a state directory (default
 `$ROS_HOME/ft_arms`, `~/.ros/ft_arms` without ROS_HOME, as ROS 2 keeps its own
-per-user state), named after the monitor's fully qualified node name and the robot
-(`arm1__monitor--panda.json` for `/arm1/monitor` on a Panda), so namespaced arms on
-one machine keep separate sets. It is written atomically (a temporary file in the
-same directory, flushed, then renamed over the old one): a crash mid-write leaves
-the previous set, never half a file. A file that cannot be read or does not match
-the robot is reported and ignored.
+per-user state), named after the monitor's fully qualified node name, the robot and
+the domain (`arm1__monitor--panda--domain0.json` for `/arm1/monitor` on a Panda in
+domain 0), so namespaced arms on one machine, and graphs in other domains (a sim
+session beside the real arm), keep separate sets. It is written atomically (a
+temporary file in the same directory, flushed and fsynced, renamed over the old one,
+then the directory fsynced): a crash mid-write leaves the previous set, never half a
+file, and once `save` returns the set survives a power cut. A file that cannot be
+read or does not match the robot is reported and ignored.
 """
 
 from __future__ import annotations
@@ -33,12 +35,19 @@ def default_directory() -> Path:
     return Path(home) / "ft_arms"
 
 
-def path_for(directory: str | Path, node_name: str, robot: str) -> Path:
-    """The file of one monitor (fully qualified node name) and robot."""
-    def clean(text: str) -> str:
-        return re.sub(r"[^A-Za-z0-9_.-]", "_", text.strip("/").replace("/", "__")) or "_"
+def path_for(directory: str | Path, node_name: str, robot: str, domain: int) -> Path:
+    """The file of one monitor (fully qualified node name), robot and ROS domain."""
+    return Path(directory or default_directory()) / (
+        f"{_clean(node_name)}--{_clean(robot)}--domain{int(domain)}.json")
 
-    return Path(directory or default_directory()) / f"{clean(node_name)}--{clean(robot)}.json"
+
+def unkeyed_path(directory: str | Path, node_name: str, robot: str) -> Path:
+    """Where versions before the domain key kept the set (read by nobody: reported)."""
+    return Path(directory or default_directory()) / f"{_clean(node_name)}--{_clean(robot)}.json"
+
+
+def _clean(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", text.strip("/").replace("/", "__")) or "_"
 
 
 def save(path: Path, robot: str, locked: dict[str, float]) -> None:
@@ -57,6 +66,11 @@ def save(path: Path, robot: str, locked: dict[str, float]) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+    directory = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(directory)  # the rename itself, on disk
+    finally:
+        os.close(directory)
 
 
 def load(path: Path, robot: str, joint_names: list[str]) -> dict[str, float]:

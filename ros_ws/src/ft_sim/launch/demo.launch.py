@@ -9,9 +9,17 @@ Watch `ft/locked_joints`, `ft/metrics` and `/diagnostics`. (`ros2 run ft_sim dem
 runs the scripted story with its report and figure in one process.) The sim behaves
 like a real driver: 20 ms command latency, a 30 ms velocity response time and a
 command watchdog (`tests/processes/test_deployment.py` runs this graph as separate processes).
+
+A sim session starts with no locked joint: the monitor keeps its locked set in a new
+temporary directory each launch, never in the real arm's (`state_directory:=<dir>` to
+keep it across launches).
 """
 
+import tempfile
+
 from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 MODEL = {"robot_model": "panda", "task_space": "position"}
@@ -20,6 +28,9 @@ MODEL = {"robot_model": "panda", "task_space": "position"}
 def generate_launch_description():
     """Sim, controller and monitor."""
     return LaunchDescription([
+        DeclareLaunchArgument("state_directory",
+                              default_value=tempfile.mkdtemp(prefix="ft_sim_session_"),
+                              description="the monitor's state directory (default: new)"),
         Node(package="ft_sim", executable="sim_node", name="sim",
              parameters=[{**MODEL, "publish_clock": True, "rate": 250.0,
                           "position_noise": 0.001, "command_latency": 0.02,
@@ -28,5 +39,6 @@ def generate_launch_description():
              parameters=[{**MODEL, "use_sim_time": True, "resolution": "blend",
                           "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}]),
         Node(package="ft_monitor", executable="monitor_node", name="monitor",
-             parameters=[{**MODEL, "use_sim_time": True}]),
+             parameters=[{**MODEL, "use_sim_time": True,
+                          "state_directory": LaunchConfiguration("state_directory")}]),
     ])
