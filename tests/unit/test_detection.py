@@ -166,6 +166,58 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
     assert detector.swinging == {} and list(detector.locked) == [2]
 
 
+def _replay_all(data, detector: LockDetector, command_scale: np.ndarray | None = None):
+    """Feed a recording; (swings, locks) as [(time, joint)], commands scaled as given."""
+    swings, locks = [], []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values if command_scale is None else values * command_scale)
+        else:
+            update = detector.measure(t, values)
+            swings += [(t, j) for j in update.swinging]
+            locks += [(t, j) for j in update.locked]
+    return swings, locks
+
+
+@pytest.mark.parametrize("gain", [1.3, 1.6])
+def test_a_joint_running_ahead_of_its_command_is_never_free_swinging(gain: float) -> None:
+    """Issue 29: a servo's tracking error or overshoot is not a joint moving on its own.
+
+    Joint 3 runs at `gain` times its command (the detector is told 1 / gain of what the
+    plant executed) through 8 s of sweeping: faster than commanded, in the commanded
+    direction. The rule before this issue declared it free-swinging.
+    """
+    plant = PlantConfig(latency=0.02, response_time=0.03)
+    data = record(sweeping, 8.0, plant)
+    scale = np.ones(7)
+    scale[2] = 1 / gain
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    swings, locks = _replay_all(data, detector, scale)
+    assert detector.estimate().identified, "the test never reached identification"
+    assert swings == [] and locks == [] and detector.swinging == {}
+
+
+def test_a_joint_declared_free_swinging_that_stops_while_commanded_is_locked() -> None:
+    """Issue 29: whatever a joint was declared before, stopping while commanded is a lock.
+
+    Joint 3 loses its torque at 4 s (as in the test above), is declared free-swinging,
+    then jams at 4.6 s while the arm moves on: the detector locks it, and then a suspect
+    for it is "known".
+    """
+    plant = PlantConfig(latency=0.02, response_time=0.03)
+    data = record(lambda t: moving_targets(t) if t < 4.6 else np.full(7, 0.3), 5.5, plant,
+                  lock=((2,), 4.6))
+    for kind, t, values in data.events:
+        if kind == "measure" and t >= 4.0:
+            values[2] += 0.3 * (1 - np.cos(np.pi * (min(t, 4.6) - 4.0)))
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    swings, locks = _replay_all(data, detector)
+    assert [j for _, j in swings] == [2] and swings[0][0] < 4.6
+    assert locks and locks[-1][1] == 2 and locks[-1][0] > 4.6, locks
+    assert list(detector.locked) == [2] and detector.swinging == {}
+    assert detector.confirm(2, 0.0, 5.5).decision == "known"
+
+
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     for k in range(100):  # commanded, never moving: not one lock, and why

@@ -37,14 +37,23 @@ identification the best model is only a guess). A joint is
 - stalled at a physical limit, with the command pushing into it: reported, never a lock;
 - moving on its own when |v| >= `min_command` and v lies further than
   max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
-  [min(0, p_min), max(0, p_max)] over the plausible predictions p: at rest while
-  commanded to stay, against its command, or well beyond it. Held for `persistence` s
-  (with no plant fault), the joint is declared free-swinging (Maciejewski et al.: a joint that
-  lost its torque moves under gravity), reported in `swinging`, never as a lock. A
-  free-swinging joint moving against its command passes through a stall, so it may
-  first be declared locked: a locked joint (declared, restored or detected) that then
-  moves by itself is taken out of the locked set and declared free-swinging. A joint
-  declared locked after that (the brake applied) is not reclassified again.
+  [min(0, p_min), max(0, p_max)] over the plausible predictions p, with no command or
+  against it: moving while commanded to stay, or opposite to every plausible
+  prediction. Faster than commanded in the commanded direction (a servo's tracking
+  error or overshoot) never counts: Maciejewski et al. name a joint that lost its
+  torque by motion under gravity that the command does not explain, and a healthy
+  servo also runs ahead of its command. (Our reading: the sign test stands in for
+  "follows gravity", which would need the dynamics in the detector.) Held for
+  `persistence` s (with no plant fault), the joint is declared free-swinging, reported
+  in `swinging`, never as a lock. A free-swinging joint moving against its command
+  passes through a stall, so it may first be declared locked: a locked joint
+  (declared, restored or detected) that then moves by itself is taken out of the
+  locked set and declared free-swinging. A joint declared locked after that (the brake
+  applied) is not reclassified again. Whatever it was declared before, a joint that
+  stops (|v| within that noise) while commanded is a lock candidate again: a joint
+  once seen swinging can still lock (also one that lost its torque and came to rest,
+  which then acts as locked), and should it move on its own again it is taken out of
+  the locked set and declared free-swinging again.
 
 **No decision without evidence.** Nothing is decided (and the reason is kept in
 `not_observing`) while the command stream has a gap longer than half a window,
@@ -175,9 +184,10 @@ class Confirmation:
     """The detector's answer to a suspect from elsewhere (the controller's task channel).
 
     Attributes:
-        decision: "locked" (declared now), "known" (already locked or free-swinging:
-            a free-swinging joint stays reported as such) or "refused" (not a lock
-            candidate at the last update: following, within the noise, or at a limit).
+        decision: "locked" (declared now), "known" (already locked) or "refused" (not a
+            lock candidate at the last update: following, within the noise, moving on
+            its own, or at a limit). A joint declared free-swinging is decided like any
+            other: locked if it has stopped while commanded.
         evidence: the joint's evidence at the decision (a copy).
     """
 
@@ -302,10 +312,17 @@ def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
         healthy_low = min(low, 0.0) if unlocked[j] else 0.0
         healthy_high = max(high, 0.0) if unlocked[j] else 0.0
         outside = max(healthy_low - v, v - healthy_high)
-        on_its_own[j] = (undeclared[j] and abs(v) >= min_command
-                         and outside > max(confidence * s, min_command))
-        # A free-swinging joint is not a lock.
-        candidate[j] = stalled[j] and not pushing[j] and not on_its_own[j] and undeclared[j]
+        # Faster than commanded in the commanded direction is tracking error or a servo's
+        # overshoot, never a joint moving on its own: that needs no command or one against.
+        beyond = unlocked[j] and ((v > healthy_high and high >= min_command)
+                                  or (v < healthy_low and low <= -min_command))
+        noise = max(confidence * s, min_command)
+        on_its_own[j] = (undeclared[j] and abs(v) >= min_command and outside > noise
+                         and not beyond)
+        # A free-swinging joint is not a lock; one declared so before is again a candidate
+        # once it stops while commanded.
+        candidate[j] = stalled[j] and not pushing[j] and not on_its_own[j] and (
+            undeclared[j] or abs(v) <= noise)
     return weakest, observable, following, stalled, pushing, candidate, on_its_own
 
 
@@ -572,7 +589,7 @@ class LockDetector:
         the noise tests, the joint-limit rule and the plant-fault rule all apply.
         """
         evidence = self.joints[joint]
-        if evidence.locked_at is not None or evidence.swinging_at is not None:
+        if evidence.locked_at is not None:
             return Confirmation("known", replace(evidence))
         if not evidence.candidate:
             return Confirmation("refused", replace(evidence))
@@ -682,6 +699,8 @@ class LockDetector:
                 evidence.evidence_since = now
             if now - evidence.evidence_since >= cfg.persistence:
                 evidence.locked_at, evidence.position = now, float(latest[j])
+                # Seen swinging before: should it move on its own again, it swings again.
+                evidence.swinging_at = None
                 newly.append(j)
         return Update(tuple(newly), tuple(swinging))
 

@@ -222,6 +222,8 @@ class MonitorNode(SuiteNode):
     def _on_suspect(self, msg: JointState) -> None:
         """A joint the controller's task channel suspects: locked if the measurements agree."""
         if self.core is None or self.core.q is None:
+            self.get_logger().warning(f"suspected lock of {list(msg.name)[:3]} not decided: no "
+                                      "model or joint state yet", throttle_duration_sec=5.0)
             return
         try:
             known = convert.names_to_indices(list(msg.name)[:convert.MAX_NAMES],
