@@ -732,3 +732,16 @@ class LockDetector:
         self._set_plausible((self._model_latency >= lat.min() - LATENCY_MARGIN[0] - 1e-9)
                             & (self._model_latency <= lat.max() + LATENCY_MARGIN[1] + 1e-9)
                             & (self._model_response >= low) & (self._model_response <= high))
+
+
+def compile_ahead() -> None:
+    """Run the detector's compiled functions once, so numba compiles (or loads) them now.
+
+    `make build` calls it: otherwise the first monitor to take a joint state compiles
+    them inside that callback (about 5 s on 2 cores), with its commands held meanwhile.
+    """
+    detector = LockDetector(np.full(2, -1.0), np.full(2, 1.0))
+    for k in range(300):  # 1.2 s: past the settling time, so that decisions run
+        t = 0.004 * k
+        detector.command(t, np.full(2, 0.1))
+        detector.measure(t + 0.004, np.full(2, 0.0004 * k))
