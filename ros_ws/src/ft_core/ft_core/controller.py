@@ -203,7 +203,7 @@ class Controller:
         try:
             kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
             xd, idle, error = self._task_velocity(kinematics, now)
-            result = self.engine.step(q, xd, locked, kinematics)
+            result = self.engine.step(kinematics, xd, locked)
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(zeros, None, {"engine": f"{problem}: commanding zeros"})
@@ -239,7 +239,7 @@ class Controller:
         if self.excursions is None:
             return qd
         for k, (joint, speed) in enumerate(self.excursions.update(now, qd, locked)):
-            moved = self.engine.excursion(kinematics.q, qd, joint, speed, locked, kinematics)
+            moved = self.engine.excursion(kinematics, qd, joint, speed, locked)
             if moved is not None:
                 qd = moved
             elif k == 0:  # the idle joint itself cannot move: no excursion now
@@ -256,8 +256,7 @@ class Controller:
         """
         if self.channel is None:
             return
-        joint = self.channel.update(now, kinematics.q, step.qd, error, tuple(locked),
-                                    kinematics)
+        joint = self.channel.update(now, kinematics, step.qd, error, tuple(locked))
         step.suspect, step.new_suspect = joint, joint is not None and joint != self.suspect
         step.announce = joint is not None and (
             joint != self.suspect or now - self._suspect_sent >= self.channel.config.window)

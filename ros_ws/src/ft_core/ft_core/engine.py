@@ -406,10 +406,11 @@ class ResolutionEngine:
         weights[healthy] = 1.0  # a locked joint is braked: it does not swing
         return -self.config.swing_gain * swing.swing_gradient(self.robot, q, weights)[healthy]
 
-    def excursion(self, q: np.ndarray, qd: np.ndarray, joint: int, speed: float,
-                  locked: Iterable[int] = (), kinematics: Kinematics | None = None,
-                  ) -> np.ndarray | None:
+    def excursion(self, at: np.ndarray | Kinematics, qd: np.ndarray, joint: int, speed: float,
+                  locked: Iterable[int] = ()) -> np.ndarray | None:
         """The command qd plus a null-space motion moving `joint` at `speed` (rad/s), or None.
+
+        `at`: the configuration q (rad) or its snapshot (`Robot.kinematics`).
 
         The motion is N e_j speed / N_jj with N = V V^T the projector on the null space of
         the healthy joints' Jacobian (V from its SVD), so J of the motion is 0 to numerical
@@ -423,8 +424,8 @@ class ResolutionEngine:
         index = view.healthy
         if joint not in index:
             return None
-        J = self.robot.scale_task(self.robot.jacobian(
-            kinematics if kinematics is not None else np.asarray(q, dtype=float)))[:, index]
+        q = robots.configuration(at)
+        J = self.robot.scale_task(self.robot.jacobian(at))[:, index]
         _, sigmas, Vt = np.linalg.svd(J)
         rank = int(np.sum(sigmas > 1e-12 * max(sigmas.max(initial=0.0), 1.0)))
         null = Vt[rank:].T
@@ -440,11 +441,11 @@ class ResolutionEngine:
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
-    def step(self, q: np.ndarray, xd: np.ndarray, locked: Iterable[int] = (),
-             kinematics: Kinematics | None = None) -> CycleResult:
+    def step(self, at: np.ndarray | Kinematics, xd: np.ndarray,
+             locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
 
-        `kinematics`: the snapshot of q (`Robot.kinematics`) when the caller has it.
+        `at`: the configuration q (rad) or its snapshot (`Robot.kinematics`).
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `ABSURD_POSITION` outside the joint
@@ -453,7 +454,7 @@ class ResolutionEngine:
         """
         cfg, robot = self.config, self.robot
         n, m = robot.n, robot.m
-        q, xd = np.asarray(q, dtype=float), np.asarray(xd, dtype=float)
+        q, xd = robots.configuration(at), np.asarray(xd, dtype=float)
         if q.shape != (n,):
             raise ValueError(f"q must have {n} entries, got shape {q.shape}")
         if xd.shape != (m,):
@@ -466,7 +467,7 @@ class ResolutionEngine:
         if nh < m:
             return self._infeasible(q, xd, view)
         (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
-         margin) = _cycle(robot.base_jacobian(kinematics if kinematics is not None else q),
+         margin) = _cycle(robot.base_jacobian(at if isinstance(at, Kinematics) else q),
                           xd, q, index, robot.task_scale, view.box,
                           self._gains, view.use_kfm, view.use_jump,
                           self._probabilities is not None, self._swing_descent(q, view),

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -229,7 +229,7 @@ class Monitor:
             state = "stalled at a joint limit"
         else:
             state = "ok"
-        return JointReport(state, JointEvidence(**vars(evidence)))
+        return JointReport(state, replace(evidence))
 
     def plant_values(self) -> dict[str, object]:
         """The detector's view of the plant, for diagnostics."""

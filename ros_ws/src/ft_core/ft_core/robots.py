@@ -108,6 +108,11 @@ class Kinematics:
     base_jacobian: np.ndarray
 
 
+def configuration(at: np.ndarray | Kinematics) -> np.ndarray:
+    """The joint positions (rad) of a configuration or of its kinematics snapshot."""
+    return at.q if isinstance(at, Kinematics) else np.asarray(at, dtype=float)
+
+
 class RobotModelError(ValueError):
     """A robot model could not be built; the message names the problem."""
 

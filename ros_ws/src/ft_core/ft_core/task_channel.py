@@ -80,14 +80,13 @@ class TaskChannel:
         self.suspect: int | None = None  #: the joint whose loss explains the motion, if any
         self.residuals: np.ndarray = np.zeros(robot.n)  #: |r - c_i| / |r| at the last test
 
-    def update(self, t: float, q: np.ndarray, qd: np.ndarray, error: float,
-               locked: tuple[int, ...] = (), kinematics: Kinematics | None = None,
-               ) -> int | None:
+    def update(self, t: float, at: np.ndarray | Kinematics, qd: np.ndarray, error: float,
+               locked: tuple[int, ...] = ()) -> int | None:
         """Add a cycle (s, rad, commanded rad/s, task error norm); return the suspect.
 
-        Joints in `locked` are already known and never suspected. Out-of-order times
-        restart the window. `kinematics`: the snapshot of q (`Robot.kinematics`) when
-        the caller has it.
+        `at`: the configuration (rad) or its snapshot (`Robot.kinematics`). Joints in
+        `locked` are already known and never suspected. Out-of-order times restart the
+        window.
         """
         robot = self.robot
         if self._last is not None and t <= self._last[0]:
@@ -98,7 +97,6 @@ class TaskChannel:
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
             self._columns += motion
-        at = kinematics if kinematics is not None else np.array(q, dtype=float)
         self._samples.append((t, robot.forward(at), float(error), motion))
         self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float))
         while self._samples[0][0] < t - self.config.window:

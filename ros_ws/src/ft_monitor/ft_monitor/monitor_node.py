@@ -104,7 +104,6 @@ class MonitorNode(SuiteNode):
         super().__init__("monitor", **kwargs)
         parameters.declare(self, PARAMETERS)
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
-        self.robot: robots.Robot | None = None
         self.core: Monitor | None = None  #: the logic, once the model is known
         self._order: list[int] = []
         self.command_joints: list[str] = []  #: joint names in command order
@@ -169,7 +168,6 @@ class MonitorNode(SuiteNode):
         except (robots.RobotModelError, ValueError) as error:
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
-        self.robot = robot
         self._order = order.tolist()
         joints = self.command_joints = [robot.joint_names[i] for i in self._order]
         self._command_msg = convert.joint_state(joints, Time())
@@ -188,6 +186,11 @@ class MonitorNode(SuiteNode):
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
         self._announce(self.core.restore(self.now()), self.now())
         self._publish_locked(self.now())
+
+    @property
+    def robot(self) -> robots.Robot | None:
+        """The model in use (the core's), None until one is loaded."""
+        return None if self.core is None else self.core.robot
 
     @property
     def locked(self) -> dict[str, float]:
@@ -262,8 +265,9 @@ class MonitorNode(SuiteNode):
         self._announce(change, now)
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
-        released = [] if self.core is None else self.core.reset()
+        released = []
         if self.core is not None:
+            released = self.core.reset()
             self._publish_locked(self.now())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
@@ -283,7 +287,7 @@ class MonitorNode(SuiteNode):
         except convert.MessageError as error:
             self._refuse("ft/command_raw", error, msg.header.stamp, now)
             return
-        self.forward("ft/command_raw", qd, msg.header.stamp, now)
+        self._forward("ft/command_raw", qd, msg.header.stamp, now)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
@@ -295,14 +299,14 @@ class MonitorNode(SuiteNode):
         except convert.MessageError as error:
             self._refuse("ft/command_raw_array", error, stamp, self.now())
             return
-        self.forward("ft/command_raw_array", qd, stamp, self.now())
+        self._forward("ft/command_raw_array", qd, stamp, self.now())
 
     def _refuse(self, topic: str, error: convert.MessageError, stamp: Time, now: float) -> None:
         """A malformed command: reported, and replaced by explicit zeros."""
         self.problems.report(topic, f"{error}: commanding zeros")
         self._publish_command(self.core.zeros(now), stamp)
 
-    def forward(self, source: str, qd: np.ndarray, stamp: Time, now: float) -> None:
+    def _forward(self, source: str, qd: np.ndarray, stamp: Time, now: float) -> None:
         """A good command from `source` (chain order, rad/s): filtered by the core, published."""
         self.problems.report(source, None)
         self._last_command = now
