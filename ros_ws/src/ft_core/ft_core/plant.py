@@ -58,31 +58,30 @@ class PlantConfig:
                              "must be one or more finite values >= 0")
 
 
-class Plant:
-    """Joint positions and velocities driven by velocity commands; see the module docstring."""
+class CommandPath:
+    """Steps 1-3 of the module docstring, shared by every plant.
 
-    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity_limits: np.ndarray,
-                 q0: np.ndarray, config: PlantConfig | None = None, time: float = 0.0):
-        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+    Latency, watchdog or hold, velocity limits, and the per-joint acceleration limits
+    the plants enforce.
+    """
+
+    def __init__(self, n: int, velocity_limits: np.ndarray, config: PlantConfig):
+        self.n = n
         self.velocity_limits = np.asarray(velocity_limits, float)
-        self.n = self.lower.size
-        self.configure(config or PlantConfig())
-        self.q = np.clip(np.asarray(q0, float), self.lower, self.upper)
-        self.qd = np.zeros(self.n)
-        self.t = time
-        self.locked: dict[int, float] = {}  #: joint index -> position where it locked
-        self.swinging: set[int] = set()  #: joints that lost their torque (`swing`)
-        #: (q, qd) -> accelerations (n,) of the free-swinging joints (rad/s^2).
-        self.free_swing_acceleration: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+        self.configure(config)
         self._commands: deque[tuple[float, np.ndarray]] = deque()
 
     def configure(self, config: PlantConfig) -> None:
-        """Use new plant options from the next step on."""
+        """Use new plant options from the next step on.
+
+        Raises:
+            ValueError: acceleration limits neither one value nor one per joint.
+        """
         limits = np.asarray(config.acceleration_limit, float)
         if limits.size not in (1, self.n):
             raise ValueError(f"acceleration_limit has {limits.size} values for {self.n} joints")
         self.config = config
-        self._acceleration = np.broadcast_to(limits, (self.n,)).copy()
+        self.acceleration = np.broadcast_to(limits, (self.n,)).copy()
 
     @property
     def command_time(self) -> float:
@@ -92,6 +91,73 @@ class Plant:
     def command(self, time: float, velocity: np.ndarray) -> None:
         """A command arrived at `time` (s)."""
         self._commands.append((time, np.asarray(velocity, float).copy()))
+
+    def in_force(self, t: float) -> np.ndarray:
+        """The command acting at `t` (s), clipped to the velocity limits.
+
+        The newest command whose latency has passed, unless it timed out.
+        """
+        latency = self.config.latency
+        while len(self._commands) > 1 and self._commands[1][0] + latency <= t:
+            self._commands.popleft()
+        if not self._commands or self._commands[0][0] + latency > t:
+            return np.zeros(self.n)
+        arrived, velocity = self._commands[0]
+        if not self.config.hold_last_command and t - arrived - latency > self.config.timeout:
+            return np.zeros(self.n)
+        return np.clip(velocity, -self.velocity_limits, self.velocity_limits)
+
+
+class BasePlant:
+    """What every plant shares: the command path, the clock, the failed joints.
+
+    Attributes:
+        t: plant time (s).
+        locked: joint index -> position (rad) where it locked.
+        swinging: joints that lost their torque (`swing`).
+    """
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity_limits: np.ndarray,
+                 config: PlantConfig | None = None, time: float = 0.0):
+        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+        self.velocity_limits = np.asarray(velocity_limits, float)
+        self.n = self.lower.size
+        self.path = CommandPath(self.n, self.velocity_limits, config or PlantConfig())
+        self.t = time
+        self.locked: dict[int, float] = {}
+        self.swinging: set[int] = set()
+
+    def configure(self, config: PlantConfig) -> None:
+        """Use new plant options from the next step on."""
+        self.path.configure(config)
+
+    @property
+    def command_time(self) -> float:
+        """Arrival time (s) of the newest command; -inf before any."""
+        return self.path.command_time
+
+    def command(self, time: float, velocity: np.ndarray) -> None:
+        """A command arrived at `time` (s)."""
+        self.path.command(time, velocity)
+
+    def release(self) -> list[int]:
+        """Release every lock and free swing; returns the joints that were failed."""
+        released = sorted(set(self.locked) | self.swinging)
+        self.locked.clear()
+        self.swinging.clear()
+        return released
+
+
+class Plant(BasePlant):
+    """Joint positions and velocities driven by velocity commands; see the module docstring."""
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity_limits: np.ndarray,
+                 q0: np.ndarray, config: PlantConfig | None = None, time: float = 0.0):
+        super().__init__(lower, upper, velocity_limits, config, time)
+        self.q = np.clip(np.asarray(q0, float), self.lower, self.upper)
+        self.qd = np.zeros(self.n)
+        #: (q, qd) -> accelerations (n,) of the free-swinging joints (rad/s^2).
+        self.free_swing_acceleration: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def lock(self, joint: int) -> None:
         """Lock a joint where it is (it stops at once; a free-swinging one is braked)."""
@@ -106,43 +172,23 @@ class Plant:
         if joint not in self.locked:
             self.swinging.add(joint)
 
-    def release(self) -> list[int]:
-        """Release every lock and free swing; returns the joints that were failed."""
-        released = sorted(set(self.locked) | self.swinging)
-        self.locked.clear()
-        self.swinging.clear()
-        return released
-
-    def _in_force(self) -> np.ndarray:
-        """The command acting now: newest whose latency has passed, unless it timed out."""
-        latency = self.config.latency
-        while len(self._commands) > 1 and self._commands[1][0] + latency <= self.t:
-            self._commands.popleft()
-        if not self._commands or self._commands[0][0] + latency > self.t:
-            return np.zeros(self.n)
-        arrived, velocity = self._commands[0]
-        if not self.config.hold_last_command and (
-                self.t - arrived - latency > self.config.timeout):
-            return np.zeros(self.n)
-        return velocity
-
     def step(self, time: float) -> None:
         """Advance to `time` (s) under the command in force at the step's start."""
         dt = max(time - self.t, 0.0)
         self.t = max(time, self.t)
         if dt == 0.0:
             return
-        u = np.clip(self._in_force(), -self.velocity_limits, self.velocity_limits)
-        tau = self.config.response_time
+        u = self.path.in_force(self.t)
+        tau = self.path.config.response_time
         if tau > 0:
             decay = math.exp(-dt / tau)
             v = u + (self.qd - u) * decay
             moved = u * dt + (self.qd - u) * tau * (1 - decay)
         else:
             v, moved = u, u * dt
-        limited = self._acceleration > 0
+        limited = self.path.acceleration > 0
         if np.any(limited):
-            step = self._acceleration * dt
+            step = self.path.acceleration * dt
             v = np.where(limited, np.clip(v, self.qd - step, self.qd + step), v)
             moved = np.where(limited, 0.5 * (self.qd + v) * dt, moved)
         for j in self.locked:

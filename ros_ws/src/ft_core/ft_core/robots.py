@@ -36,11 +36,17 @@ from ft_core.checks import all_finite
 #: Task-space name -> number of task coordinates m.
 TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
 
-#: Built-in models: URDF resource in ft_core/urdf and the default task space.
+#: Built-in models: URDF resource in ft_core/urdf and the default task space. All but
+#: one are kinematic (no inertias). "panda_inertial" is the Franka Emika Panda as the
+#: `example-robot-data` package distributes it (URDF under Apache-2.0 from Franka Emika
+#: GmbH, unchanged): with inertias (what the physics plant, `ft_core.physics`, needs),
+#: gripper finger joints, fixed joints and `package://` mesh URIs, i.e. what a user's
+#: `robot_description` looks like; its kinematics agree with "panda"'s.
 BUILTINS = {
     "planar3r": ("planar3r.urdf", "planar"),
     "puma560": ("puma560.urdf", "position"),
     "panda": ("panda.urdf", "pose"),
+    "panda_inertial": ("panda_from_example_robot_data.urdf", "pose"),
     "iiwa14": ("iiwa14.urdf", "pose"),
 }
 
@@ -320,6 +326,8 @@ class Robot:
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
         base_link, tip_link: the chain's end links; task coordinates are in base_link.
         task_space: "pose", "position" or "planar"; m is the task dimension, n the joint count.
+        urdf: the URDF the model was built from, its chain's continuous joints rewritten
+            as revolute ones (what a dynamics engine loads: `ft_core.physics`).
         characteristic_length: L (m) scaling angular rows in `scale_task`.
         reach: sum of the distances between successive joint origins and the tool
             point (m), an upper bound of the distance from joint 1 to the tool.
@@ -355,7 +363,8 @@ class Robot:
         self.lower, self.upper, self.velocity_limits = _limits(root, names)
         self.base_link, self.tip_link, self.task_space = base, tip, task_space
         self.n, self.m = len(names), TASK_DIMENSIONS[task_space]
-        self._build_model(_as_revolute(root, names))
+        self.urdf = _as_revolute(root, names)
+        self._build_model(self.urdf)
         self.reach = self._reach()
         length = self.reach if characteristic_length is None else float(characteristic_length)
         if not (math.isfinite(length) and length > 0):

@@ -1,7 +1,12 @@
-"""sim_node: a kinematic plant for any model the suite loads, with failure injection.
+"""sim_node: a plant for any model the suite loads, with failure injection.
 
-Every step (at `rate`) advances `ft_core.plant.Plant` under the velocity commands
-from `ft/command`, as real drivers execute them:
+Every step (at `rate`) advances the plant under the velocity commands from
+`ft/command`, as real drivers execute them. `plant` chooses it: `kinematic`
+(`ft_core.plant.Plant`, any model) moves the joints as the velocity loop below says;
+`physics` (`ft_core.physics.PhysicsPlant`, needs a URDF with inertias such as the
+built-in `panda_inertial`) integrates the arm's dynamics in MuJoCo under a joint servo
+with finite gains, an imperfect gravity compensation and torque limits, with a brake as
+the lock and a drive without torque as the free swing. Both plants take:
 - `command_latency` (s): transport and driver delay (5-50 ms on real arms);
 - `response_time` (s): the velocity loop as a first-order lag (a joint servo
   tracking a velocity reference: 10-50 ms on Franka, KUKA and UR arms);
@@ -11,9 +16,11 @@ from `ft/command`, as real drivers execute them:
   pause (Franka FCI, KUKA FRI, UR RTDE's `speedj` with its timeout), unless
   `hold_last_command`: ros2_control's JointGroupVelocityController keeps the last
   command forever.
+On the physics plant, `response_time` sets the servo's gains (`ft_core.physics`).
 Velocities are clipped to the URDF limits and positions to the URDF limits; locked
-joints do not move. It publishes `joint_states` (positions with optional Gaussian
-`position_noise`, and the plant's velocities). Plant options may change at run time.
+joints do not move (behind the physics plant's brake: by a fraction of a mrad). It
+publishes `joint_states` (positions with optional Gaussian `position_noise`, and the
+plant's velocities). Plant options may change at run time.
 
 With `publish_clock` the sim owns the time: it starts at 0, advances exactly one
 period per step and publishes `/clock` (run the other nodes with use_sim_time);
@@ -23,10 +30,11 @@ run the plant faster than real time.
 `ft/inject_failure` (JointState, names) locks those joints where they are, from the
 next step, until `~/reset`; unknown names are rejected with a warning.
 `ft/inject_free_swing` (JointState, names) makes those joints lose their torque: they
-ignore the commands and swing under gravity as `ft_core.swing.pendulum_acceleration`
-says (needs the URDF's inertias: a joint without outboard inertia is refused with a
-warning); a lock injected on a swinging joint brakes it; `~/reset` ends both. A lock can
-also be scheduled with `failure.joint` and `failure.time` (s of plant time).
+ignore the commands and swing under gravity, as `ft_core.swing.pendulum_acceleration`
+says on the kinematic plant and as MuJoCo integrates it on the physics one (needs the
+URDF's inertias: a joint without outboard inertia is refused with a warning); a lock
+injected on a swinging joint brakes it; `~/reset` ends both. A lock can also be
+scheduled with `failure.joint` and `failure.time` (s of plant time).
 """
 
 from __future__ import annotations
@@ -35,7 +43,8 @@ import math
 
 import numpy as np
 from ft_core import robots, swing
-from ft_core.plant import Plant, PlantConfig
+from ft_core.physics import PhysicsPlant
+from ft_core.plant import CommandPath, Plant, PlantConfig
 from ft_msgs_py import convert, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
@@ -49,6 +58,8 @@ from std_srvs.srv import Trigger
 _PLANT = PlantConfig()
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
+    "plant": ("kinematic", "kinematic (any model) or physics (MuJoCo; needs the URDF's "
+              "inertias)", {"read_only": True}),
     "initial_positions": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: the "
                           "model's home configuration)", {"read_only": True}),
     "rate": (500.0, "Hz, integration and joint_states rate",
@@ -81,7 +92,10 @@ class SimNode(SuiteNode):
         super().__init__("sim", **kwargs)
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
-        self.plant: Plant | None = None
+        self.plant: Plant | PhysicsPlant | None = None
+        self._physics = self.param("plant") == "physics"
+        if self.param("plant") not in ("kinematic", "physics"):
+            raise ValueError(f"plant must be kinematic or physics, not {self.param('plant')!r}")
         self._rng = np.random.default_rng(self.param("seed"))
         self._own_clock = self.param("publish_clock")
         self.period = 1.0 / self.param("rate")
@@ -116,8 +130,7 @@ class SimNode(SuiteNode):
     def _check_plant(self, changes: dict) -> None:
         config = self._plant_config(changes)
         if self.plant is not None:  # per-joint values must match the model
-            Plant(self.plant.lower, self.plant.upper, self.plant.velocity_limits,
-                  self.plant.q, config)
+            CommandPath(self.plant.n, self.plant.velocity_limits, config)
 
     def _configure_plant(self) -> None:
         if self.plant is not None:
@@ -156,14 +169,25 @@ class SimNode(SuiteNode):
                 q = np.array([float(by_name[j]) for j in robot.joint_names])
                 if not np.all(np.isfinite(q)):
                     raise ValueError("initial_positions must be finite")
-            plant = Plant(robot.lower, robot.upper, robot.velocity_limits, q,
-                          self._plant_config(), time=self.t)
+            plant = self._plant(robot, q)
         except (robots.RobotModelError, ValueError) as error:
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
-        plant.free_swing_acceleration = lambda q, qd: swing.pendulum_acceleration(robot, q, qd)
         self.robot, self.plant = robot, plant
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
+
+    def _plant(self, robot: robots.Robot, q: np.ndarray) -> Plant | PhysicsPlant:
+        """The plant the `plant` parameter names, at q (rad).
+
+        Raises:
+            ft_core.physics.PhysicsError: a physics plant for a model MuJoCo cannot simulate.
+        """
+        if self._physics:
+            return PhysicsPlant(robot, q, self._plant_config(), time=self.t)
+        plant = Plant(robot.lower, robot.upper, robot.velocity_limits, q,
+                      self._plant_config(), time=self.t)
+        plant.free_swing_acceleration = lambda q, qd: swing.pendulum_acceleration(robot, q, qd)
+        return plant
 
     def _on_command(self, msg: JointState) -> None:
         if self.robot is None:
