@@ -42,8 +42,11 @@ identification the best model is only a guess). A joint is
   prediction. Faster than commanded in the commanded direction (a servo's tracking
   error or overshoot) never counts: Maciejewski et al. name a joint that lost its
   torque by motion under gravity that the command does not explain, and a healthy
-  servo also runs ahead of its command. (Our reading: the sign test stands in for
-  "follows gravity", which would need the dynamics in the detector.) Held for
+  servo also runs ahead of its command. When the caller knows the arm's gravity
+  (`measure(..., falling=...)`: the direction gravity accelerates each joint, 0 where
+  it hardly can), the motion must also go that way: a joint gravity cannot move, or
+  one moving uphill, is a servo's transient or the links' coupling, not a lost
+  torque (without it, the sign test alone stands in for "follows gravity"). Held for
   `persistence` s (with no plant fault), the joint is declared free-swinging, reported
   in `swinging`, never as a lock. A free-swinging joint moving against its command
   passes through a stall, so it may first be declared locked: a locked joint
@@ -281,7 +284,8 @@ class _Buffers:
 @njit(cache=True, error_model="numpy")
 def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
               latest: np.ndarray, lower: np.ndarray, upper: np.ndarray, unlocked: np.ndarray,
-              undeclared: np.ndarray, min_command: float, confidence: float,
+              undeclared: np.ndarray, falling: np.ndarray, gravity_known: bool,
+              min_command: float, confidence: float,
               ratio: float, following_ratio: float, limit_margin: float,
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                          np.ndarray, np.ndarray]:
@@ -317,8 +321,9 @@ def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
         beyond = unlocked[j] and ((v > healthy_high and high >= min_command)
                                   or (v < healthy_low and low <= -min_command))
         noise = max(confidence * s, min_command)
+        downhill = not gravity_known or falling[j] * v > 0
         on_its_own[j] = (undeclared[j] and abs(v) >= min_command and outside > noise
-                         and not beyond)
+                         and not beyond and downhill)
         # A free-swinging joint is not a lock; one declared so before is again a candidate
         # once it stops while commanded.
         candidate[j] = stalled[j] and not pushing[j] and not on_its_own[j] and (
@@ -560,10 +565,14 @@ class LockDetector:
         self.history.append(time, np.asarray(velocity, dtype=float))
         self.history.forget_before(time - 2 * self.config.window - self._latencies.max())
 
-    def measure(self, time: float, position: np.ndarray, blind: str | None = None) -> Update:
+    def measure(self, time: float, position: np.ndarray, blind: str | None = None,
+                falling: np.ndarray | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
+        `falling` (n,): the sign of the acceleration gravity gives each joint at
+        `position` were its torque lost, 0 where it is too weak to move it
+        (`ft_core.swing.falling_directions`); None: the arm's gravity is unknown.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -578,7 +587,7 @@ class LockDetector:
             self.plant_fault = None  # no evidence either way
             self._clear_evidence()
             return Update()
-        return self._update(time, dt)
+        return self._update(time, dt, falling)
 
     def confirm(self, joint: int, position: float, time: float) -> Confirmation:
         """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.
@@ -627,7 +636,7 @@ class LockDetector:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
 
-    def _update(self, now: float, dt: float) -> Update:
+    def _update(self, now: float, dt: float, falling: np.ndarray | None) -> Update:
         cfg = self.config
         times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
         best = int(np.argmin(self._scores))  # always plausible
@@ -647,7 +656,9 @@ class LockDetector:
         latest = positions[-1]
         weakest, observable, following, stalled, pushing, candidates, on_its_own = _classify(
             measured, plausible, error, latest, self.lower, self.upper, unlocked, undeclared,
-            cfg.min_command, cfg.confidence, cfg.ratio, cfg.following_ratio, cfg.limit_margin)
+            np.zeros(self.n) if falling is None else np.asarray(falling, dtype=float),
+            falling is not None, cfg.min_command, cfg.confidence, cfg.ratio,
+            cfg.following_ratio, cfg.limit_margin)
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])

@@ -10,7 +10,9 @@ converts messages, runs the watchdog and publishes; everything between is here.
   into `velocity_scale` times the URDF velocity limits, and is recorded by the
   detector as in force from the time given.
 - **Detection** (`observe`, `suspect`): the measured configurations go to the
-  `ft_core.detection.LockDetector`; a joint it declares free-swinging is, with
+  `ft_core.detection.LockDetector`, with the way gravity would turn each joint
+  (`ft_core.swing.falling_directions`; a joint moving on its own must go that way to
+  be free-swinging); a joint it declares free-swinging is, with
   `brake_free_swinging`, declared locked where it is (its brake applied). A suspect
   from elsewhere (the controller's task-space channel) is decided by the detector's
   own confirm rule.
@@ -33,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ft_core import locked_set, remap
+from ft_core import locked_set, remap, swing
 from ft_core.detection import Confirmation, DetectorConfig, JointEvidence, LockDetector
 from ft_core.robots import Robot
 
@@ -165,7 +167,7 @@ class Monitor:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q
         change = Change(self.detector.fill_unknown_positions(q))
-        update = self.detector.measure(now, q, blind)
+        update = self.detector.measure(now, q, blind, swing.falling_directions(self.robot, q))
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
         brake = self.config.brake_free_swinging

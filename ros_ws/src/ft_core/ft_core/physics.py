@@ -12,7 +12,8 @@ fall short of it. Every 1 ms, for the commands of `ft_core.plant.CommandPath`
 clipped to the URDF's effort limit: u the command (its rate of change within the
 acceleration limits), b the bias torques (gravity and Coriolis, one step old) of which
 the servo compensates a share 1 - e = 90 % (a drive's gravity model is never exact),
-M_jj the joint-space inertia at the home configuration, w = 1 / response_time
+M_jj the joint-space inertia at the home configuration (with the drive's rotor
+inertia, `ARMATURE`), w = 1 / response_time
 (response_time below 10 ms counts as 10 ms: no physical servo is instantaneous) and
 z = 1 (critical damping). A velocity command thus becomes a reference trajectory the
 joint tracks with a lag of about 2 / w, overshoots a little when the command reverses
@@ -52,6 +53,11 @@ GRAVITY_MODEL_ERROR = 0.1
 MIN_RESPONSE_TIME = 0.01
 #: The servo's damping ratio (z above).
 DAMPING_RATIO = 1.0
+#: kg m^2, the motor's rotor inertia seen through its gear, on every chain joint (URDFs
+#: leave it out; MuJoCo Menagerie's Panda uses this value). Without it the joint-space
+#: inertia of an arm with nearly aligned axes (a Panda with joint 2 near 0) is far from
+#: diagonal and independent joint servos, as drives are, would fight each other.
+ARMATURE = 0.1
 #: rad, how far the reference may run ahead of the joint (bounds the wind-up of a jam).
 TRACKING_LIMIT = 0.1
 #: MuJoCo solref (time constant s, damping ratio) of the brakes: stiff, 2 MuJoCo steps.
@@ -105,6 +111,8 @@ class PhysicsPlant(BasePlant):
             spec.compiler.boundmass, spec.compiler.boundinertia = 1e-6, 1e-9
             chain = set(robot.joint_names)
             for joint in spec.joints:
+                if joint.name in chain:
+                    joint.armature = ARMATURE
                 brake = spec.add_equality()
                 brake.type, brake.name1 = mujoco.mjtEq.mjEQ_JOINT, joint.name
                 brake.solref = BRAKE_SOLREF

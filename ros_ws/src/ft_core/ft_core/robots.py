@@ -326,6 +326,8 @@ class Robot:
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
         base_link, tip_link: the chain's end links; task coordinates are in base_link.
         task_space: "pose", "position" or "planar"; m is the task dimension, n the joint count.
+        has_inertias: whether any link that the chain moves has a mass in the URDF (its
+            gravity and dynamics are known).
         urdf: the URDF the model was built from, its chain's continuous joints rewritten
             as revolute ones (what a dynamics engine loads: `ft_core.physics`).
         characteristic_length: L (m) scaling angular rows in `scale_task`.
@@ -391,6 +393,7 @@ class Robot:
                 f"chain joints {self.joint_names} do not form a serial chain in the model"
             )
         self._model, self._data = model, model.createData()
+        self.has_inertias = any(inertia.mass > 0 for inertia in model.inertias[1:])
         # Links are BODY frames: a joint of the same name (Unitree Z1) is another frame.
         self._tip = model.getFrameId(self.tip_link, pin.FrameType.BODY)
         pin.framesForwardKinematics(model, self._data, pin.neutral(model))

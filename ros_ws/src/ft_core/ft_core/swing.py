@@ -34,6 +34,9 @@ from ft_core.robots import Robot
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 #: Viscous damping (1/s) of a free-swinging joint in `pendulum_acceleration`.
 FREE_SWING_DAMPING = 2.0
+#: rad/s^2: gravity that accelerates a torqueless joint less than this cannot be what
+#: moves it (`falling_directions`).
+MIN_FALL_ACCELERATION = 0.5
 #: Norm below which a projection (of s or g on the plane normal to an axis) is zero.
 _DEGENERATE = 1e-12
 
@@ -106,3 +109,18 @@ def pendulum_acceleration(robot: Robot, q: np.ndarray, qd: np.ndarray) -> np.nda
     with np.errstate(divide="ignore", invalid="ignore"):
         falling = np.where(inertia > 0, -gravity / inertia, 0.0)
     return falling - FREE_SWING_DAMPING * np.asarray(qd, dtype=float)
+
+
+def falling_directions(robot: Robot, q: np.ndarray) -> np.ndarray | None:
+    """The way gravity would turn each joint at q were its torque lost: +1, -1, or 0.
+
+    0 where `pendulum_acceleration` at rest is below `MIN_FALL_ACCELERATION` (a
+    vertical axis, a joint near its hanging or upright balance, little outboard
+    mass); None for a model without inertias, whose gravity is unknown. The lock
+    detector's evidence that a joint moving on its own follows gravity (Maciejewski
+    et al. sec. 2.3: a joint that lost its torque falls).
+    """
+    if not robot.has_inertias:
+        return None
+    acceleration = pendulum_acceleration(robot, q, np.zeros(robot.n))
+    return np.where(np.abs(acceleration) >= MIN_FALL_ACCELERATION, np.sign(acceleration), 0.0)

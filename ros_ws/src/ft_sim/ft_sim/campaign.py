@@ -43,7 +43,7 @@ from scipy import stats
 from tqdm import tqdm
 
 from ft_sim.demo import summarise
-from ft_sim.scenario import TASK_POINTS, ScenarioConfig, run
+from ft_sim.scenario import PHYSICS_ROBOT, TASK_POINTS, ScenarioConfig, run
 
 MODES = ("least_norm", "max_kfm", "min_jump", "blend")
 #: Far, non-critical waypoints per run (visited in turn after the critical points).
@@ -338,7 +338,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--record", action="store_true",
                         help="keep every run's topics as a rosbag2 (MCAP) beside its result")
-    parser.add_argument("--robot", default="panda", help="built-in name or URDF path")
+    parser.add_argument("--robot", help="built-in name or URDF path (default panda, "
+                        f"{PHYSICS_ROBOT} with --plant physics)")
+    parser.add_argument("--plant", default="kinematic", choices=["kinematic", "physics"],
+                        help="the sim's plant (physics: MuJoCo, docs/sim.md)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
     parser.add_argument("--latency", type=float, default=0.0, help="plant latency (s)")
@@ -350,8 +353,9 @@ def main(argv: list[str] | None = None) -> int:
                         default=int(os.environ.get("ROS_DOMAIN_ID", "29")) + 1,
                         help="first DDS domain id of the runs (default ROS_DOMAIN_ID + 1)")
     args = parser.parse_args(argv)
-    plant = {"command_latency": args.latency, "response_time": args.response_time,
-             "hold_last_command": args.hold_last_command}
+    args.robot = args.robot or (PHYSICS_ROBOT if args.plant == "physics" else "panda")
+    plant = {"plant": args.plant, "command_latency": args.latency,
+             "response_time": args.response_time, "hold_last_command": args.hold_last_command}
     try:
         design = design_of(args.robot, args.base_link, args.tip_link, plant)
     except robots.RobotModelError as error:

@@ -4,7 +4,8 @@ In one process, on real topics: the sim (owning the clock), the controller (with
 bounding-box soft limits from the task's critical points) and the monitor. The
 Panda visits three task points in turn; mid-task a joint is locked through
 `ft/inject_failure`; the monitor detects it and the controller carries on with
-the remaining joints. It prints a report and writes it to the output folder with
+the remaining joints (`--plant physics`: on the MuJoCo plant, `ft_core.physics`). It
+prints a report and writes it to the output folder with
 two figures, the time plots (`demo.png`) and the arm in 3D before the lock, at the
 lock and after recovery with its tool path and task points (`arm.png`); with
 `--record`, every topic as a rosbag2 in MCAP (`bag/`):
@@ -31,7 +32,7 @@ import numpy as np
 from ft_core import robots
 
 from ft_sim import arm_view
-from ft_sim.scenario import Record, Scenario, ScenarioConfig
+from ft_sim.scenario import PHYSICS_ROBOT, Record, Scenario, ScenarioConfig
 
 
 def summarise(config: ScenarioConfig, record: Record) -> dict:
@@ -146,10 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run the demo; return 0 when the story holds."""
     defaults = ScenarioConfig()
     parser = argparse.ArgumentParser(prog="ft-demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", default=defaults.robot, help="built-in name "
+    parser.add_argument("--robot", help="built-in name "
                         f"({', '.join(sorted(robots.BUILTINS))}) or URDF path; without task "
                         "points of its own, three are chosen around a bent configuration "
-                        "(default %(default)s)")
+                        f"(default {defaults.robot}, {PHYSICS_ROBOT} with --plant physics)")
+    parser.add_argument("--plant", default=defaults.plant, choices=["kinematic", "physics"],
+                        help="the sim's plant: kinematic, or physics (MuJoCo: servo lag, "
+                        "overshoot, gravity; docs/sim.md) (default %(default)s)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
     parser.add_argument("--task", default=defaults.task_space, choices=["position", "pose"],
@@ -169,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--record", action="store_true", help="also write every topic as a "
                         "rosbag2 (MCAP) to <out>/bag, for Foxglove, PlotJuggler or ros2 bag")
     args = parser.parse_args(argv)
+    args.robot = args.robot or (PHYSICS_ROBOT if args.plant == "physics" else defaults.robot)
     try:
         joints = robots.load(args.robot, args.base_link or None, args.tip_link or None,
                              task_space=args.task).joint_names
@@ -182,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--lock-time must lie inside the run")
     scenario = Scenario(ScenarioConfig(
         robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
-        task_space=args.task, resolution=args.resolution, lock_joint=joint,
+        task_space=args.task, resolution=args.resolution, plant=args.plant, lock_joint=joint,
         lock_time=args.lock_time, duration=args.duration, seed=args.seed,
         soft_limits=not args.no_soft_limits), bag=args.out / "bag" if args.record else None)
     print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "

@@ -47,6 +47,9 @@ TASK_POINTS = {
 }
 
 
+#: The default model of a run on the physics plant: the built-in with inertias.
+PHYSICS_ROBOT = "panda_inertial"
+
 #: A pose goal is reached within this many rad of orientation per m of position tolerance.
 ANGLE_PER_METRE = 10.0
 #: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
@@ -75,6 +78,8 @@ class ScenarioConfig:
         noise: position noise (rad); seed: noise seed.
         goal_tolerance: m (a pose goal also within `ANGLE_PER_METRE` x as many rad);
             goal_timeout: s per visit.
+        plant: the sim's plant, "kinematic" or "physics" (MuJoCo; needs a model with
+            inertias, such as "panda_inertial").
         command_latency, response_time (s), hold_last_command: the sim's plant options.
         start: the initial configuration (rad, chain order; default the bent one).
     """
@@ -97,6 +102,7 @@ class ScenarioConfig:
     goal_timeout: float = 4.0
     command_latency: float = 0.0
     response_time: float = 0.0
+    plant: str = "kinematic"
     hold_last_command: bool = False
     start: tuple[float, ...] = ()
 
@@ -164,7 +170,8 @@ class Scenario:
         self.critical = list(critical)
         flat = [v for i in self.critical for v in config.points[i]]
         self.sim = SimNode.stepped_by_hand(self.context, {
-            **model, "rate": config.rate, "position_noise": config.noise, "seed": config.seed,
+            **model, "plant": config.plant, "rate": config.rate,
+            "position_noise": config.noise, "seed": config.seed,
             "command_latency": config.command_latency, "response_time": config.response_time,
             "hold_last_command": config.hold_last_command,
             "initial_positions": [float(v) for v in start]})
