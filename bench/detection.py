@@ -1,15 +1,19 @@
 """`make bench`: lock-detection quality on realistic plants, new detector beside the old.
 
-Data is recorded once per case from `ft_core.plant.Plant` (the sim's plant) driven
-at 250 Hz with 1e-3 rad position noise, over the plant grid of issue 13 (latency
-{0, 10, 30, 50} ms x response time {0, 20, 50} ms), then replayed through
-`ft_core.detection` (default parameters) and through the detector of main before
-issue 13 (`fixed_latency_detector`, its defaults) on exactly the same data.
+Data is recorded once per case from each of the sim's plants, `ft_core.plant.Plant`
+(kinematic) and `ft_core.physics.PhysicsPlant` (MuJoCo: the Panda's dynamics under
+joint servos; its response time is at least 10 ms), driven at 250 Hz with 1e-3 rad
+position noise, over the plant grid of issue 13 (latency {0, 10, 30, 50} ms x
+response time {0, 20, 50} ms), then replayed through `ft_core.detection` (default
+parameters; on the physics plant with the gravity directions the monitor gives it,
+`ft_core.swing.falling_directions`) and through the detector of main before issue 13
+(`fixed_latency_detector`, its defaults) on exactly the same data.
 
-- False locks per hour of healthy motion: each grid cell runs `--healthy-seconds`
-  of moving targets (smooth oscillations with command pauses of 0.05 to 1 s, the
-  plant's watchdog stopping the arm) at peak speeds 0.1, 0.2 and 0.5 rad/s. After a
-  false lock the detector is reset (an operator's `~/reset`) and counting goes on.
+- False locks and free-swing declarations per hour of healthy motion: each grid cell
+  runs `--healthy-seconds` of moving targets (smooth oscillations with command pauses
+  of 0.05 to 1 s, the plant's watchdog stopping the arm) at peak speeds 0.1, 0.2 and
+  0.5 rad/s. After a false lock the detector is reset (an operator's `~/reset`) and
+  counting goes on.
 - Detection latency: `--trials` locks per speed and cell; the arm first moves
   (moving targets, 2.5 s) then every joint is commanded at the speed with random
   signs, and a random joint locks 0.5 to 1 s later. Latency = first declaration
@@ -32,11 +36,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fixed_latency_detector
 from engine_cycle import machine, report
-from ft_core import robots
-from ft_core.detection import LockDetector, Update
+from ft_core import robots, swing
+from ft_core.detection import LockDetector
+from ft_core.physics import PhysicsPlant
 from ft_core.plant import Plant, PlantConfig
 
 PANDA = robots.load("panda")
+#: The same arm with its inertias, for the physics plant.
+PANDA_INERTIAL = robots.load("panda_inertial")
+PLANTS = ("kinematic", "physics")
 START = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
 DT = 1 / 250
 GRID = list(itertools.product((0.0, 0.01, 0.03, 0.05), (0.0, 0.02, 0.05)))
@@ -50,20 +58,24 @@ class Recording:
     events: list[tuple[str, float, np.ndarray]] = field(default_factory=list)
     lock_time: float | None = None
     locked: tuple[int, ...] = ()
+    physics: bool = False  #: recorded on the physics plant (its gravity is known)
 
 
 def record(commands, seconds: float, plant: PlantConfig | None = None,
            lock: tuple[tuple[int, ...], float] | None = None, noise: float = 1e-3,
            pauses: tuple[tuple[float, float], ...] = (), stop_at: float | None = None,
-           seed: int = 0, dt: float = DT) -> Recording:
+           seed: int = 0, dt: float = DT, physics: bool = False) -> Recording:
     """Drive the plant with `commands(t)` for `seconds` and record what a monitor sees.
 
     `lock` = (joints, time); `pauses` = ((start, end), ...) without commands;
-    `stop_at`: the whole arm stops then (an emergency stop).
+    `stop_at`: the whole arm stops then (an emergency stop); `physics`: on the
+    physics plant instead of the kinematic one.
     """
     rng = np.random.default_rng(seed)
-    arm = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, START, plant or PlantConfig())
-    result = Recording(lock_time=lock[1] if lock else None, locked=lock[0] if lock else ())
+    arm = (PhysicsPlant(PANDA_INERTIAL, START, plant) if physics else
+           Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, START, plant or PlantConfig()))
+    result = Recording(lock_time=lock[1] if lock else None, locked=lock[0] if lock else (),
+                       physics=physics)
     for k in range(round(seconds / dt)):
         t = k * dt
         if not any(a <= t < b for a, b in pauses):
@@ -82,15 +94,26 @@ def record(commands, seconds: float, plant: PlantConfig | None = None,
 
 
 def replay(recording: Recording, detector, reset_after_lock: bool = False,
-           ) -> list[tuple[float, list[int]]]:
-    """Feed a recording to a detector; returns [(time, joints newly declared locked)]."""
+           swings: list[int] | None = None) -> list[tuple[float, list[int]]]:
+    """Feed a recording to a detector; returns [(time, joints newly declared locked)].
+
+    The new detector is told the way gravity turns each joint when the recording's
+    plant has gravity (as the monitor does); its free-swing declarations are appended
+    to `swings`.
+    """
     declared = []
     for kind, t, values in recording.events:
         if kind == "command":
             detector.command(t, values)
             continue
-        new = detector.measure(t, values)
-        new = list(new.locked) if isinstance(new, Update) else new  # the old one: a list
+        if isinstance(detector, LockDetector):
+            update = detector.measure(t, values, falling=swing.falling_directions(
+                PANDA_INERTIAL, values) if recording.physics else None)
+            new = list(update.locked)
+            if swings is not None:
+                swings += update.swinging
+        else:  # the old one: a list
+            new = detector.measure(t, values)
         if new:
             declared.append((t, new))
             if reset_after_lock:
@@ -114,23 +137,33 @@ def moving_targets(speed: float, phase: float = 0.0):
     return commands
 
 
-def healthy(seconds: float) -> dict:
-    """False locks per hour, per detector and speed, summed over the grid."""
+def healthy(seconds: float, physics: bool) -> dict:
+    """False locks (and free-swing declarations) per hour, per detector and speed.
+
+    Summed over the grid.
+    """
     counts = {name: dict.fromkeys(SPEEDS, 0) for name in detectors()}
+    swung = dict.fromkeys(SPEEDS, 0)
     pauses = tuple((start, start + length) for start, length in
                    zip(np.arange(5.0, seconds, 10.0), itertools.cycle((0.05, 0.15, 0.3, 1.0)),
                        strict=False))
     for (latency, response), speed in itertools.product(GRID, SPEEDS):
         data = record(moving_targets(speed), seconds, PlantConfig(latency, response),
-                      pauses=pauses, seed=int(1000 * (latency + response + speed)))
+                      pauses=pauses, seed=int(1000 * (latency + response + speed)),
+                      physics=physics)
         for name, detector in detectors().items():
-            counts[name][speed] += sum(len(j) for _, j in replay(data, detector, True))
+            swings: list[int] = []
+            counts[name][speed] += sum(len(j) for _, j in replay(data, detector, True, swings))
+            swung[speed] += len(swings)
     hours = len(GRID) * seconds / 3600
-    return {name: {f"{speed} rad/s": {"false_locks": n, "hours": hours, "per_hour": n / hours}
+    return {name: {f"{speed} rad/s": {"false_locks": n, "hours": hours, "per_hour": n / hours,
+                                      **({"swings": swung[speed],
+                                          "swings_per_hour": swung[speed] / hours}
+                                         if name == "new" else {})}
                    for speed, n in by_speed.items()} for name, by_speed in counts.items()}
 
 
-def latency(trials: int, seed: int = 0) -> dict:
+def latency(trials: int, physics: bool, seed: int = 0) -> dict:
     """Detection latency per detector and speed over the grid."""
     rng = np.random.default_rng(seed)
     results = {name: {speed: {"latencies": [], "missed": 0, "wrong": 0} for speed in SPEEDS}
@@ -145,7 +178,8 @@ def latency(trials: int, seed: int = 0) -> dict:
                 return moving(t) if t < 2.5 else speed * signs
 
             data = record(commands, lock + 1.0, PlantConfig(plant_latency, response),
-                          lock=((joint,), lock), seed=int(rng.integers(1 << 30)))
+                          lock=((joint,), lock), seed=int(rng.integers(1 << 30)),
+                          physics=physics)
             for name, detector in detectors().items():
                 found = [(t, j) for t, j in replay(data, detector)]
                 entry = results[name][speed]
@@ -176,8 +210,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="healthy motion per grid cell and speed (s)")
     parser.add_argument("--trials", type=int, default=10, help="locks per grid cell and speed")
     args = parser.parse_args(argv)
-    false_locks, delays = healthy(args.healthy_seconds), latency(args.trials)
-    hours = next(iter(next(iter(false_locks.values())).values()))["hours"]
+    plants = {plant: {"false_locks": healthy(args.healthy_seconds, plant == "physics"),
+                      "detection": latency(args.trials, plant == "physics")}
+              for plant in PLANTS}
+    hours = args.healthy_seconds * len(GRID) / 3600
 
     def cell(figure: dict) -> str:
         if figure["p50_ms"] is None:
@@ -185,17 +221,22 @@ def main(argv: list[str] | None = None) -> int:
         return (f"{figure['p50_ms']:.0f} / {figure['p99_ms']:.0f} ({figure['detected']}/"
                 f"{figure['trials']}; {figure['missed']} missed, {figure['wrong']} wrong)")
 
-    lines = [f"| detector | speed | false locks per hour ({hours:.2f} h healthy) | "
-             "detection p50 / p99 (ms) |", "|---|---:|---:|---:|"]
-    for name in false_locks:
-        for speed in false_locks[name]:
-            lines.append(f"| {name} | {speed} | {false_locks[name][speed]['per_hour']:.0f} | "
-                         f"{cell(delays[name][speed])} |")
+    lines = [f"| plant | detector | speed | false locks per hour ({hours:.2f} h healthy) | "
+             "free-swing declarations per hour | detection p50 / p99 (ms) |",
+             "|---|---|---:|---:|---:|---:|"]
+    for plant, figures in plants.items():
+        for name, by_speed in figures["false_locks"].items():
+            for speed, healthy_figures in by_speed.items():
+                swings = (f"{healthy_figures['swings_per_hour']:.0f}"
+                          if "swings" in healthy_figures else "-")
+                lines.append(f"| {plant} | {name} | {speed} | "
+                             f"{healthy_figures['per_hour']:.0f} | {swings} | "
+                             f"{cell(figures['detection'][name][speed])} |")
     info = machine()
-    lines += ["", f"Plant grid: latency {{0, 10, 30, 50}} ms x response time {{0, 20, 50}} ms; "
+    lines += ["", f"Plant grid: latency {{0, 10, 30, 50}} ms x response time {{0, 20, 50}} ms "
+              "(the physics plant's servo: at least 10 ms); "
               f"{info['cpu']}, {info['date']}."]
-    report(args.out, "detection", lines,
-           {"machine": info, "false_locks": false_locks, "detection": delays})
+    report(args.out, "detection", lines, {"machine": info, "plants": plants})
     return 0
 
 

@@ -154,12 +154,16 @@ def test_detection_benchmark_compares_both_detectors_on_the_same_data(tmp_path: 
          "--healthy-seconds", "1", "--trials", "1"],
         capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
-    figures = json.loads((tmp_path / "detection.json").read_text())
-    assert set(figures["false_locks"]) == {"new", "old (fixed latency)"}
-    new = figures["detection"]["new"]["0.2 rad/s"]
-    assert new["trials"] == 12 and new["detected"] + new["missed"] + new["wrong"] == 12
-    assert new["detected"] > 0 and new["p99_ms"] >= new["p50_ms"] > 0
-    assert "| new | 0.2 rad/s |" in (tmp_path / "detection.md").read_text()
+    plants = json.loads((tmp_path / "detection.json").read_text())["plants"]
+    assert set(plants) == {"kinematic", "physics"}
+    for figures in plants.values():
+        assert set(figures["false_locks"]) == {"new", "old (fixed latency)"}
+        assert "swings_per_hour" in figures["false_locks"]["new"]["0.2 rad/s"]
+        new = figures["detection"]["new"]["0.2 rad/s"]
+        assert new["trials"] == 12 and new["detected"] + new["missed"] + new["wrong"] == 12
+        assert new["detected"] > 0 and new["p99_ms"] >= new["p50_ms"] > 0
+    text = (tmp_path / "detection.md").read_text()
+    assert "| kinematic | new | 0.2 rad/s |" in text and "| physics | new | 0.2 rad/s |" in text
 
 
 @pytest.mark.slow
