@@ -166,6 +166,33 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
     assert detector.swinging == {} and list(detector.locked) == [2]
 
 
+@pytest.mark.parametrize(("gravity", "declared"), [(1.0, [2]), (-1.0, []), (0.0, [])])
+def test_a_joint_moving_on_its_own_must_go_the_way_gravity_turns_it(
+        gravity: float, declared: list[int]) -> None:
+    """Issue 29: with the arm's gravity known, only motion downhill is a lost torque.
+
+    Joint 3 moves on its own (positive) while the arm holds still; gravity would turn
+    it positive, negative, or not at all (a vertical axis): free-swinging only in the
+    first case, whatever the other evidence.
+    """
+    data = record(lambda t: moving_targets(t) if t < 2.5 else np.zeros(7), 5.0,
+                  PlantConfig(latency=0.02, response_time=0.03))
+    for kind, t, values in data.events:
+        if kind == "measure" and t >= 4.0:
+            values[2] += 0.3 * (1 - np.cos(np.pi * (t - 4.0)))
+    falling = np.zeros(7)
+    falling[2] = gravity
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    swings = []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+        else:
+            swings += detector.measure(t, values, falling=falling).swinging
+    assert detector.estimate().identified, "the test never reached identification"
+    assert swings == declared
+
+
 def _replay_all(data, detector: LockDetector, command_scale: np.ndarray | None = None):
     """Feed a recording; (swings, locks) as [(time, joint)], commands scaled as given."""
     swings, locks = [], []

@@ -47,7 +47,9 @@ identification the best model is only a guess). A joint is
   it hardly can), the motion must also go that way: a joint gravity cannot move, or
   one moving uphill, is a servo's transient or the links' coupling, not a lost
   torque (without it, the sign test alone stands in for "follows gravity"). Held for
-  `persistence` s (with no plant fault), the joint is declared free-swinging, reported
+  `persistence` s plus the plausible plant's settling time (its largest latency and 3
+  response times: a servo's overshoot or spring back after a stop dies within it) with
+  no plant fault, the joint is declared free-swinging, reported
   in `swinging`, never as a lock. A free-swinging joint moving against its command
   passes through a stall, so it may first be declared locked: a locked joint
   (declared, restored or detected) that then moves by itself is taken out of the
@@ -694,7 +696,9 @@ class LockDetector:
                 continue
             if evidence.swing_since is None:
                 evidence.swing_since = now
-            if now - evidence.swing_since >= cfg.persistence:
+            # A servo's transient (overshoot, the spring back after a stop) dies within
+            # the plant's settling time; motion on its own that outlasts it does not.
+            if now - evidence.swing_since >= cfg.persistence + self._slowest:
                 # A joint declared locked that moves was never locked: it swings.
                 evidence.swinging_at, evidence.locked_at = now, None
                 swinging.append(j)
