@@ -87,13 +87,13 @@ def test_every_package_xml_declares_what_its_code_imports() -> None:
     python = {"numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
               "numba": "python3-numba", "matplotlib": "python3-matplotlib",
               "pinocchio": "pinocchio", "tqdm": "python3-tqdm",
-              "rosbags": "python3-rosbags-pip"}
+              "rosbags": "python3-rosbags-pip", "mujoco": "python3-mujoco-pip"}
     for package in PACKAGES:
         root = WORKSPACE / "src" / package
         declared = set(re.findall(r"<exec_depend>([^<]+)</exec_depend>",
                                   (root / "package.xml").read_text()))
         imported = set()
-        for path in [*root.glob(f"{package}/*.py"), *root.glob("launch/*.py")]:
+        for path in [*root.glob(f"{package}/**/*.py"), *root.glob("launch/*.py")]:
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.Import):
                     imported |= {alias.name.split(".")[0] for alias in node.names}

@@ -47,8 +47,8 @@ identification the best model is only a guess). A joint is
   it hardly can), the motion must also go that way: a joint gravity cannot move, or
   one moving uphill, is a servo's transient or the links' coupling, not a lost
   torque (without it, the sign test alone stands in for "follows gravity"). Held for
-  `persistence` s plus the plausible plant's settling time (its largest latency and 3
-  response times: a servo's overshoot or spring back after a stop dies within it) with
+  `persistence` s plus the best plant model's settling time (its latency and 3 response
+  times: a servo's overshoot or spring back after a stop dies within it) with
   no plant fault, the joint is declared free-swinging, reported
   in `swinging`, never as a lock. A free-swinging joint moving against its command
   passes through a stall, so it may first be declared locked: a locked joint
@@ -690,6 +690,7 @@ class LockDetector:
             self._clear_evidence()
             return Update()
         swinging = []
+        settling = float(self._model_latency[best] + 3 * self._model_response[best])
         for j in np.flatnonzero(on_its_own).tolist():
             evidence = self.joints[j]
             if evidence.swinging_at is not None:
@@ -698,7 +699,7 @@ class LockDetector:
                 evidence.swing_since = now
             # A servo's transient (overshoot, the spring back after a stop) dies within
             # the plant's settling time; motion on its own that outlasts it does not.
-            if now - evidence.swing_since >= cfg.persistence + self._slowest:
+            if now - evidence.swing_since >= cfg.persistence + settling:
                 # A joint declared locked that moves was never locked: it swings.
                 evidence.swinging_at, evidence.locked_at = now, None
                 swinging.append(j)

@@ -49,7 +49,8 @@ THREAD_PRIORITY = {
 #: name -> (default, description, extra descriptor fields)
 MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
-    "robot_model": ("", "built-in name (planar3r, puma560, panda, iiwa14) or URDF path; "
+    "robot_model": ("", "built-in name (planar3r, puma560, panda, panda_inertial, iiwa14) or "
+                    "URDF path; "
                     "empty too: wait for the robot_description topic", {"read_only": True}),
     "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
     "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
