@@ -4,7 +4,7 @@ For each control rate (250 and 1000 Hz by default), each `thread_priority` of th
 controller and the monitor (0, the normal scheduler, and SCHED_FIFO 50) and each
 layout, the installed console scripts run on the wall clock beside a probe streaming
 a twist target; at 1000 Hz (`--busy-rates`) every case runs once more with one busy
-process per core beside them (`ft_sim.load.busy_cores`):
+process per core beside them (`ft_sim.cpu_load.busy_cores`):
 
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
@@ -44,7 +44,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine, report
 from ft_msgs_py import qos
 from ft_msgs_py.spin import spin_for, spin_until
-from ft_sim.load import busy_cores
+from ft_sim.cpu_load import busy_cores
 from nodes import installed, percentiles
 
 LAYOUTS = {

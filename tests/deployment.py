@@ -4,7 +4,8 @@
 install space (as `ros2 run` and `ros2 launch` do), each its own process on a DDS
 domain of the test's own, and a probe node in the test process that drives pose
 goals and records what the graph publishes. Processes can be killed (-9), paused
-(SIGSTOP/SIGCONT, a stalled process) and restarted. `ft_sim.load.busy_cores` saturates every core.
+(SIGSTOP/SIGCONT, a stalled process) and restarted. `ft_sim.cpu_load.busy_cores` saturates
+every core.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ import yaml
 from deployment import Graph, graph
 from ft_core import robots
 from ft_msgs_py import convert, qos, thread_priority
-from ft_sim.load import busy_cores
+from ft_sim.cpu_load import busy_cores
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rosutil import in_thread

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from ft_core import bounds, cli, robots, selfmotion
+from ft_core import robots, selfmotion
+from ft_core.offline import bounds, cli
 
 
 def run(tmp_path: Path, *args: str) -> tuple[int, Path]:

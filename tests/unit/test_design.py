@@ -1,4 +1,4 @@
-"""ft_core.design, design7r, multicase and `ft-design`: the design tools of Xie 2019 ch. 3.
+"""ft_core.offline.design, design7r, multicase and `ft-design`: the design tools of Xie 2019 ch. 3.
 
 Tolerances against the chapter are stated at each check (published entries are rounded
 to 0.01); readings of garbled equations are in the modules' docstrings.
@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ft_core import design, design7r, dh, measures, multicase
+from ft_core import measures
+from ft_core.offline import design, design7r, dh, multicase
 from hypothesis import given
 from hypothesis import strategies as st
 

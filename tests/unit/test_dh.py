@@ -1,4 +1,4 @@
-"""ft_core.dh: DH parameters from a Jacobian and the 7! designs of eq 2.7 (Xie 2019 sec. 2.3).
+"""ft_core.offline.dh: DH parameters from a Jacobian, the 7! designs of eq 2.7 (Xie 2019 sec. 2.3).
 
 Tolerances against the chapter: its numbers are computed from the unrounded J*, the
 code gets the rounded eq 2.7 (entries +-0.005), so printed alphas and a's are met
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import design, dh
+from ft_core.offline import design, dh
 from hypothesis import given
 from hypothesis import strategies as st
 

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ft_core import placement, robots, selfmotion
+from ft_core import robots, selfmotion
+from ft_core.offline import placement
 
 FAST = ("--step", "0.05")  # coarser tracing: the planar 3R's boxes barely change
 

@@ -1,4 +1,4 @@
-"""Probability of task failure and the planner of Xie 2019 ch. 4 (ft_core.reliability, planning).
+"""Probability of task failure and the planner of Xie 2019 ch. 4 (`ft_core.offline`).
 
 The chapter's examples are a planar 2R arm of which only the end effector's x is
 controlled (sec. 4.4: one degree of redundancy). Its manifolds are written here in
@@ -14,8 +14,9 @@ import math
 
 import numpy as np
 import pytest
-from ft_core import planning, reliability, robots, selfmotion
-from ft_core.reliability import TaskPoint, Trajectory
+from ft_core import robots, selfmotion
+from ft_core.offline import planning, reliability
+from ft_core.offline.reliability import TaskPoint, Trajectory
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

@@ -19,10 +19,10 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "bounds = ft_core.bounds:main",
-            "design = ft_core.design:main",
-            "map = ft_core.placement:main",
-            "plan = ft_core.planning:main",
+            "bounds = ft_core.offline.bounds:main",
+            "design = ft_core.offline.design:main",
+            "map = ft_core.offline.placement:main",
+            "plan = ft_core.offline.planning:main",
         ],
     },
 )

@@ -1,22 +1,28 @@
 """ft_core: the ROS-free mathematics of the fault-tolerance suite.
 
-Modules:
+The online path (what the nodes call every cycle, and what they need to start):
     robots: URDF chains through Pinocchio, forward kinematics, Jacobians and their derivatives.
+    input_checks: input checks of the per-cycle path (compiled).
     measures: post-failure singular values, kfm, weighted and relative measures.
-    design: optimally fault tolerant null vectors and isotropic Jacobians.
-    parallel: failure-tolerance measures of parallel manipulators (Yi et al. 2006).
     pseudoinverse: damped pseudo-inverse acting only near singularities.
     postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
     velocity_jump: minimum joint-velocity jump (Zhao & Li).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
+    swing: free-swinging joints: swing angles, their measure, the way gravity turns a joint.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
-    controller: the controller's per-cycle logic around the engine (targets, soft-limit
-        job, observability excursions, task channel): `Controller.step`.
-    checks: input checks of the per-cycle path (compiled).
     targets: task velocities from pose goals and twists.
+    observability: excursions that make a joint nobody commands show a lock.
+    task_channel: a lock suspected from the task error the commands do not explain.
+    controller: the controller's per-cycle logic around the engine: `Controller.step`.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
-    bounds: the `ft-bounds` command line.
+    workers: worker processes that end with their parent, started off a real-time thread.
     detection: locked-joint detection from commanded and measured motion.
     remap: reduced-Jacobian remapping of commands around locked joints.
-    workers: worker processes that end with their parent, started off a real-time thread.
+    locked_set: the persisted locked set (atomic write, keyed by robot, node and domain).
+    monitor: the monitor's logic: filter commands, decide on locks, keep the set.
+    plant: a velocity-commanded arm as drivers execute commands (the kinematic sim).
+    physics: the arm's dynamics in MuJoCo under joint servos (the physics sim).
+
+The offline tools of the papers (design, placement, planning, parallel manipulators)
+are in the subpackage `ft_core.offline`.
 """

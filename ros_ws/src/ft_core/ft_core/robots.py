@@ -31,7 +31,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from ft_core.checks import all_finite
+from ft_core.input_checks import all_finite
 
 #: Task-space name -> number of task coordinates m.
 TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}

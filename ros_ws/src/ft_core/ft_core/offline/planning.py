@@ -37,8 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ft_core import cli, reliability, robots, selfmotion
-from ft_core.reliability import TaskPoint, Trajectory
+from ft_core import robots, selfmotion
+from ft_core.offline import cli, reliability
+from ft_core.offline.reliability import TaskPoint, Trajectory
 
 #: Most manifold samples kept per task point for the search (every k-th sample).
 CANDIDATES = 400

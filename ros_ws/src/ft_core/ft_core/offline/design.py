@@ -8,9 +8,9 @@ construction of eq 3.18, which for equal weights is the canonical optimal
 Jacobian (Xie 2019 eq 2.6, Maciejewski et al. eq 10). `redundant_optimal_jacobian` extends it
 to several degrees of redundancy (eqs 3.26-3.29).
 
-The command line `ft-design` (`main`) runs these and the tools of `ft_core.dh`
-(DH parameters and the 7! designs, sec. 2.3), `ft_core.design7r` (7R-realisable
-optima, eqs 3.20-3.24) and `ft_core.multicase` (eq 3.30), writing JSON and a figure.
+The command line `ft-design` (`main`) runs these and the tools of `ft_core.offline.dh`
+(DH parameters and the 7! designs, sec. 2.3), `ft_core.offline.design7r` (7R-realisable
+optima, eqs 3.20-3.24) and `ft_core.offline.multicase` (eq 3.30), writing JSON and a figure.
 """
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def _check_task_dimension(m: int, n: int) -> None:
 
 
 def _dh_report(J: np.ndarray, verify: bool, workers: int) -> dict[str, Any]:
-    from ft_core import dh
+    from ft_core.offline import dh
 
     family = dh.organise_permutations(J)
     good = family.match_pairs(dh.GOOD_PAIRS)
@@ -208,7 +208,7 @@ def _dh_report(J: np.ndarray, verify: bool, workers: int) -> dict[str, Any]:
 
 
 def _verify_chunk(args: tuple[np.ndarray, list[int]]) -> int:
-    from ft_core import dh
+    from ft_core.offline import dh
 
     J, designs = args
     return dh.verify_family(J, dh.organise_permutations(J), designs)
@@ -265,7 +265,8 @@ def _plot_dh(report: dict[str, Any], path: Path) -> None:
 
 
 def _r7_report(args: argparse.Namespace) -> dict[str, Any]:
-    from ft_core import design7r, dh, measures
+    from ft_core import measures
+    from ft_core.offline import design7r, dh
 
     start = design7r.J_324 if args.start == "3.24" else None
     design = design7r.realisable_design(args.probabilities, free_weights=not args.fixed_weights,
@@ -337,7 +338,7 @@ def _plot_redundant(report: dict[str, Any], path: Path) -> None:
 def _multicase_report(args: argparse.Namespace) -> dict[str, Any]:
     from tqdm import tqdm
 
-    from ft_core import multicase
+    from ft_core.offline import multicase
 
     grid = multicase.link_grid(args.step)
     with tqdm(total=len(grid), desc="eq 3.30 designs", unit="design", file=sys.stderr) as bar:
@@ -383,7 +384,7 @@ def _plot_multicase(report: dict[str, Any], path: Path) -> None:
 
 
 def _load_jacobian(path: Path | None) -> np.ndarray:
-    from ft_core import dh
+    from ft_core.offline import dh
 
     if path is None:
         return dh.J_STAR
@@ -395,7 +396,7 @@ def _load_jacobian(path: Path | None) -> np.ndarray:
 
 
 def _probabilities(text: str) -> list[float]:
-    from ft_core.cli import numbers
+    from ft_core.offline.cli import numbers
 
     try:
         return numbers(text)
@@ -460,7 +461,7 @@ def main(argv: list[str] | None = None) -> int:
                                       args.workers), _plot_dh
         elif args.command == "r7":
             if args.start == "3.24" and args.probabilities is None:
-                from ft_core.design7r import W_324
+                from ft_core.offline.design7r import W_324
 
                 args.probabilities = W_324.tolist()
             report, plot = _r7_report(args), _plot_r7

@@ -68,7 +68,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ft_core import cli, measures, robots, selfmotion
+from ft_core import measures, robots, selfmotion
+from ft_core.offline import cli
 
 #: Longest straight move (m) of the tool per continuation step when seeding.
 CONTINUATION_STEP = 0.05

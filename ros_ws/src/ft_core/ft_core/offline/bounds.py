@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ft_core import cli, selfmotion
+from ft_core import selfmotion
+from ft_core.offline import cli
 
 #: Stand-in for "no soft limit" on a joint without position limits (YAML has no inf
 #: that every ROS 2 parameter parser accepts).
