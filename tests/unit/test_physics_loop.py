@@ -31,7 +31,7 @@ from ft_core.plant import PlantConfig
 GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
 GOAL_PERIOD = 1.5
 #: s of healthy goals before the lock (the monitor identifies the plant meanwhile).
-HEALTHY = 6.0
+HEALTHY = 4.0
 #: rad/s; the joint locks at the first moment after HEALTHY that it moves this fast.
 LOCK_SPEED = 0.1
 DRIVERS = {"fast": PlantConfig(latency=0.01, response_time=0.02),
