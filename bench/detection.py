@@ -107,8 +107,8 @@ def replay(recording: Recording, detector, reset_after_lock: bool = False,
             detector.command(t, values)
             continue
         if isinstance(detector, LockDetector):
-            update = detector.measure(t, values, falling=swing.falling_directions(
-                PANDA_INERTIAL, values) if recording.physics else None)
+            update = detector.measure(t, values, falling=(lambda q=values: swing.falling_directions(
+                PANDA_INERTIAL, q)) if recording.physics else None)
             new = list(update.locked)
             if swings is not None:
                 swings += update.swinging

@@ -43,8 +43,10 @@ identification the best model is only a guess). A joint is
   error or overshoot) never counts: Maciejewski et al. name a joint that lost its
   torque by motion under gravity that the command does not explain, and a healthy
   servo also runs ahead of its command. When the caller knows the arm's gravity
-  (`measure(..., falling=...)`: the direction gravity accelerates each joint, 0 where
-  it hardly can), the motion must also go that way: a joint gravity cannot move, or
+  (`measure(..., falling=...)`: a function giving the direction gravity accelerates
+  each joint, 0 where it hardly can, called only at an update where a joint moves on
+  its own by the other tests, since this test can only clear joints), the motion must
+  also go that way: a joint gravity cannot move, or
   one moving uphill, is a servo's transient or the links' coupling, not a lost
   torque (without it, the sign test alone stands in for "follows gravity"). Held for
   `persistence` s plus the best plant model's settling time (its latency and 3 response
@@ -84,6 +86,7 @@ shared by commands and measurements.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -568,13 +571,15 @@ class LockDetector:
         self.history.forget_before(time - 2 * self.config.window - self._latencies.max())
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
-                falling: np.ndarray | None = None) -> Update:
+                falling: Callable[[], np.ndarray | None] | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
-        `falling` (n,): the sign of the acceleration gravity gives each joint at
+        `falling` returns (n,) the sign of the acceleration gravity gives each joint at
         `position` were its torque lost, 0 where it is too weak to move it
-        (`ft_core.swing.falling_directions`); None: the arm's gravity is unknown.
+        (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
+        it is called only when a joint moves on its own by the other tests (gravity's
+        test can only clear a joint), so a healthy cycle pays nothing for it.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -638,7 +643,8 @@ class LockDetector:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
 
-    def _update(self, now: float, dt: float, falling: np.ndarray | None) -> Update:
+    def _update(self, now: float, dt: float,
+                falling: Callable[[], np.ndarray | None] | None) -> Update:
         cfg = self.config
         times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
         best = int(np.argmin(self._scores))  # always plausible
@@ -656,11 +662,15 @@ class LockDetector:
         unlocked = np.array([e.locked_at is None for e in self.joints])
         undeclared = np.array([e.swinging_at is None for e in self.joints])
         latest = positions[-1]
-        weakest, observable, following, stalled, pushing, candidates, on_its_own = _classify(
-            measured, plausible, error, latest, self.lower, self.upper, unlocked, undeclared,
-            np.zeros(self.n) if falling is None else np.asarray(falling, dtype=float),
-            falling is not None, cfg.min_command, cfg.confidence, cfg.ratio,
-            cfg.following_ratio, cfg.limit_margin)
+        evidence_of = (measured, plausible, error, latest, self.lower, self.upper, unlocked,
+                       undeclared)
+        rules = (cfg.min_command, cfg.confidence, cfg.ratio, cfg.following_ratio,
+                 cfg.limit_margin)
+        flags = _classify(*evidence_of, np.zeros(self.n), False, *rules)
+        directions = falling() if falling is not None and flags[-1].any() else None
+        if directions is not None:  # gravity's test only clears joints: now it matters
+            flags = _classify(*evidence_of, np.asarray(directions, dtype=float), True, *rules)
+        weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])

@@ -167,7 +167,8 @@ class Monitor:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q
         change = Change(self.detector.fill_unknown_positions(q))
-        update = self.detector.measure(now, q, blind, swing.falling_directions(self.robot, q))
+        update = self.detector.measure(now, q, blind,
+                                       lambda: swing.falling_directions(self.robot, q))
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
         brake = self.config.brake_free_swinging
