@@ -72,14 +72,16 @@ demo: $(STAMP)
 	$(BIN)/ft-demo
 
 # Speed and detection-quality figures (not asserted in tests): writes bench_out/*.md and
-# *.json; about an hour (the fault campaign on a realistic plant, 160 runs, the nodes'
-# 10-minute memory run, the two layouts at two rates). The soft-limits study with 200 runs
-# per condition is docs/campaign.md's longer ft-campaign command.
+# *.json; about two hours (the fault campaign on a realistic plant, 160 runs, the deployed
+# nodes' 30-minute soak on each plant, the nodes' 10-minute memory run, the two layouts at
+# two rates). The soft-limits study with 200 runs per condition is docs/campaign.md's
+# longer ft-campaign command.
 bench: $(STAMP)
 	$(BIN)/python bench/engine_cycle.py --out bench_out
 	$(BIN)/python bench/engine_scaling.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 	$(BIN)/python bench/detection.py --out bench_out
+	$(BIN)/python bench/soak.py --out bench_out
 	$(BIN)/python bench/observability.py --out bench_out
 	rm -rf bench_out/runs  # the campaign resumes from kept runs: start afresh
 	$(BIN)/ft-campaign --runs 20 --latency 0.02 --response-time 0.03 --hold-last-command \
