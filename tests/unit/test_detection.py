@@ -166,6 +166,33 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
     assert detector.swinging == {} and list(detector.locked) == [2]
 
 
+def test_a_joint_falling_faster_than_any_transient_is_named_before_the_settling_time() -> None:
+    """Joint 2 falls from rest at 3 s (10 rad/s^2) behind a slow servo while the arm holds.
+
+    The plant's settling time (30 ms + 3 x 150 ms) is longer than a real fall onto a
+    stop (issue 27: the Panda's joint 2, about 0.5 s): at twice any plausible command
+    the motion is no servo transient, so `persistence` alone applies.
+    """
+    plant = PlantConfig(latency=0.03, response_time=0.15)
+    data = record(lambda t: moving_targets(t) if t < 2.0 else np.zeros(7), 4.0, plant)
+    for kind, t, values in data.events:
+        if kind == "measure" and t >= 3.0:
+            values[1] += 5.0 * (t - 3.0) ** 2
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    declared = []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+        else:
+            declared += [(t, j) for j in detector.measure(t, values).swinging]
+    estimate = detector.estimate()
+    assert estimate.identified
+    settling = estimate.latency + 3 * estimate.response_time
+    assert settling > 0.3
+    assert [j for _, j in declared] == [1]
+    assert declared[0][0] - 3.0 < 0.2 < settling
+
+
 @pytest.mark.parametrize(("gravity", "declared"), [(1.0, [2]), (-1.0, []), (0.0, [])])
 def test_a_joint_moving_on_its_own_must_go_the_way_gravity_turns_it(
         gravity: float, declared: list[int]) -> None:

@@ -50,7 +50,10 @@ identification the best model is only a guess). A joint is
   one moving uphill, is a servo's transient or the links' coupling, not a lost
   torque (without it, the sign test alone stands in for "follows gravity"). Held for
   `persistence` s plus the best plant model's settling time (its latency and 3 response
-  times: a servo's overshoot or spring back after a stop dies within it) with
+  times: a servo's overshoot or spring back after a stop dies within it; `persistence`
+  alone once |v| exceeds twice the largest plausible prediction of any joint plus that
+  noise, faster than any transient of a servo or of the links' coupling, so that a
+  joint falling under gravity is named before it reaches its stop) with
   no plant fault, the joint is declared free-swinging, reported
   in `swinging`, never as a lock. A free-swinging joint moving against its command
   passes through a stall, so it may first be declared locked: a locked joint
@@ -701,15 +704,20 @@ class LockDetector:
             return Update()
         swinging = []
         settling = float(self._model_latency[best] + 3 * self._model_response[best])
+        # A servo's transient (overshoot, the spring back after a stop, a joint dragged by
+        # the others) is no faster than twice the largest velocity commanded lately.
+        transient = 2 * float(np.abs(plausible).max(initial=0.0))
         for j in np.flatnonzero(on_its_own).tolist():
             evidence = self.joints[j]
             if evidence.swinging_at is not None:
                 continue
             if evidence.swing_since is None:
                 evidence.swing_since = now
-            # A servo's transient (overshoot, the spring back after a stop) dies within
-            # the plant's settling time; motion on its own that outlasts it does not.
-            if now - evidence.swing_since >= cfg.persistence + settling:
+            # A transient dies within the plant's settling time; motion on its own that
+            # outlasts it, or outruns it, does not.
+            noise = max(cfg.confidence * float(error[j]), cfg.min_command)
+            wait = 0.0 if abs(measured[j]) > transient + noise else settling
+            if now - evidence.swing_since >= cfg.persistence + wait:
                 # A joint declared locked that moves was never locked: it swings.
                 evidence.swinging_at, evidence.locked_at = now, None
                 swinging.append(j)

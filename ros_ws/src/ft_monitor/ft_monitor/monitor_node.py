@@ -329,11 +329,16 @@ class MonitorNode(SuiteNode):
             self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
 
     def _announce(self, change: Change, time: float) -> None:
-        """Log what happened and, if the locked set changed (on disk already), publish it."""
+        """Log what happened and, if the locked set changed (on disk already), publish it.
+
+        The diagnostics go out at once too (diagnostic_updater's force_update): a swing
+        can end at the joint's stop, locked there, within one DIAGNOSTICS_PERIOD.
+        """
         for event in change.events:
             self.get_logger().error(event)
         if change.changed:
             self._publish_locked(time)
+            self._publish_diagnostics()
 
     def _publish_locked(self, time: float) -> None:
         msg = convert.locked_message(self.locked,
