@@ -152,20 +152,34 @@ class Graph:
     def spin(self, seconds: float, goal_period: float | None = None) -> None:
         """Spin the probe for `seconds`, sending the next pose goal every `goal_period` s."""
         end = time.monotonic() + seconds
-        next_goal = time.monotonic()
+        goals = self._goals(goal_period)
         while time.monotonic() < end:
-            if goal_period is not None and time.monotonic() >= next_goal:
-                self.send_goal()
-                next_goal += goal_period
+            goals()
             self.executor.spin_once(timeout_sec=0.01)
+
+    def _goals(self, period: float | None):
+        """A call that sends the next pose goal whenever `period` s have passed (None: never)."""
+        due = [time.monotonic()]
+
+        def send() -> None:
+            if period is not None and time.monotonic() >= due[0]:
+                self.send_goal()
+                due[0] += period
+        return send
 
     def alive(self) -> dict[str, bool]:
         """Which processes still run."""
         return {name: process.poll() is None for name, process in self.processes.items()}
 
-    def wait(self, condition, timeout: float, what: str) -> None:
-        """Spin until `condition()`; fail with `what` if it does not happen in `timeout` s."""
-        assert spin_until(self.executor, condition, timeout), f"timed out waiting for {what}"
+    def wait(self, condition, timeout: float, what: str,
+             goal_period: float | None = None) -> None:
+        """Spin until `condition()`; fail with `what` if it does not happen in `timeout` s.
+
+        With `goal_period`, the next pose goal goes out every that many s meanwhile.
+        """
+        goals = self._goals(goal_period)
+        assert spin_until(self.executor, lambda: goals() or condition(), timeout), (
+            f"timed out waiting for {what}")
 
     def send_goal(self) -> None:
         """The next of GOALS."""

@@ -36,7 +36,7 @@ def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
         # Neither node takes these topics from the middleware any more (the graph first
         # shows the entities made before and after those that are gone).
         assert spin_until(executor, lambda: controller.count_publishers(names.COMMAND_RAW) == 1
-                          and controller.count_subscribers(names.COMMAND) == 1, 10.0)
+                          and controller.count_subscribers(names.COMMAND) == 1, 30.0)
         assert controller.count_subscribers(names.COMMAND_RAW) == 0
         assert controller.count_subscribers(names.JOINT_STATES) == 1  # the monitor's
         outputs: list[JointState] = []
