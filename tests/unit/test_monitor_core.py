@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ class Loop:
         return sent, self.monitor.observe(q, self.t)
 
 
-def test_a_lock_is_on_disk_when_the_call_that_found_it_returns(tmp_path: Path) -> None:
+def test_a_lock_is_announced_once_it_is_on_disk(tmp_path: Path) -> None:
     store = tmp_path / "monitor--panda.json"
     lp = Loop(store)
     for _ in range(500):  # 2 s of healthy motion: identification, nothing decided
@@ -50,12 +51,14 @@ def test_a_lock_is_on_disk_when_the_call_that_found_it_returns(tmp_path: Path) -
         assert not change.changed
     lp.plant.lock(3)
     for _ in range(100):
-        _, change = lp.step(np.full(7, 0.2))
-        if change.changed:
+        lp.step(np.full(7, 0.2))
+        if lp.monitor.locked:
             break
-    assert change.changed, "the lock was not found within 0.4 s"
+    assert list(lp.monitor.locked) == ["panda_joint4"], "the lock was not found within 0.4 s"
+    change = lp.monitor.flush(5.0)
+    assert change.changed, "the lock was never handed over"
     assert change.events and change.events[0].startswith("joint panda_joint4 locked at")
-    assert list(lp.monitor.locked) == ["panda_joint4"]
+    assert lp.monitor.announced == lp.monitor.locked
     assert json.loads(store.read_text())["locked"] == pytest.approx(lp.monitor.locked)
     assert lp.problems["state_directory"] is None
     # From now on the locked joint gets exactly 0, the rest are remapped (test_remap.py).
@@ -79,7 +82,8 @@ def test_without_remapping_locked_joints_are_only_zeroed_and_all_is_scaled(tmp_p
 def test_declare_restore_and_reset_go_through_the_file(tmp_path: Path) -> None:
     store = tmp_path / "monitor--panda.json"
     first = Loop(store)
-    change = first.monitor.declare([1, 4], 1.0)
+    first.monitor.declare([1, 4], 1.0)
+    change = first.monitor.flush(5.0)
     assert change.changed and change.events == ["joint panda_joint2 declared locked",
                                                 "joint panda_joint5 declared locked"]
     assert not first.monitor.declare([1], 2.0).changed  # already locked
@@ -90,10 +94,32 @@ def test_declare_restore_and_reset_go_through_the_file(tmp_path: Path) -> None:
     second = Loop(store)
     restored = second.monitor.restore(0.0)
     assert restored.changed and "panda_joint2" in restored.events[0]
-    assert second.monitor.observe(START, 0.1).changed  # the unknown positions, filled in
-    assert second.monitor.locked == {"panda_joint2": START[1], "panda_joint5": START[4]}
-    assert second.monitor.reset() == ["panda_joint2", "panda_joint5"]
+    second.monitor.observe(START, 0.1)  # the unknown positions, filled in
+    assert second.monitor.flush(5.0).changed
+    assert second.monitor.announced == {"panda_joint2": START[1], "panda_joint5": START[4]}
+    assert second.monitor.reset(0.2) == ["panda_joint2", "panda_joint5"]
+    assert second.monitor.flush(5.0).changed and second.monitor.announced == {}
     assert locked_set.load(store, "panda", list(PANDA.joint_names)) == {}
+
+
+def test_the_command_path_never_waits_for_the_disk(tmp_path: Path, monkeypatch) -> None:
+    """Issue 29: the soak saw an fsync under load hold the commands for 4.4 s.
+
+    With the write held up, a declared lock zeroes its joint at once and is not
+    announced; once written, it is.
+    """
+    written = threading.Event()
+    monkeypatch.setattr(locked_set, "save", lambda *args: written.wait(10.0) and None)
+    lp = Loop(tmp_path / "monitor--panda.json")
+    lp.monitor.observe(START, 0.0)
+    assert not lp.monitor.declare([2], 0.1).changed  # returns at once, nothing written
+    assert lp.monitor.command(np.full(7, 0.1), 0.1)[2] == 0.0
+    assert lp.monitor.announced == {} and not lp.monitor.settled().changed
+    written.set()
+    change = lp.monitor.flush(5.0)
+    assert change.changed and change.events == ["joint panda_joint3 declared locked"]
+    assert list(lp.monitor.announced) == ["panda_joint3"]
+    assert not lp.monitor.close().changed  # nothing left to write
 
 
 def test_a_suspect_is_decided_by_the_detectors_evidence() -> None:
@@ -113,7 +139,8 @@ def test_an_unwritable_state_directory_is_reported_and_the_lock_still_holds(tmp_
     blocker = tmp_path / "file"
     blocker.write_text("")
     lp = Loop(blocker / "monitor--panda.json")  # a directory that cannot be made
-    change = lp.monitor.declare([6], 0.0)
+    lp.monitor.declare([6], 0.0)
+    change = lp.monitor.flush(5.0)
     assert change.changed and list(lp.monitor.locked) == ["panda_joint7"]
     assert lp.problems["state_directory"].startswith("cannot keep the locked set")
     assert lp.monitor.joint_report(6).state == "locked"

@@ -10,6 +10,11 @@ temporary file in the same directory, flushed and fsynced, renamed over the old 
 then the directory fsynced): a crash mid-write leaves the previous set, never half a
 file, and once `save` returns the set survives a power cut. A file that cannot be
 read or does not match the robot is reported and ignored.
+
+`Writer` does the writing in a thread of its own, so that the monitor's command path
+never waits for the disk (an fsync under load took seconds in the soak of
+docs/benchmarks.md): the caller submits each new set and announces it once `done`
+says its generation is on disk.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import math
 import os
 import re
 import tempfile
+import threading
 from pathlib import Path
 
 #: Largest file read back (bytes): a locked set of a few joints is far smaller.
@@ -97,3 +103,63 @@ def load(path: Path, robot: str, joint_names: list[str]) -> dict[str, float]:
         if isinstance(error, LockedSetError):
             raise
         raise LockedSetError(f"cannot read {path}: {error}") from error
+
+
+class Writer:
+    """`save` in a thread of its own: the newest submitted set first, older ones skipped.
+
+    `submit` returns at once with the set's generation (1, 2, ...); `done` gives the
+    newest generation the thread has finished with, and the error if that write failed
+    (None: on disk). A set submitted while another is being written waits for it, then
+    only the newest of those waiting is written: it holds everything before it.
+    """
+
+    def __init__(self, path: Path, robot: str):
+        self.path = path
+        self._robot = robot
+        self._condition = threading.Condition()
+        self._waiting: tuple[int, dict[str, float]] | None = None
+        self._submitted = 0
+        self._done: tuple[int, str | None] = (0, None)
+        self._closed = False
+        threading.Thread(target=self._run, name="locked set writer", daemon=True).start()
+
+    def submit(self, locked: dict[str, float]) -> int:
+        """Queue {joint name: position (rad)} for writing; its generation."""
+        with self._condition:
+            self._submitted += 1
+            self._waiting = (self._submitted, dict(locked))
+            self._condition.notify_all()
+            return self._submitted
+
+    def done(self) -> tuple[int, str | None]:
+        """(newest generation finished, its error or None)."""
+        with self._condition:
+            return self._done
+
+    def flush(self, timeout: float) -> bool:
+        """Wait up to `timeout` s for every submitted set; whether all are finished."""
+        with self._condition:
+            return self._condition.wait_for(lambda: self._done[0] >= self._submitted, timeout)
+
+    def close(self) -> None:
+        """End the thread once the set waiting, if any, is written (see `flush`)."""
+        with self._condition:
+            self._closed = True
+            self._condition.notify_all()
+
+    def _run(self) -> None:
+        while True:
+            with self._condition:
+                self._condition.wait_for(lambda: self._waiting is not None or self._closed)
+                if self._waiting is None:
+                    return
+                (generation, locked), self._waiting = self._waiting, None
+            try:
+                save(self.path, self._robot, locked)
+                error = None
+            except OSError as problem:
+                error = str(problem)
+            with self._condition:
+                self._done = (generation, error)
+                self._condition.notify_all()

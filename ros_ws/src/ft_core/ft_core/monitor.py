@@ -17,19 +17,26 @@ converts messages, runs the watchdog and publishes; everything between is here.
   from elsewhere (the controller's task-space channel) is decided by the detector's
   own confirm rule.
 - **Declared failures and reset** (`declare`, `reset`).
-- **Persist, then announce.** The locked set is written to its file
-  (`ft_core.locked_set`, atomic) inside every call that changes it, before the call
-  returns: whatever the caller announces afterwards is already on disk.
+- **Persist, then announce, without waiting for the disk.** A change of the locked
+  set takes effect at once in the command filter, and is written to its file
+  (`ft_core.locked_set`, atomic, fsynced) by a writer thread: the command path never
+  waits for the disk (an fsync under load took seconds). The `Change` a call returns
+  holds only what is on disk by then, its own change or earlier ones (`settled`, which
+  the node also calls on a steady timer, hands over the rest once written); the set to
+  publish is `announced`, the set last written. Our reading of "persist, then
+  announce" for releases: `reset` is answered at once and its empty set published
+  once written, like any change; a crash in between restores the released joints as
+  locked, the safe side.
 
-Each call that changes the locked set says so (`Change.changed`) and carries the
-lines to log (`Change.events`, errors, about the arm); problems with the state file
-go to `report` as with the controller's core.
+Each `Change` says whether the announced set changed (`Change.changed`) and carries
+the lines to log (`Change.events`, errors, about the arm); problems with the state
+file go to `report` as with the controller's core.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -41,6 +48,8 @@ from ft_core.robots import Robot
 
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
 Report = Callable[..., None]
+#: s `close` waits for the locked set's last write.
+CLOSE_TIMEOUT = 2.0
 
 
 @dataclass(frozen=True)
@@ -66,10 +75,19 @@ class Change:
     Attributes:
         changed: the locked set changed (and is on disk unless `report` said otherwise).
         events: what happened to the arm, one line each, for the error log.
+        time: s, when the newest of its decisions was taken (the stamp to announce it
+            with; nan when nothing was decided).
     """
 
     changed: bool = False
     events: list[str] = field(default_factory=list)
+    time: float = math.nan
+
+    @staticmethod
+    def of(changes: Sequence[Change]) -> Change:
+        """Several changes as one, in order."""
+        return Change(any(c.changed for c in changes), [e for c in changes for e in c.events],
+                      changes[-1].time if changes else math.nan)
 
 
 @dataclass(frozen=True)
@@ -104,6 +122,10 @@ class Monitor:
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
+        self._writer = locked_set.Writer(store, robot.name) if store is not None else None
+        #: (generation, change, the set it leaves) written by the writer, not yet handed over
+        self._held: list[tuple[int, Change, dict[str, float]]] = []
+        self._announced: dict[str, float] = {}
         self.configure(detection, config)
 
     def configure(self, detection: DetectorConfig, config: MonitorConfig) -> None:
@@ -118,6 +140,11 @@ class Monitor:
         """{joint name: position at lock (rad)} of every locked joint."""
         names = self.robot.joint_names
         return {names[j]: p for j, p in self.detector.locked.items()}
+
+    @property
+    def announced(self) -> dict[str, float]:
+        """The locked set as the changes handed over so far leave it: on disk, to publish."""
+        return dict(self._announced)
 
     @property
     def swinging(self) -> list[str]:
@@ -138,8 +165,9 @@ class Monitor:
             self.detector.lock(self.robot.joint_names.index(name), position, now)
         if not stored:
             return Change()
+        self._announced = self.locked  # read from the file: on disk already
         return Change(True, [f"restored locked joints {sorted(stored)} from {self.store} "
-                             "(call ~/reset after a repair)"])
+                             "(call ~/reset after a repair)"], now)
 
     # -------------------------------------------------------------- commands
     def command(self, qd: np.ndarray, now: float) -> np.ndarray:
@@ -188,7 +216,8 @@ class Monitor:
                 f"{evidence.commanded:.4f} expected")
         # A swing takes a lock back, or the brake applies one: the set changes either way.
         change.changed |= bool(update.swinging or update.locked)
-        return self._persisted(change)
+        self._hold(change, now)
+        return self.settled()
 
     def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
         """Decide on a lock of `joint` suspected elsewhere, on the detector's own evidence."""
@@ -198,10 +227,11 @@ class Monitor:
         if answer.decision != "locked":
             return answer, Change()
         evidence = answer.evidence
-        return answer, self._persisted(Change(True, [
+        self._hold(Change(True, [
             f"joint {self.robot.joint_names[joint]} locked (suspected by the task-space "
             f"channel, confirmed: measured {evidence.measured:.4f} rad/s against "
-            f"{evidence.commanded:.4f} commanded)"]))
+            f"{evidence.commanded:.4f} commanded)"]), now)
+        return answer, self.settled()
 
     def declare(self, joints: Iterable[int], now: float) -> Change:
         """Lock `joints` (chain indices) at once, where they are now (nan before any state)."""
@@ -212,13 +242,18 @@ class Monitor:
                 self.detector.lock(j, position, now)
                 change.events.append(f"joint {self.robot.joint_names[j]} declared locked")
                 change.changed = True
-        return self._persisted(change)
+        self._hold(change, now)
+        return self.settled()
 
-    def reset(self) -> list[str]:
-        """Release every lock (after a repair) and forget the history; the names released."""
+    def reset(self, now: float) -> list[str]:
+        """Release every lock (after a repair, at `now` s) and forget the history; the names.
+
+        Changes not yet handed over are dropped: the empty set supersedes them.
+        """
         released = sorted(self.locked)
         self.detector.reset()
-        self._persisted(Change(True))
+        self._held.clear()
+        self._hold(Change(True), now)
         return released
 
     def joint_report(self, joint: int) -> JointReport:
@@ -249,12 +284,46 @@ class Monitor:
         return values
 
     # ----------------------------------------------------------- persistence
-    def _persisted(self, change: Change) -> Change:
-        """Write the locked set if `change` changed it, before anyone announces it."""
-        if change.changed and self.store is not None:
-            try:
-                locked_set.save(self.store, self.robot.name, self.locked)
-                self._report("state_directory", None)
-            except OSError as error:
-                self._report("state_directory", f"cannot keep the locked set: {error}")
+    def settled(self) -> Change:
+        """The changes written since the last call, in order (nothing to announce: empty)."""
+        if not self._held:
+            return Change()
+        written, error = self._writer.done() if self._writer is not None else (math.inf, None)
+        ready = [held for held in self._held if held[0] <= written]
+        if not ready:
+            return Change()
+        del self._held[:len(ready)]
+        if self._writer is not None:
+            self._report("state_directory",
+                         None if error is None else f"cannot keep the locked set: {error}")
+        self._announced = ready[-1][2]
+        return Change.of([change for _, change, _ in ready])
+
+    def flush(self, timeout: float) -> Change:
+        """Wait up to `timeout` s for the writes under way; then `settled`."""
+        if self._writer is not None:
+            self._writer.flush(timeout)
+        return self.settled()
+
+    def close(self) -> Change:
+        """Finish the last write (at most CLOSE_TIMEOUT s) and end the writer thread."""
+        change = self.flush(CLOSE_TIMEOUT)
+        if self._writer is not None:
+            self._writer.close()
         return change
+
+    def _hold(self, change: Change, now: float) -> None:
+        """Queue `change`, decided at `now` s, for `settled` (via the writer if it changed).
+
+        A change that leaves the set as it is waits behind those being written, so the
+        lines to log keep their order.
+        """
+        change.time = now
+        if change.changed:
+            locked = self.locked
+            generation = self._writer.submit(locked) if self._writer is not None else 0
+            self._held.append((generation, change, locked))
+        elif change.events:
+            generation, locked = ((self._held[-1][0], self._held[-1][2]) if self._held
+                                  else (0, self._announced))
+            self._held.append((generation, change, locked))

@@ -53,6 +53,8 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayou
 from std_srvs.srv import Trigger
 
 DIAGNOSTICS_PERIOD = 0.5
+#: s between checks for a written locked set while no joint state arrives (steady time).
+ANNOUNCE_PERIOD = 0.02
 
 
 _DETECTION, _MONITOR = DetectorConfig(), MonitorConfig()
@@ -138,6 +140,10 @@ class MonitorNode(SuiteNode):
         self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog,
                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
+        # Every joint state announces what was written meanwhile; this, when none comes
+        # (the EventsExecutor has no guard conditions for the writer thread to wake it).
+        self.create_timer(ANNOUNCE_PERIOD, self._announce_written,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------------ set-up
     def _configs(self, changes: dict | None = None) -> tuple[DetectorConfig, MonitorConfig]:
@@ -181,10 +187,12 @@ class MonitorNode(SuiteNode):
                 f"{old} (a locked set of an older version, for no particular ROS domain) is "
                 "not restored: declare on ft/declare_failure any joint still locked, then "
                 "delete the file")
+        if self.core is not None:
+            self.core.close()  # the old robot's last write, if any; its set is not ours now
         self.core = Monitor(robot, *self._configs(), store, self.problems.report)
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
-        self._announce(self.core.restore(self.now()), self.now())
+        self._announce(self.core.restore(self.now()))
         self._publish_locked(self.now())
 
     @property
@@ -194,8 +202,12 @@ class MonitorNode(SuiteNode):
 
     @property
     def locked(self) -> dict[str, float]:
-        """{joint name: position at lock (rad)} of every locked joint (the core's)."""
-        return {} if self.core is None else self.core.locked
+        """{joint name: position at lock (rad)} of every locked joint, as announced.
+
+        The set on disk (`Monitor.announced`): what `ft/locked_joints` and the
+        diagnostics say. The command filter uses the newer set at once.
+        """
+        return {} if self.core is None else self.core.announced
 
     # ------------------------------------------------------- one-process wiring
     def take_commands_by_call(self) -> Callable[[JointState], None]:
@@ -220,7 +232,7 @@ class MonitorNode(SuiteNode):
                      + self._array_pub.get_subscription_count())
         stamp = self.state_stamp
         self._announce(self.core.observe(
-            q, stamp, None if listeners else "nobody subscribes to ft/command(_array)"), stamp)
+            q, stamp, None if listeners else "nobody subscribes to ft/command(_array)"))
 
     def _on_suspect(self, msg: JointState) -> None:
         """A joint the controller's task channel suspects: locked if the measurements agree."""
@@ -245,7 +257,7 @@ class MonitorNode(SuiteNode):
                     f"suspected lock of {name} not confirmed{reason}: measured "
                     f"{evidence.measured:.4f} rad/s (+-{evidence.standard_error:.4f}), "
                     f"commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
-            self._announce(change, now)
+            self._announce(change)
 
     def _on_declare(self, msg: JointState) -> None:
         if self.core is None:
@@ -260,15 +272,17 @@ class MonitorNode(SuiteNode):
             self.get_logger().warning(f"ft/declare_failure: {len(msg.name) - len(known)} unknown "
                                       "joint names ignored", throttle_duration_sec=5.0)
         now = self.now()
+        before = self.core.locked
         change = self.core.declare(known.values(), now)
-        change.changed = True  # announced again even when nothing new: the sender asked
-        self._announce(change, now)
+        self._announce(change)
+        if self.core.locked == before and not change.changed:
+            self._publish_locked(now)  # nothing new, announced again: the sender asked
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = []
         if self.core is not None:
-            released = self.core.reset()
-            self._publish_locked(self.now())
+            released = self.core.reset(self.now())  # the empty set is published once written
+            self._announce(self.core.settled())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
@@ -324,11 +338,17 @@ class MonitorNode(SuiteNode):
             self._array_pub.publish(self._array_msg)
 
     def stop(self) -> None:
-        """Publish explicit zero velocities (used on shutdown)."""
+        """Publish explicit zero velocities, finish writing the locked set (on shutdown)."""
         if self.core is not None:
             self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
+            self._announce(self.core.close())
 
-    def _announce(self, change: Change, time: float) -> None:
+    def _announce_written(self) -> None:
+        """Announce the changes of the locked set written since the last announcement."""
+        if self.core is not None:
+            self._announce(self.core.settled())
+
+    def _announce(self, change: Change) -> None:
         """Log what happened and, if the locked set changed (on disk already), publish it.
 
         The diagnostics go out at once too (diagnostic_updater's force_update): a swing
@@ -337,10 +357,11 @@ class MonitorNode(SuiteNode):
         for event in change.events:
             self.get_logger().error(event)
         if change.changed:
-            self._publish_locked(time)
+            self._publish_locked(change.time)
             self._publish_diagnostics()
 
     def _publish_locked(self, time: float) -> None:
+        """The locked set as written (`locked`): never one not yet on disk."""
         msg = convert.locked_message(self.locked,
                                      convert.stamp_from_nanoseconds(round(time * 1e9)))
         self._locked_pub.publish(msg)
