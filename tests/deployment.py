@@ -181,8 +181,10 @@ class Graph:
         assert spin_until(self.executor, lambda: goals() or condition(), timeout), (
             f"timed out waiting for {what}")
 
-    def send_goal(self) -> None:
-        """The next of GOALS."""
+    def send_goal(self, index: int | None = None) -> None:
+        """GOALS[index], or the next of GOALS."""
+        if index is not None:
+            self._goal_index = index
         msg = PoseStamped()
         msg.header.stamp = self.node.get_clock().now().to_msg()
         x, y, z = GOALS[self._goal_index % len(GOALS)]

@@ -194,6 +194,7 @@ class Monitor:
     def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q
+        before = set(self.detector.locked)
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q))
@@ -214,8 +215,9 @@ class Monitor:
                 f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
                 f"measured {evidence.measured:.4f} rad/s against at least "
                 f"{evidence.commanded:.4f} expected")
-        # A swing takes a lock back, or the brake applies one: the set changes either way.
-        change.changed |= bool(update.swinging or update.locked)
+        # A swing of an unlocked joint leaves the set as it is: reported without a write
+        # (a swing that takes a lock back, or the brake, changes it).
+        change.changed |= set(self.detector.locked) != before
         self._hold(change, now)
         return self.settled()
 

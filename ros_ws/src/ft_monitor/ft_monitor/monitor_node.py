@@ -358,6 +358,7 @@ class MonitorNode(SuiteNode):
             self.get_logger().error(event)
         if change.changed:
             self._publish_locked(change.time)
+        if change.changed or change.events:
             self._publish_diagnostics()
 
     def _publish_locked(self, time: float) -> None:
