@@ -30,6 +30,7 @@ from typing import cast
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.event_handler import EventHandler
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
@@ -42,6 +43,8 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 #: Longest time (s) between two checks of the stop flag.
 CHECK_PERIOD = 0.1
+#: s each reliable publisher waits, on shutdown, for its last messages to be acknowledged.
+DELIVERY_TIMEOUT = 1.0
 
 
 def settle_heap() -> None:
@@ -138,7 +141,9 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     remappings as in separate processes) unless `wire`, called with the nodes once
     made, connects some of them by calls instead; no process boundary either way: one
     interpreter, one heap, no context switch between them. On SIGINT or SIGTERM every
-    node's `stop()` runs, in order.
+    node's `stop()` runs, in order, and its reliable publishers get up to
+    DELIVERY_TIMEOUT s each for their subscribers to acknowledge what it sent (the zeros:
+    a driver that holds its last command must have them before the process is gone).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
@@ -158,6 +163,8 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
             stop = getattr(node, "stop", None)
             if stop is not None:
                 stop()
+                for publisher in node.publishers:
+                    publisher.wait_for_all_acked(Duration(seconds=DELIVERY_TIMEOUT))
         executor.shutdown()
         for node in nodes:
             node.destroy_node()
