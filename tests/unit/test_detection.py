@@ -149,18 +149,11 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
         if kind == "measure" and t >= 4.0:
             values[2] += 0.3 * (1 - np.cos(np.pi * (t - 4.0)))
     detector = LockDetector(PANDA.lower, PANDA.upper)
-    declared, locks = [], []
-    for kind, t, values in data.events:
-        if kind == "command":
-            detector.command(t, values)
-        else:
-            update = detector.measure(t, values)
-            locks += update.locked
-            declared += [(t, j) for j in update.swinging]
+    declared, locks = _replay_all(data, detector)
     assert [j for _, j in declared] == [2]
     assert 4.0 < declared[0][0] < 4.5
     # Against its command it passes through a stall: a lock, taken back once it moves.
-    assert set(locks) <= {2}
+    assert {j for _, j in locks} <= {2}
     assert list(detector.swinging) == [2] and detector.locked == {}
     detector.lock(2, 0.0, 5.0)  # the brake: locked, and no longer reported as swinging
     assert detector.swinging == {} and list(detector.locked) == [2]
@@ -179,12 +172,7 @@ def test_a_joint_falling_faster_than_any_transient_is_named_before_the_settling_
         if kind == "measure" and t >= 3.0:
             values[1] += 5.0 * (t - 3.0) ** 2
     detector = LockDetector(PANDA.lower, PANDA.upper)
-    declared = []
-    for kind, t, values in data.events:
-        if kind == "command":
-            detector.command(t, values)
-        else:
-            declared += [(t, j) for j in detector.measure(t, values).swinging]
+    declared, _ = _replay_all(data, detector)
     estimate = detector.estimate()
     assert estimate.identified
     settling = estimate.latency + 3 * estimate.response_time
