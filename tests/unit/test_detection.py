@@ -260,6 +260,59 @@ def test_a_joint_declared_free_swinging_that_stops_while_commanded_is_locked() -
     assert detector.confirm(2, 0.0, 5.5).decision == "known"
 
 
+#: Joint 1 slow (rad/s), the others fast enough to vouch for the plant.
+SLOW_FIRST = np.array([0.07, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3])
+
+
+def _catching_up(t: float) -> float:
+    """How far (rad) a position-integrating servo runs ahead of its command at `t` (s).
+
+    From 3 s on: 15 mrad in 0.15 s (a reaction torque), then a pause at 0.07 rad/s
+    commanded until caught up.
+    """
+    if t < 3.0:
+        return 0.0
+    if t < 3.15:
+        return 0.015 * (1 - np.cos(np.pi * (t - 3.0) / 0.15)) / 2
+    return max(0.015 - 0.07 * (t - 3.15), 0.0)
+
+
+def test_a_servo_pausing_to_catch_up_after_running_ahead_is_not_a_lock() -> None:
+    """Issue 29's last false lock: after running ahead, a servo pauses while commanded.
+
+    The physics plant's joint 1 (the largest inertia, a vertical axis) is pushed ahead of
+    its reference by the others' reaction torques, then stops for about 0.2 s while the
+    reference catches up. Its velocity alone looks like a lock; its position never fell
+    behind the command, so it is not one (the detector before the position-deficit rule
+    declared it locked).
+    """
+    data = record(lambda t: SLOW_FIRST, 4.0, PlantConfig(latency=0.03, response_time=0.03))
+    for kind, t, values in data.events:
+        if kind == "measure":
+            values[0] += _catching_up(t)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    stalled = []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        assert detector.measure(t, values) == Update()
+        evidence = detector.joints[0]
+        if evidence.observable and evidence.measured < 0.3 * evidence.commanded:
+            stalled.append((t, evidence.deficit))
+    assert len(stalled) >= 10, "the pause never looked like a stall"
+    assert all(deficit <= 0.0 for _, deficit in stalled), stalled
+    assert detector.locked == {}
+
+
+def test_a_lock_at_a_small_command_is_still_found() -> None:
+    """The same arm and command as above, joint 1 locked at 3 s: found within 0.3 s."""
+    _, events = run(lambda t: SLOW_FIRST, 4.0, PlantConfig(latency=0.03, response_time=0.03),
+                    lock=((0,), 3.0))
+    assert events, "the lock was never found"
+    assert events[0][1] == [0] and 3.0 < events[0][0] < 3.3, events
+
+
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     for k in range(100):  # commanded, never moving: not one lock, and why

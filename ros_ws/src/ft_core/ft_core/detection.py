@@ -32,7 +32,21 @@ line through the measured positions (inflated by changes of speed) and those of 
 measured minus the best model's positions (inflated by model error; before
 identification the best model is only a guess). A joint is
 - observable when |c| >= `min_command` and |c| >= 2 `confidence` s;
-- stalled when observable, v / c < `ratio` and |v - c| > `confidence` s;
+- stalled when observable, v / c < `ratio` and |v - c| > `confidence` s, and (for a
+  joint never declared free-swinging) it also lost position: the window's mean offset
+  of measured from predicted positions (best model) lies further behind, along c, than
+  that of every earlier window of the last window + 2 x (the plausible set's slowest
+  settling time), by more than `confidence` standard errors of a difference of two
+  window means (sqrt(2 / samples) times the positions' residual scatter). A servo that
+  integrates its command into a position reference (as the physics plant's does, and
+  most drives' velocity interfaces) pauses after it ran ahead, pushed by the other links'
+  reaction torques, until the reference catches up: a stall by velocity, with no
+  position lost. A lock loses position from its first instant. Reading taken: the papers
+  define a lock as a joint held in place (Lewis & Maciejewski 1997, sec. I; Maciejewski
+  et al., sec. 2.2) and say nothing of how to see one; this rule asks that the joint's
+  stillness cost the position its command asked for. A joint
+  locked while it ran ahead is declared once the loss exceeds the lead (at 0.1 rad/s,
+  10 ms per mrad of lead);
 - following when observable and v / c >= `following_ratio`;
 - stalled at a physical limit, with the command pushing into it: reported, never a lock;
 - moving on its own when |v| >= `min_command` and v lies further than
@@ -170,6 +184,9 @@ class JointEvidence:
     measured: float = 0.0  #: slope of the measured positions (rad/s)
     commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
     standard_error: float = 0.0  #: of the slope (rad/s)
+    #: position lost against the plausible models during the window (rad, along the
+    #: command; computed only for joints that stall, else 0)
+    deficit: float = 0.0
     evidence_since: float | None = None  #: when the current lock evidence started (s)
     at_limit: bool = False  #: stalled at a physical limit
     #: a lock candidate at the last update: stalled beyond the noise, not at a limit, not
@@ -261,6 +278,18 @@ def _window_fit(times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
                        _slope_error(positions - predicted[:, best, :], centred,
                                     measured - best_slope, spread))
     return measured, slopes, error
+
+
+@njit(cache=True, error_model="numpy")
+def _window_offsets(positions: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """Mean over the window of measured minus predicted positions, (models, n) (rad)."""
+    count, models, n = predicted.shape
+    out = np.zeros((models, n))
+    for s in range(count):
+        for i in range(models):
+            for j in range(n):
+                out[i, j] += positions[s, j] - predicted[s, i, j]
+    return out / count
 
 
 class _Buffers:
@@ -471,6 +500,37 @@ class Samples(_Buffers):
                 self.predicted[self.start:self.end])
 
 
+class Offsets(_Buffers):
+    """Every model's window-mean offset (measured minus predicted position) per update.
+
+    Kept for `horizon` s, so that a stalled joint's position can be compared with where
+    it stood against the same model before the stall (the position-deficit rule).
+    """
+
+    NAMES = ("times", "values")
+
+    def __init__(self, n: int, models: int, capacity: int = 256):
+        self.times = np.zeros(capacity)
+        self.values = np.zeros((capacity, models, n))
+        self.start = self.end = 0
+
+    def append(self, time: float, offsets: np.ndarray) -> None:
+        """The offsets (models, n) of the window ending at `time`."""
+        if self.end == self.times.size:
+            self._make_room()
+        self.times[self.end], self.values[self.end] = time, offsets
+        self.end += 1
+
+    def drop_before(self, time: float) -> None:
+        """Forget offsets of windows ending before `time`."""
+        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
+
+    def until(self, time: float) -> np.ndarray:
+        """The kept offsets of windows ending at or before `time`, (k, models, n)."""
+        times = self.times[self.start:self.end]
+        return self.values[self.start:self.start + int(np.searchsorted(times, time, "right"))]
+
+
 @dataclass
 class LockDetector:
     """Streams of commands and measurements in, declared locks out."""
@@ -492,6 +552,7 @@ class LockDetector:
         self._model_latency, self._model_response = models[:, 0], models[:, 1]
         self.history = CommandHistory(self.n, self._response_times)
         self._samples = Samples(self.n, len(models))
+        self._offsets = Offsets(self.n, len(models))
         self._last_identification_try = -math.inf
         self._scores = np.zeros(len(models))
         self._weight = 0.0  # forgetting count of identification updates
@@ -589,6 +650,9 @@ class LockDetector:
         self._samples.append(time, np.asarray(position, dtype=float),
                              self.history.positions(time - self._latencies).reshape(-1, self.n))
         self._samples.drop_before(time - self.config.window)
+        _times, positions, predicted = self._samples.window()
+        self._offsets.append(time, _window_offsets(positions, predicted))
+        self._offsets.drop_before(time - self._horizon())
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
@@ -625,6 +689,26 @@ class LockDetector:
 
     def _settling_time(self) -> float:
         return self.config.window + self._slowest
+
+    def _horizon(self) -> float:
+        """How long (s) window offsets are kept: the window and twice the slowest settling."""
+        return self.config.window + 2 * self._slowest
+
+    def _deficit(self, now: float, weakest: np.ndarray, best: int) -> np.ndarray:
+        """How far (rad) each joint fell behind the best model during the window.
+
+        The window's mean offset (measured minus predicted position) against the
+        most-behind offset of the windows that ended before this one began, within the
+        horizon, counted in the direction of the weakest prediction; +inf with no earlier
+        window to compare with. The best model alone: the plausible models' offsets
+        differ by their lags times the change of command, which is no loss of position.
+        """
+        past = self._offsets.until(now - self.config.window)
+        if not len(past):
+            return np.full(self.n, math.inf)
+        direction = -np.sign(weakest)  # behind: measured short of predicted, along c
+        current = direction * self._offsets.values[self._offsets.end - 1, best]
+        return current - (direction * past[:, best]).max(axis=0)
 
     def _gap_reason(self, now: float) -> str | None:
         cfg = self.config
@@ -674,12 +758,22 @@ class LockDetector:
         if directions is not None:  # gravity's test only clears joints: now it matters
             flags = _classify(*evidence_of, np.asarray(directions, dtype=float), True, *rules)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
+        deficit = np.zeros(self.n)
+        if (candidates & undeclared).any():
+            # A lock loses position; a servo pausing to catch up after it ran ahead does
+            # not. (A joint once seen swinging moved on its own: stopping is its test.)
+            deficit = self._deficit(now, weakest, best)
+            centred = times - times.mean()
+            sigma = error * math.sqrt(centred @ centred)  # of one position (rad)
+            lost = deficit > cfg.confidence * sigma * math.sqrt(2.0 / times.size)
+            candidates = candidates & (lost | ~undeclared)
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
             evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])
             evidence.standard_error = float(error[j])
             evidence.at_limit = bool(stalled[j] and pushing[j])
             evidence.candidate = bool(candidates[j])
+            evidence.deficit = float(deficit[j])
         n_stalled, n_following = int(candidates.sum()), int(following.sum())
         n_own = int(on_its_own.sum())
         if n_stalled == 0 and n_own == 0 and identify:

@@ -214,7 +214,7 @@ class Monitor:
             change.events.append(
                 f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
                 f"measured {evidence.measured:.4f} rad/s against at least "
-                f"{evidence.commanded:.4f} expected")
+                f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad behind")
         # A swing of an unlocked joint leaves the set as it is: reported without a write
         # (a swing that takes a lock back, or the brake, changes it).
         change.changed |= set(self.detector.locked) != before
