@@ -238,6 +238,35 @@ def test_a_lock_announced_survives_a_kill_at_the_announcement(tmp_path: Path) ->
 
 
 @pytest.mark.slow
+def test_a_lock_does_not_cross_into_another_domain(tmp_path: Path) -> None:
+    """Issue 29: two graphs in two ROS domains, one state directory (the default's case).
+
+    The lock declared in the first domain is restored by that domain's restarted monitor
+    (so the file is there and read), and not by a monitor of the same name and robot in
+    the second domain, which starts with an empty set.
+    """
+    params = parameters(tmp_path, WATCHDOG_PLANT)
+    for name in ("first", "second"):
+        (tmp_path / name).mkdir()
+    with graph(tmp_path / "first", params, processes=("sim", "monitor")) as g:
+        g.wait(lambda: len(g.locked) > 0, 30.0, "the monitor's first locked set")
+        g.declare("panda_joint4")
+        g.wait(lambda: "panda_joint4" in g.locked_names(), 10.0, "the declared lock")
+        g.kill("monitor")
+        count = len(g.locked)
+        g.start("monitor")
+        g.wait(lambda: len(g.locked) > count, 30.0, "the restarted monitor's locked set")
+        assert g.locked_names() == ["panda_joint4"], g.log("monitor")[-3000:]
+        first = g.domain
+    with graph(tmp_path / "second", params, processes=("sim", "monitor")) as g:
+        assert g.domain != first
+        g.wait(lambda: len(g.locked) > 0, 30.0, "the second domain's first locked set")
+        assert g.locked_names() == [], g.log("monitor")[-3000:]
+    files = sorted(p.name for p in (tmp_path / "state").iterdir())
+    assert files == [f"monitor--panda--domain{first}.json"], files
+
+
+@pytest.mark.slow
 def test_orders_the_nodes_must_not_take(tmp_path: Path) -> None:
     """Issue 14 as separate processes.
 

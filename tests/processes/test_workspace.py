@@ -87,7 +87,8 @@ def test_every_package_xml_declares_what_its_code_imports() -> None:
     python = {"numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
               "numba": "python3-numba", "matplotlib": "python3-matplotlib",
               "pinocchio": "pinocchio", "tqdm": "python3-tqdm",
-              "rosbags": "python3-rosbags-pip", "mujoco": "python3-mujoco-pip"}
+              "rosbags": "python3-rosbags-pip", "mujoco": "python3-mujoco-pip",
+              "ruckig": "python3-ruckig-pip"}
     for package in PACKAGES:
         root = WORKSPACE / "src" / package
         declared = set(re.findall(r"<exec_depend>([^<]+)</exec_depend>",

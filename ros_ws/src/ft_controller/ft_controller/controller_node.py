@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -28,6 +29,7 @@ from ft_core import robots, selfmotion
 from ft_core.controller import Controller, ControllerConfig
 from ft_core.engine import RESOLUTIONS, EngineConfig, Status, check_config
 from ft_core.observability import ObservabilityConfig
+from ft_core.recovery import RecoveryConfig
 from ft_core.robots import Robot, RobotModelError
 from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
 from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
@@ -50,6 +52,7 @@ WATCHDOG_PERIOD = 0.05
 #: The defaults of every parameter that configures the core: its dataclasses' own.
 _ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
 _TRACKING, _OBSERVABILITY = _CYCLE.tracking, ObservabilityConfig()
+_RECOVERY = RecoveryConfig()
 
 #: name -> (default, description, extra descriptor fields)
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
@@ -92,6 +95,11 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
                                "null-space motion (kfm ascent, limit avoidance); otherwise "
                                "hold still", {}),
+    "recovery.enabled": (_CYCLE.recovery is not None, "after a lock, when a pose goal's "
+                         "error stops improving, move along a joint path to an IK solution "
+                         "with the locked joints pinned (planned in a worker process)", {}),
+    "recovery.stall_time": (_RECOVERY.stall_time, "s without progress towards a pose goal "
+                            "before recovering", parameters.float_range(0.05, 60.0)),
     "observability.enabled": (_CYCLE.observability is not None, "null-space excursions of "
                               "joints not commanded for observability.idle_time, so that a "
                               "lock on them shows up", {}),
@@ -222,7 +230,9 @@ class ControllerNode(SuiteNode):
             idle_null_space_motion=value["idle_null_space_motion"],
             tracking=PoseTracking(value["position_gain"], value["max_linear_speed"],
                                   value["max_angular_speed"]),
-            observability=observability if value["observability.enabled"] else None)
+            observability=observability if value["observability.enabled"] else None,
+            recovery=replace(_RECOVERY, stall_time=value["recovery.stall_time"])
+            if value["recovery.enabled"] else None)
 
     # -------------------------------------------------------------- parameters
     def _validate(self, parameters: list[Parameter]) -> SetParametersResult:
@@ -370,7 +380,8 @@ class ControllerNode(SuiteNode):
             self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored")
         if set(locked) != set(self.locked_joints):
             self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
-        self.core.set_locked([self.robot.joint_names.index(name) for name in locked])
+        self.core.set_locked([self.robot.joint_names.index(name) for name in locked],
+                             self.now())
 
     # ------------------------------------------------------------------- cycle
     def _check_watchdog(self) -> None:
@@ -473,6 +484,7 @@ class ControllerNode(SuiteNode):
                   "target_age_s": now - target.stamp if target else "none",
                   "locked_joints": sorted(self.locked_joints), "soft_limits": self.soft_limits_note,
                   "observability": self._observability_note(),
+                  "recovery": "off" if self.core is None else self.core.recovery_note,
                   "suspected_lock": self.suspected_lock or "none"}
         if last is not None:
             values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)

@@ -11,6 +11,9 @@ besides the engine's arithmetic (`ft_core.engine`):
 - the observability excursions (`ft_core.observability`) in the null space;
 - the task-space channel (`ft_core.task_channel`), fed the pose goal's error: its
   suspect is returned for whoever decides (the monitor);
+- the recovery after a lock (`ft_core.recovery`): when a pose goal's error stops
+  improving, a joint path to an IK solution with the locked joints pinned, planned in the
+  worker process and followed in the cycle, then the pose goal is tracked again;
 - the soft limits from critical points: the intersected self-motion boxes of Lewis
   and Maciejewski (1997), traced in a worker process (never in the cycle) and
   switched in atomically, in the cycle, once ready.
@@ -29,9 +32,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ft_core import selfmotion, workers
+from ft_core import limits, recovery, selfmotion, workers
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.observability import Excursions, ObservabilityConfig
+from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot, RobotModelError
 from ft_core.targets import PoseTracking, pose_velocity, staleness_scale
 from ft_core.task_channel import TaskChannel
@@ -48,6 +52,8 @@ class ControllerConfig:
             null-space terms to move the arm; otherwise hold still.
         tracking: pose-goal tracking gains and caps.
         observability: the excursions' settings; None: no excursions.
+        recovery: when and how to go round a stall after a lock (`ft_core.recovery`);
+            None: never.
     """
 
     state_timeout: float = 0.1
@@ -55,6 +61,7 @@ class ControllerConfig:
     idle_null_space_motion: bool = False
     tracking: PoseTracking = field(default_factory=PoseTracking)
     observability: ObservabilityConfig | None = None
+    recovery: RecoveryConfig | None = field(default_factory=RecoveryConfig)
 
 
 @dataclass(frozen=True)
@@ -117,6 +124,7 @@ class Controller:
         self._model_source = model_source
         self._report, self._log = report, log
         self.excursions = self._excursions(self.config)
+        self.recovery = self._recovery(self.config)
         self.channel = TaskChannel(robot) if robot.task_space != "pose" else None
         self.target: Target | None = None
         self.locked: tuple[int, ...] = ()
@@ -138,10 +146,17 @@ class Controller:
             return None
         return Excursions(self.robot.n, config.observability)
 
+    def _recovery(self, config: ControllerConfig) -> Recovery | None:
+        if config.recovery is None:
+            return None
+        return Recovery(config.recovery, self._submit_plan)
+
     def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
         """New settings: the engine is rebuilt (keeping the critical points' box)."""
         if config.observability != self.config.observability:
             self.excursions = self._excursions(config)
+        if config.recovery != self.config.recovery:
+            self.recovery = self._recovery(config)
         self.config = config
         self._engine_config = engine_config
         self._rebuild_engine()
@@ -163,10 +178,15 @@ class Controller:
     def set_pose_goal(self, goal: np.ndarray, now: float) -> None:
         """A pose goal (`targets.goal_from_transform`), received at `now` (s)."""
         self.target = Target("pose", goal, now)
+        if self.recovery is not None:
+            self.recovery.reset(now)
 
-    def set_locked(self, locked: Sequence[int]) -> None:
-        """The locked joints (chain indices), as the monitor announced them."""
-        self.locked = tuple(sorted(locked))
+    def set_locked(self, locked: Sequence[int], now: float = math.nan) -> None:
+        """The locked joints (chain indices), as the monitor announced them at `now` (s)."""
+        locked = tuple(sorted(locked))
+        if locked != self.locked and self.recovery is not None:
+            self.recovery.reset(now)
+        self.locked = locked
 
     def set_critical_points(self, flat: Sequence[float]) -> None:
         """Task points (`selfmotion.targets_from_flat`) whose boxes become soft limits.
@@ -175,6 +195,11 @@ class Controller:
         """
         self._critical_points = [float(v) for v in flat]
         self._boxes_dirty = True
+
+    @property
+    def recovery_note(self) -> str:
+        """What the recovery after a lock does now ("off" when disabled)."""
+        return "off" if self.recovery is None else self.recovery.note
 
     @property
     def soft_limits_pending(self) -> bool:
@@ -212,6 +237,8 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
+        if error is not None and locked and self.recovery is not None:
+            qd = self._recover(kinematics, qd, locked, now, error, idle)
         if not np.isfinite(qd).all():
             qd = np.zeros(robot.n)
         self.last = result
@@ -263,6 +290,29 @@ class Controller:
         if step.announce:
             self._suspect_sent = now
         self.suspect = joint
+
+    def _recover(self, kinematics: Kinematics, qd: np.ndarray, locked: list[int], now: float,
+                 error: float, reached: bool) -> np.ndarray:
+        """The recovery path's command while one is followed, else `qd` unchanged."""
+        q, engine = kinematics.q, self.engine
+        bounds = engine.bounds(locked)
+        velocity = self.robot.velocity_limits * engine.config.velocity_scale
+        lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
+        command = self.recovery.step(now, q, self.target.value, error, reached, tuple(locked),
+                                     bounds, (lo, hi))
+        return qd if command is None else command
+
+    def _submit_plan(self, goal: np.ndarray, q: np.ndarray, locked: tuple[int, ...],
+                     lower: np.ndarray, upper: np.ndarray) -> Future:
+        """Plan a recovery in the worker process (`recovery.plan_for_model`)."""
+        if self._background is None:
+            self._background = workers.pool()
+        engine = self.engine.config
+        with workers.lowered():
+            return self._background.submit(
+                recovery.plan_for_model, *self._model_source, goal, q, locked, lower, upper,
+                self.robot.velocity_limits * engine.velocity_scale, engine.dt,
+                self.config.recovery)
 
     # ------------------------------------------------------ soft limits (worker)
     def _start_boxes(self, q: np.ndarray) -> None:

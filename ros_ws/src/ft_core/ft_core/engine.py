@@ -370,6 +370,16 @@ class ResolutionEngine:
         return self._soft[0].size > 0 and not (
             any_locked and self.config.release_soft_limits_on_failure)
 
+    def bounds(self, locked: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+        """The joint bounds (rad) enforced with `locked` joints.
+
+        The hard limits, within the soft box while it applies.
+        """
+        lower, upper = self.robot.lower, self.robot.upper
+        if self.soft_limits_active(bool(tuple(locked))):
+            return np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
+        return lower.copy(), upper.copy()
+
     def _locked_set(self, locked: Iterable[int]) -> _LockedSet:
         """The cached view of the robot with `locked` joints (validated on first use)."""
         key = tuple(sorted(set(locked)))
@@ -378,9 +388,7 @@ class ResolutionEngine:
             cfg, robot = self.config, self.robot
             healthy = ~measures.locked_mask(robot.n, key)
             soft = self.soft_limits_active(bool(key))
-            lower, upper = robot.lower, robot.upper
-            if soft:
-                lower, upper = np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
+            lower, upper = self.bounds(key)
             p = None if self._probabilities is None else self._probabilities[healthy]
             if p is not None and p.sum() <= 0:
                 p = None  # none of the healthy joints is expected to fail: equal weights

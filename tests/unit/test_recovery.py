@@ -1,0 +1,105 @@
+"""Issue 30: the recovery after a lock (ft_core.recovery), without ROS.
+
+A velocity-level controller stalls short of goals the locked arm can still reach; the
+recovery plans an IK solution with the locked joints pinned and a joint path to it. The
+stalled case below is one of `bench/recovery.py`'s kind: the controller from a random
+configuration with a random joint locked, towards a random goal that stays reachable with
+it pinned.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+from ft_core import limits, measures, recovery, robots
+from ft_core.plant import PlantConfig
+from ft_core.recovery import RecoveryConfig, StallWatch
+from paths import REPO
+
+sys.path.insert(0, str(REPO / "bench"))
+from recovery import REACHED, closed_loop  # the benchmark's loop
+
+PANDA = robots.load("panda", task_space="position")
+#: A stall of the position task with panda_joint3 locked (see the module docstring).
+START = np.array([-0.628, 1.376, -1.581, -1.201, -2.41, 3.122, 1.664])
+LOCKED = 2
+GOAL = np.array([-0.5849, -0.2168, 0.5689])
+
+
+def test_a_stall_is_an_error_that_stops_improving() -> None:
+    watch = StallWatch(RecoveryConfig(stall_time=1.0, progress=0.01))
+    assert not watch.update(0.0, 0.5, False)
+    assert not watch.update(0.9, 0.3, False)  # progress: the clock restarts at 0.9
+    assert not watch.update(1.8, 0.295, False)  # less than `progress`: no restart
+    assert watch.update(1.95, 0.295, False)  # 1.05 s without progress
+    assert not watch.update(2.0, 0.1, True)  # reached: never a stall
+    assert not watch.update(2.5, 0.1, False)
+    assert watch.update(3.6, 0.1, False)
+
+
+def test_a_plan_reaches_the_goal_with_the_locked_joint_pinned_on_a_straight_line() -> None:
+    lower, upper = PANDA.lower, PANDA.upper
+    velocity = 0.5 * PANDA.velocity_limits
+    config = RecoveryConfig()
+    plan = recovery.plan(PANDA, GOAL, START, (LOCKED,), lower, upper, velocity, 0.004, config)
+    assert plan is not None, "no plan for a goal reachable with the joint pinned"
+    assert np.linalg.norm(PANDA.task_error(GOAL, plan.solution)) < 1e-4
+    assert plan.solution[LOCKED] == START[LOCKED]
+    assert np.all(plan.positions[:, LOCKED] == START[LOCKED])
+    assert np.all(plan.positions >= lower - 1e-9) and np.all(plan.positions <= upper + 1e-9)
+    # From rest at the start to rest at the solution, along the line between them.
+    assert np.allclose(plan.positions[0], START) and np.allclose(plan.positions[-1],
+                                                                 plan.solution)
+    assert np.allclose(plan.velocities[[0, -1]], 0.0, atol=1e-9)
+    share = (plan.positions - START) / np.where(plan.solution != START,
+                                                plan.solution - START, 1.0)
+    moving = plan.solution != START
+    assert np.allclose(share[:, moving], share[:, moving][:, :1], atol=1e-6)
+    # Within the velocity and acceleration limits (finite differences of the samples).
+    assert np.all(np.abs(plan.velocities) <= velocity * (1 + 1e-6))
+    dt = np.diff(plan.times)[:-1]
+    acceleration = np.diff(plan.velocities[:-1], axis=0) / dt[:, None]
+    assert np.abs(acceleration).max() <= config.acceleration * 1.05
+    # Of the solutions found, the chosen keeps at least half the best kfm.
+    found = recovery.solutions(PANDA, GOAL, START, (LOCKED,), lower, upper, config.attempts)
+    best = max(measures.kfm(PANDA.scale_task(PANDA.jacobian(s)), (LOCKED,)) for s in found)
+    assert plan.solutions == len(found) > 1 and plan.kfm >= 0.5 * best
+
+
+def test_a_goal_out_of_reach_gives_no_plan() -> None:
+    plan = recovery.plan(PANDA, np.array([3.0, 0.0, 0.5]), START, (LOCKED,), PANDA.lower,
+                         PANDA.upper, PANDA.velocity_limits, 0.004, RecoveryConfig(attempts=5))
+    assert plan is None
+
+
+def test_after_a_lock_the_controller_goes_round_a_stall() -> None:
+    """On an instant plant; the plan is waited for with the simulated clock held."""
+    without = closed_loop(START, LOCKED, GOAL, False, 12.0, PlantConfig())
+    assert without["error"] > 0.1, "this case no longer stalls without recovery"
+    assert without["notes"] == ["off"]
+    run = closed_loop(START, LOCKED, GOAL, True, 12.0, PlantConfig())
+    notes = run["notes"]
+    assert any(n.startswith("stalled") for n in notes), notes
+    assert any(n.startswith("following") for n in notes), notes
+    assert run["error"] < REACHED, (run["error"], notes)
+    assert run["locked_travel"] == 0.0
+
+
+def test_the_follower_stays_inside_the_velocity_bounds_and_keeps_locked_joints_still() -> None:
+    plan = recovery.plan(PANDA, GOAL, START, (LOCKED,), PANDA.lower, PANDA.upper,
+                         0.5 * PANDA.velocity_limits, 0.004, RecoveryConfig())
+    assert plan is not None
+    lo, hi = limits.velocity_bounds(START, PANDA.lower, PANDA.upper, 0.1 * PANDA.velocity_limits,
+                                    0.004)
+    far = START + 0.3  # far off the path: the correction alone would exceed the bounds
+    qd = recovery.follow(plan, plan.duration / 2, far, (LOCKED,), 5.0, lo, hi)
+    assert np.all(qd >= lo) and np.all(qd <= hi) and qd[LOCKED] == 0.0
+    assert np.any(qd != 0.0)
+
+
+@pytest.mark.parametrize("field", ["stall_time", "progress", "timeout", "acceleration", "jerk"])
+def test_invalid_recovery_settings_are_refused(field: str) -> None:
+    with pytest.raises(ValueError, match=field):
+        RecoveryConfig(**{field: 0.0})
