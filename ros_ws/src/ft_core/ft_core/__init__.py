@@ -13,6 +13,7 @@ The online path (what the nodes call every cycle, and what they need to start):
     targets: task velocities from pose goals and twists.
     observability: excursions that make a joint nobody commands show a lock.
     task_channel: a lock suspected from the task error the commands do not explain.
+    recovery: after a lock, a stall test, IK with the locked joints pinned, a joint path.
     controller: the controller's per-cycle logic around the engine: `Controller.step`.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
     workers: worker processes that end with their parent, started off a real-time thread.
