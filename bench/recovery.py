@@ -63,15 +63,14 @@ def closed_loop(q0: np.ndarray, locked: int, goal: np.ndarray, enabled: bool,
     try:
         while t < seconds and reached is None:
             deadline = time.monotonic() + PLAN_WAIT
-            while True:
-                start = time.perf_counter()
-                step = controller.step(plant.q, 0.0, t)
-                steps.append(time.perf_counter() - start)
-                if not notes or notes[-1] != controller.recovery_note:
-                    notes.append(controller.recovery_note)
-                if not notes[-1].startswith("stalled") or time.monotonic() > deadline:
-                    break
-                time.sleep(0.01)
+            while (controller.recovery is not None and controller.recovery.planning
+                   and time.monotonic() < deadline):
+                time.sleep(0.005)
+            start = time.perf_counter()
+            step = controller.step(plant.q, 0.0, t)
+            steps.append(time.perf_counter() - start)
+            if not notes or notes[-1] != controller.recovery_note:
+                notes.append(controller.recovery_note)
             plant.command(t, step.qd)
             t += engine.dt
             plant.step(t)

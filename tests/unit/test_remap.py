@@ -22,6 +22,23 @@ def test_locked_joints_get_zero_and_the_tool_velocity_is_kept() -> None:
         np.testing.assert_allclose(J @ out, J @ QD, atol=1e-9)
 
 
+def test_the_healthy_joints_own_motion_passes_unchanged() -> None:
+    """Issue 30: a command that holds the locked joint at 0 passes unchanged.
+
+    A controller that knows of the lock sends null-space motion or a recovery path; the
+    monitor must not project it onto the task.
+    """
+    arm = robots.load("panda", task_space="position")  # 6 healthy joints, 3 task rows
+    J = arm.scale_task(arm.jacobian(Q))
+    null = np.linalg.svd(np.delete(J, 2, axis=1))[2][-1]  # healthy null-space motion
+    knowing = np.insert(0.3 * null, 2, 0.0)
+    np.testing.assert_allclose(remap.remap(arm, Q, knowing, [2]), knowing, atol=1e-12)
+    # Anything on the locked joint is made up for on top of the healthy joints' motion.
+    out = remap.remap(arm, Q, knowing + QD[2] * np.eye(7)[2], [2])
+    assert out[2] == 0.0
+    np.testing.assert_allclose(J @ out, J @ (knowing + QD[2] * np.eye(7)[2]), atol=1e-9)
+
+
 def test_a_task_the_reduced_robot_cannot_do_gets_least_squares() -> None:
     out = remap.remap(PANDA, Q, QD, [1, 4])  # 5 joints for a 6-D pose task
     assert out[1] == out[4] == 0.0

@@ -269,6 +269,11 @@ class Recovery:
         self.note = "idle"
 
     @property
+    def planning(self) -> bool:
+        """Whether a plan is being computed (its result not back yet)."""
+        return self._job is not None and not self._job[1].done()
+
+    @property
     def following(self) -> bool:
         """Whether a recovery path is being followed."""
         return self._path is not None

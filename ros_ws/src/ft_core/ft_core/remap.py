@@ -2,10 +2,15 @@
 
 A controller that knows nothing about failures (MoveIt Servo, teleoperation)
 keeps commanding the locked joints. The command means a tool velocity
-x = J qd; the healthy joints alone produce it with qd' = (J_h)# x (damped least
-squares, see `pseudoinverse`; the closest achievable tool velocity when the
-reduced robot cannot produce x), and the locked joints get exactly 0. If that
-breaks a velocity limit, the whole command is scaled down, direction kept.
+x = J qd = J_h qd_h + J_l qd_l (healthy and locked columns); the locked joints get
+exactly 0 and the healthy ones make up for them: qd'_h = qd_h + (J_h)# J_l qd_l (damped
+least squares, see `pseudoinverse`; the closest achievable tool velocity when the
+reduced robot cannot produce x). That is the smallest change of the healthy joints'
+command that keeps x, so their own motion (a controller's null-space motion: kfm
+ascent, limit avoidance, a recovery path) passes unchanged, and a command that already
+holds the locked joints at 0 passes as it is. Where J_h has full column rank (no
+redundancy left) it equals (J_h)# x. If the result breaks a velocity limit, the whole
+command is scaled down, direction kept.
 Singular values are compared on `Robot.scale_task(J)`, as everywhere.
 """
 
@@ -50,5 +55,6 @@ def remap(robot: Robot, q: np.ndarray, qd: np.ndarray, locked: Iterable[int],
         J = robot.scale_task(robot.jacobian(q))
         healthy = ~mask
         result = np.zeros(robot.n)
-        result[healthy] = damped_pinv(J[:, healthy], damping or Damping()) @ (J @ qd)
+        result[healthy] = qd[healthy] + damped_pinv(J[:, healthy], damping or Damping()) @ (
+            J[:, mask] @ qd[mask])
     return within_limits(result, limits)

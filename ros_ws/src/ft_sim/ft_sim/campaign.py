@@ -54,6 +54,9 @@ FAR = 0.3
 LOCK_WINDOW = (12.0, 24.0)
 GOAL_TOLERANCE = 5e-3  #: m
 GOAL_TIMEOUT = 5.0  #: s per visit
+#: s per visit of the tour after the lock: room for the controller's recovery (a stall,
+#: a plan and a joint path of a few seconds) before the point counts as missed.
+TOUR_TIMEOUT = 12.0
 
 
 @dataclass(frozen=True)
@@ -144,9 +147,9 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
         robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
         points=points, critical=marks, resolution=task.mode, soft_limits=task.soft,
         lock_joint=joint, lock_time=lock_time,
-        duration=LOCK_WINDOW[1] + (len(critical) + 1) * GOAL_TIMEOUT, rate=125.0,
-        seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
-        **design["plant"])
+        duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
+        rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
+        tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
     record = run(config, domain_id=task.domain, bag=bag)
     summary = summarise(config, record)
     j = robot.joint_names.index(joint)
@@ -157,7 +160,9 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
                    success=len(summary["reached_after"]) == summary["points"],
                    correct_detection=summary["detected"] == [joint],
                    outside_box=value is not None and not bool(box[0][j] <= value <= box[1][j]),
-                   reachable=None if q_lock is None else reachable(robot, critical, q_lock, j))
+                   reachable=None if q_lock is None else reachable(robot, critical, q_lock, j),
+                   recovery_paths=sum(n.startswith("following") for n in record.recovery),
+                   last_joint=robot.joint_names[-1])
     return summary
 
 
@@ -175,8 +180,9 @@ def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: n
         robot, [np.array(p) for p in critical], lower, upper, q))
 
 
-def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict) -> dict:
-    """What every run of a campaign shares: arm, plant, critical points and their box.
+def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
+              recovery: bool = True) -> dict:
+    """What every run of a campaign shares: arm, plant, recovery, critical points, box.
 
     Raises selfmotion.UnreachableError when the critical points have no common box.
     """
@@ -188,7 +194,8 @@ def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict) -> di
     return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link,
             "plant": plant, "critical": [list(p) for p in critical],
             "box": [[float(v) for v in side] for side in box],
-            "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW)}
+            "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW),
+            "recovery": recovery, "tour_timeout": TOUR_TIMEOUT}
 
 
 def tasks(runs: int, modes: tuple[str, ...], first_domain: int, design: dict) -> list[Task]:
@@ -212,6 +219,8 @@ def wilson(successes: int, runs: int) -> tuple[float, float]:
 
 
 def _rate(successes: int, runs: int) -> str:
+    if not runs:
+        return "-"
     low, high = wilson(successes, runs)
     return f"{successes}/{runs} ({100 * successes / runs:.0f} %, {100 * low:.0f}-{100 * high:.0f})"
 
@@ -219,14 +228,18 @@ def _rate(successes: int, runs: int) -> str:
 def table(results: list[dict]) -> str:
     """Markdown tables: each condition, then the runs whose outcome soft limits changed.
 
-    Per condition: success with its CI, IK reachability after the lock, the lock
+    Per condition: success with its CI, IK reachability after the lock, success where
+    every point stays reachable and where the last joint locked (the tool's own axis in a
+    position task), runs in which the controller followed a recovery path, the lock
     against the box, waypoints, detection and the velocity jump.
     """
     lines = ["| condition | runs | success (%, 95 % CI) | every point reachable (IK) | "
+             "success where every point is reachable | success, last joint locked | "
+             "runs with a recovery path | "
              "lock outside the box | waypoints reached | right joint detected "
              "| runs with a false lock "
              "| detection latency median / max (ms) | velocity jump median / max (rad/s) |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     modes = [m for m in MODES if any(r["resolution"] == m for r in results)]
     for mode in modes:
         for soft in (False, True):
@@ -236,10 +249,15 @@ def table(results: list[dict]) -> str:
             latency = [r["latency_ms"] for r in group if r["latency_ms"] is not None]
             jump = [r["velocity_jump"] for r in group if r["velocity_jump"] is not None]
             visits = [v for r in group for v in r["waypoint_visits"]]
+            possible = [r for r in group if r["reachable"] == r["points"]]
+            last = [r for r in group if r["locked"] == r["last_joint"]]
             lines.append(
                 f"| {mode}, {'with' if soft else 'without'} soft limits | {len(group)} | "
                 f"{_rate(sum(r['success'] for r in group), len(group))} | "
-                f"{_rate(sum(r['reachable'] == r['points'] for r in group), len(group))} | "
+                f"{_rate(len(possible), len(group))} | "
+                f"{_rate(sum(r['success'] for r in possible), len(possible))} | "
+                f"{_rate(sum(r['success'] for r in last), len(last))} | "
+                f"{sum(r.get('recovery_paths', 0) > 0 for r in group)}/{len(group)} | "
                 f"{sum(r['outside_box'] for r in group)}/{len(group)} | "
                 f"{100 * np.mean(visits) if visits else 0:.0f} % | "
                 f"{sum(r['correct_detection'] for r in group)}/{len(group)} | "
@@ -349,6 +367,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="plant velocity response time (s)")
     parser.add_argument("--hold-last-command", action="store_true",
                         help="the plant holds the last command (ros2_control)")
+    parser.add_argument("--no-recovery", action="store_true",
+                        help="the controller without its recovery after a lock")
     parser.add_argument("--first-domain", type=int,
                         default=int(os.environ.get("ROS_DOMAIN_ID", "29")) + 1,
                         help="first DDS domain id of the runs (default ROS_DOMAIN_ID + 1)")
@@ -357,7 +377,8 @@ def main(argv: list[str] | None = None) -> int:
     plant = {"plant": args.plant, "command_latency": args.latency,
              "response_time": args.response_time, "hold_last_command": args.hold_last_command}
     try:
-        design = design_of(args.robot, args.base_link, args.tip_link, plant)
+        design = design_of(args.robot, args.base_link, args.tip_link, plant,
+                           not args.no_recovery)
     except robots.RobotModelError as error:
         parser.error(f"--robot: {error}")
     except selfmotion.UnreachableError as error:

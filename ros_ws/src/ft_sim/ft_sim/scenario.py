@@ -54,6 +54,8 @@ PHYSICS_ROBOT = "panda_inertial"
 ANGLE_PER_METRE = 10.0
 #: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
 WAIT_PERIOD = 0.01
+#: Longest wall-clock wait (s) of the simulated clock for a recovery plan.
+PLAN_WAIT = 60.0
 
 
 @dataclass
@@ -82,6 +84,8 @@ class ScenarioConfig:
             inertias, such as "panda_inertial").
         command_latency, response_time (s), hold_last_command: the sim's plant options.
         start: the initial configuration (rad, chain order; default the bent one).
+        recovery: the controller's recovery after a lock (`recovery.enabled`).
+        tour_timeout: s per visit of the tour after the lock (None: `goal_timeout`).
     """
 
     robot: str = "panda"
@@ -105,6 +109,8 @@ class ScenarioConfig:
     plant: str = "kinematic"
     hold_last_command: bool = False
     start: tuple[float, ...] = ()
+    recovery: bool = True
+    tour_timeout: float | None = None
 
 
 @dataclass
@@ -129,6 +135,8 @@ class Record:
     detected: list[str] = field(default_factory=list)
     false_locks: list[str] = field(default_factory=list)  #: declared before the injection
     non_finite: int = 0
+    #: The controller's recovery notes, in order (`Controller.recovery_note`).
+    recovery: list[str] = field(default_factory=list)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The step series as arrays."""
@@ -180,7 +188,7 @@ class Scenario:
         # controller's is max(state_timeout, 2 periods); states are always fresh here).
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
-            state_timeout=60.0,
+            state_timeout=60.0, **{"recovery.enabled": config.recovery},
             **({"critical_points": flat} if config.soft_limits and flat else {})))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
@@ -290,8 +298,21 @@ class Scenario:
         self._publish_failure(self._swing_pub, joint, lambda: joint in self.sim.swinging)
 
     def step(self) -> None:
-        """One period of the loop: the sim steps, then holds the command for the new instant."""
+        """One period of the loop: the sim steps, then holds the command for the new instant.
+
+        While the controller plans a recovery (in its worker process, in wall time), the
+        simulated clock waits for the plan, at most `PLAN_WAIT` s: in simulated time a
+        planner is as fast as the computer allows, like the rest of the loop.
+        """
+        core = self.controller.core
+        deadline = time.monotonic() + PLAN_WAIT
+        while (core is not None and core.recovery is not None and core.recovery.planning
+               and time.monotonic() < deadline):
+            time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
+        if core is not None and (not self.record.recovery
+                                 or self.record.recovery[-1] != core.recovery_note):
+            self.record.recovery.append(core.recovery_note)
 
     def start(self) -> float:
         """Wait for the model and the soft limits (if any); the simulated start time (s)."""
@@ -334,7 +355,9 @@ class Scenario:
             error = robot.task_error(self._targets[goal], q)
             reached = bool(np.linalg.norm(error[:3]) < cfg.goal_tolerance
                            and np.linalg.norm(error[3:]) < ANGLE_PER_METRE * cfg.goal_tolerance)
-            if not reached and self.sim.t - since <= cfg.goal_timeout:
+            timeout = cfg.goal_timeout if rec.injected_at is None or (
+                cfg.tour_timeout is None) else cfg.tour_timeout
+            if not reached and self.sim.t - since <= timeout:
                 continue
             if rec.injected_at is None:
                 rec.visits.append((self.sim.t, goal, reached))
