@@ -10,6 +10,7 @@ it pinned.
 from __future__ import annotations
 
 import sys
+from concurrent.futures import Future
 
 import numpy as np
 import pytest
@@ -97,6 +98,50 @@ def test_the_follower_stays_inside_the_velocity_bounds_and_keeps_locked_joints_s
     qd = recovery.follow(plan, plan.duration / 2, far, (LOCKED,), 5.0, lo, hi)
     assert np.all(qd >= lo) and np.all(qd <= hi) and qd[LOCKED] == 0.0
     assert np.any(qd != 0.0)
+
+
+def _stall(rec: recovery.Recovery, until: float, t: float = 0.0) -> float:
+    """Feed `rec` a goal error that never improves, every 10 ms up to `until` s."""
+    bounds = (PANDA.lower, PANDA.upper)
+    speeds = (-PANDA.velocity_limits, PANDA.velocity_limits)
+    while t < until:
+        assert rec.step(t, START, GOAL, 0.3, False, (LOCKED,), bounds, speeds) is None
+        t += 0.01
+    return t
+
+
+def test_a_goal_without_an_ik_solution_is_reported_and_not_planned_again() -> None:
+    submitted = []
+
+    def submit(*args) -> Future:
+        submitted.append(args)
+        done: Future = Future()
+        done.set_result(None)  # no solution with the joint pinned
+        return done
+
+    rec = recovery.Recovery(RecoveryConfig(stall_time=0.5), submit)
+    _stall(rec, 3.0)
+    assert len(submitted) == 1 and rec.note.startswith("goal not reachable"), rec.note
+
+
+def test_a_plan_that_does_not_come_back_in_time_is_given_up_and_tried_again() -> None:
+    submitted = []
+
+    def submit(*args) -> Future:
+        submitted.append(args)
+        return Future()  # never finishes
+
+    config = RecoveryConfig(stall_time=0.5, timeout=1.0, plans_per_goal=2)
+    rec = recovery.Recovery(config, submit)
+    t = _stall(rec, 1.2)  # stalled at 0.5 s: planning since
+    assert len(submitted) == 1 and rec.planning
+    t = _stall(rec, 2.5, t)  # given up at 1.5 s, stalled again at 2 s
+    assert len(submitted) == 2, "no second plan after the first was given up"
+    _stall(rec, 8.0, t)
+    assert len(submitted) == 2 and rec.note.startswith("planning took over")
+    rec.reset(8.0)  # a new goal: plans may start again
+    _stall(rec, 9.0, 8.0)
+    assert len(submitted) == 3
 
 
 @pytest.mark.parametrize("field", ["stall_time", "progress", "timeout", "acceleration", "jerk"])
