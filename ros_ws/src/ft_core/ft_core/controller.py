@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -149,7 +150,7 @@ class Controller:
     def _recovery(self, config: ControllerConfig) -> Recovery | None:
         if config.recovery is None:
             return None
-        return Recovery(config.recovery, self._submit_plan)
+        return Recovery(config.recovery, partial(self._submit_plan, config.recovery))
 
     def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
         """New settings: the engine is rebuilt (keeping the critical points' box)."""
@@ -237,8 +238,9 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
-        if error is not None and locked and self.recovery is not None:
-            qd = self._recover(kinematics, qd, locked, now, error, idle)
+        if error is not None and locked and self.recovery is not None and self.target:
+            qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked, now,
+                               error, idle)
         if not np.isfinite(qd).all():
             qd = np.zeros(robot.n)
         self.last = result
@@ -291,19 +293,19 @@ class Controller:
             self._suspect_sent = now
         self.suspect = joint
 
-    def _recover(self, kinematics: Kinematics, qd: np.ndarray, locked: list[int], now: float,
-                 error: float, reached: bool) -> np.ndarray:
+    def _recover(self, rec: Recovery, goal: np.ndarray, kinematics: Kinematics,
+                 qd: np.ndarray, locked: list[int], now: float, error: float,
+                 reached: bool) -> np.ndarray:
         """The recovery path's command while one is followed, else `qd` unchanged."""
         q, engine = kinematics.q, self.engine
         bounds = engine.bounds(locked)
         velocity = self.robot.velocity_limits * engine.config.velocity_scale
         lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
-        command = self.recovery.step(now, q, self.target.value, error, reached, tuple(locked),
-                                     bounds, (lo, hi))
+        command = rec.step(now, q, goal, error, reached, tuple(locked), bounds, (lo, hi))
         return qd if command is None else command
 
-    def _submit_plan(self, goal: np.ndarray, q: np.ndarray, locked: tuple[int, ...],
-                     lower: np.ndarray, upper: np.ndarray) -> Future:
+    def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,
+                     locked: tuple[int, ...], lower: np.ndarray, upper: np.ndarray) -> Future:
         """Plan a recovery in the worker process (`recovery.plan_for_model`)."""
         if self._background is None:
             self._background = workers.pool()
@@ -311,8 +313,7 @@ class Controller:
         with workers.lowered():
             return self._background.submit(
                 recovery.plan_for_model, *self._model_source, goal, q, locked, lower, upper,
-                self.robot.velocity_limits * engine.velocity_scale, engine.dt,
-                self.config.recovery)
+                self.robot.velocity_limits * engine.velocity_scale, engine.dt, config)
 
     # ------------------------------------------------------ soft limits (worker)
     def _start_boxes(self, q: np.ndarray) -> None:

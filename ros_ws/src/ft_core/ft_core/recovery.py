@@ -296,7 +296,7 @@ class Recovery:
         `velocity_bounds`: the engine's (lo, hi) at q for one cycle (rad/s).
         """
         if self._job is not None:
-            self._take(now, locked)
+            self._take(*self._job, now, locked)
         if self._path is not None:
             plan, start = self._path
             elapsed = now - start
@@ -321,9 +321,9 @@ class Recovery:
                          f"joints {list(locked)} pinned")
         return None
 
-    def _take(self, now: float, locked: tuple[int, ...]) -> None:
+    def _take(self, submitted: float, job: Future, now: float, locked: tuple[int, ...],
+              ) -> None:
         """Start following a finished plan; give up on a failed or late one."""
-        submitted, job = self._job
         if not job.done():
             if now - submitted > self.config.timeout:
                 self._job = None
