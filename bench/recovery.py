@@ -43,8 +43,10 @@ PLAN_WAIT = 60.0
 
 
 def closed_loop(q0: np.ndarray, locked: int, goal: np.ndarray, enabled: bool,
-                seconds: float, driver: PlantConfig = DRIVER) -> dict:
+                seconds: float, driver: PlantConfig = DRIVER, known: bool = True) -> dict:
     """One run of the controller towards `goal` with joint `locked` held at q0's value.
+
+    `known`: the controller is told of the lock from the start (otherwise never).
 
     Returns the goal's error at the end (m), when it was reached (s or None), the
     recovery's notes in order, the locked joint's travel (rad) and every step's wall
@@ -55,7 +57,8 @@ def closed_loop(q0: np.ndarray, locked: int, goal: np.ndarray, enabled: bool,
     controller = Controller(PANDA, engine, config, ("panda", (None, None, "position", None)))
     plant = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, q0, driver)
     plant.lock(locked)
-    controller.set_locked([locked], 0.0)
+    if known:
+        controller.set_locked([locked], 0.0)
     controller.set_pose_goal(goal, 0.0)
     notes: list[str] = []
     steps: list[float] = []

@@ -88,6 +88,20 @@ def test_after_a_lock_the_controller_goes_round_a_stall() -> None:
     assert run["locked_travel"] == 0.0
 
 
+def test_a_stall_with_no_lock_known_plans_with_nothing_pinned() -> None:
+    """A lock nobody has seen: the path commands every joint, the locked one too.
+
+    Here no monitor tells the controller, so the path cannot be followed and the two
+    plans of the goal are used up; in the closed loop with the monitor (the campaign) the
+    locked joint, commanded, stalls and is declared, and the next plan pins it.
+    """
+    run = closed_loop(START, LOCKED, GOAL, True, 12.0, PlantConfig(), known=False)
+    stalls = [n for n in run["notes"] if n.startswith("stalled")]
+    assert stalls and all(n.endswith("joints [] pinned") for n in stalls), run["notes"]
+    assert any(n.startswith("following") for n in run["notes"]), run["notes"]
+    assert run["locked_travel"] == 0.0
+
+
 def test_the_follower_stays_inside_the_velocity_bounds_and_keeps_locked_joints_still() -> None:
     plan = recovery.plan(PANDA, GOAL, START, (LOCKED,), PANDA.lower, PANDA.upper,
                          0.5 * PANDA.velocity_limits, 0.004, RecoveryConfig())

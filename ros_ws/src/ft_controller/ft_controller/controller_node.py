@@ -95,9 +95,9 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
                                "null-space motion (kfm ascent, limit avoidance); otherwise "
                                "hold still", {}),
-    "recovery.enabled": (_CYCLE.recovery is not None, "after a lock, when a pose goal's "
-                         "error stops improving, move along a joint path to an IK solution "
-                         "with the locked joints pinned (planned in a worker process)", {}),
+    "recovery.enabled": (_CYCLE.recovery is not None, "when a pose goal's error stops "
+                         "improving, move along a joint path to an IK solution with the "
+                         "locked joints pinned (planned in a worker process)", {}),
     "recovery.stall_time": (_RECOVERY.stall_time, "s without progress towards a pose goal "
                             "before recovering", parameters.float_range(0.05, 60.0)),
     "observability.enabled": (_CYCLE.observability is not None, "null-space excursions of "

@@ -11,9 +11,9 @@ besides the engine's arithmetic (`ft_core.engine`):
 - the observability excursions (`ft_core.observability`) in the null space;
 - the task-space channel (`ft_core.task_channel`), fed the pose goal's error: its
   suspect is returned for whoever decides (the monitor);
-- the recovery after a lock (`ft_core.recovery`): when a pose goal's error stops
-  improving, a joint path to an IK solution with the locked joints pinned, planned in the
-  worker process and followed in the cycle, then the pose goal is tracked again;
+- the recovery (`ft_core.recovery`): when a pose goal's error stops improving, a joint
+  path to an IK solution with the locked joints pinned, planned in the worker process and
+  followed in the cycle, then the pose goal is tracked again;
 - the soft limits from critical points: the intersected self-motion boxes of Lewis
   and Maciejewski (1997), traced in a worker process (never in the cycle) and
   switched in atomically, in the cycle, once ready.
@@ -238,7 +238,7 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
-        if error is not None and locked and self.recovery is not None and self.target:
+        if error is not None and self.recovery is not None and self.target:
             qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked, now,
                                error, idle)
         if not np.isfinite(qd).all():

@@ -32,6 +32,13 @@ arm cannot make the task direction without leaving it (docs/campaign.md). Recove
    the healthy joints, inside the engine's velocity bounds; then the task-space
    controller takes over again.
 
+A stall with no joint known to be locked is handled the same way, with nothing pinned:
+a lock nobody has seen (its joint hardly commanded, so the monitor could not tell) is the
+common cause, and the path commands every joint, the locked one too, so the monitor sees
+it stall and declares it; the new locked set drops the path, and the next stall plans
+with that joint pinned. On a healthy arm the path simply goes round what stopped local
+control (a hard limit, the soft-limit box's edge).
+
 Times are seconds, angles rad, task errors in the task's scaled units (`Robot.scale_task`).
 """
 
@@ -255,8 +262,8 @@ Submit = Callable[[np.ndarray, np.ndarray, tuple[int, ...], np.ndarray, np.ndarr
 class Recovery:
     """One controller's recovery: watching for a stall, planning, following a path.
 
-    Used only while a joint is locked and a pose goal is set (the caller resets it on a
-    new goal or locked set). `note` says what it does, for diagnostics.
+    Used while a pose goal is set (the caller resets it on a new goal or locked set).
+    `note` says what it does, for diagnostics.
     """
 
     def __init__(self, config: RecoveryConfig, submit: Submit):

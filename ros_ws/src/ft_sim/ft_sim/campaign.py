@@ -161,7 +161,6 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
                    correct_detection=summary["detected"] == [joint],
                    outside_box=value is not None and not bool(box[0][j] <= value <= box[1][j]),
                    reachable=None if q_lock is None else reachable(robot, critical, q_lock, j),
-                   recovery_paths=sum(n.startswith("following") for n in record.recovery),
                    last_joint=robot.joint_names[-1])
     return summary
 

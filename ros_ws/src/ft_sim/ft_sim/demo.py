@@ -16,7 +16,8 @@ lock and after recovery with its tool path and task points (`arm.png`); with
 - the joint-velocity jump the lock caused (command after detection against the
   command just before the lock);
 - kfm before and after (the latter for a further failure);
-- whether each task point was reached again after the lock (a tour of them).
+- whether each task point was reached again after the lock (a tour of them), and how
+  often the controller went round a stall along a recovery path (`ft_core.recovery`).
 
 Exit status 0 when the story holds: the right joint detected, every task point
 reached after the lock, no non-finite value on any topic.
@@ -66,6 +67,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "non_finite": record.non_finite, "false_locks": record.false_locks,
         "soft_limits": record.soft_limits,
         "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
+        "recovery_paths": sum(n.startswith("following") for n in record.recovery),
     }
 
 
@@ -106,6 +108,7 @@ def report(summary: dict, problems: list[str]) -> str:
         f"| kfm before / after | {_fmt(s['kfm_before'], ' m', 3)} / "
         f"{_fmt(s['kfm_after'], ' m', 3)} |",
         f"| soft limits | {s['soft_limits']} |",
+        f"| recovery paths (local control stalled) | {s['recovery_paths']} |",
         f"| task points reached after the lock | "
         f"{len(s['reached_after'])} of {s['points']} |", "",
         "Verdict: " + ("the task went on after the failure." if not problems
