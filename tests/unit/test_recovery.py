@@ -30,7 +30,7 @@ GOAL = np.array([-0.5849, -0.2168, 0.5689])
 
 
 def test_a_stall_is_an_error_that_stops_improving() -> None:
-    watch = StallWatch(RecoveryConfig(stall_time=1.0, progress=0.01))
+    watch = StallWatch(RecoveryConfig(stall_time=1.0, progress=0.01, near=0.003))
     assert not watch.update(0.0, 0.5, False)
     assert not watch.update(0.9, 0.3, False)  # progress: the clock restarts at 0.9
     assert not watch.update(1.8, 0.295, False)  # less than `progress`: no restart
@@ -38,6 +38,21 @@ def test_a_stall_is_an_error_that_stops_improving() -> None:
     assert not watch.update(2.0, 0.1, True)  # reached: never a stall
     assert not watch.update(2.5, 0.1, False)
     assert watch.update(3.6, 0.1, False)
+
+
+def test_near_the_goal_slow_convergence_and_noise_are_no_stall() -> None:
+    watch = StallWatch(RecoveryConfig(stall_time=1.0, progress=0.001, near=0.003))
+    # 8 mm halving every 0.9 s: each drop is less than `progress` but a quarter of the error.
+    t, error = 0.0, 0.008
+    while error >= 0.003:
+        assert not watch.update(t, error, False)
+        t, error = t + 0.9, error / 2
+    watch.reset(t)
+    for k in range(2000):  # 1 mm/s in 1 um steps: small drops that add up to progress
+        assert not watch.update(t + 0.001 * k, 0.3 - 1e-6 * k, False)
+    t += 2.0
+    for k in range(300):  # at 2 mm of noise-level error for 3 s: never a stall
+        assert not watch.update(t + 0.01 * k, 0.002 + 0.001 * (k % 2), False)
 
 
 def test_a_plan_reaches_the_goal_with_the_locked_joint_pinned_on_a_straight_line() -> None:
@@ -158,7 +173,8 @@ def test_a_plan_that_does_not_come_back_in_time_is_given_up_and_tried_again() ->
     assert len(submitted) == 3
 
 
-@pytest.mark.parametrize("field", ["stall_time", "progress", "timeout", "acceleration", "jerk"])
+@pytest.mark.parametrize("field", ["stall_time", "progress", "timeout", "acceleration", "jerk",
+                                   "near"])
 def test_invalid_recovery_settings_are_refused(field: str) -> None:
     with pytest.raises(ValueError, match=field):
-        RecoveryConfig(**{field: 0.0})
+        RecoveryConfig(**{field: -1.0 if field == "near" else 0.0})

@@ -5,9 +5,11 @@ lock it can stop short of a goal the locked arm can still reach: a joint pressed
 against its hard limit, or the arm at the edge of the soft-limit box where the reduced
 arm cannot make the task direction without leaving it (docs/campaign.md). Recovery:
 
-1. **Stall** (`StallWatch`): the pose goal's error has not dropped by `progress` below
-   its best value for `stall_time` s, while the goal is not reached. Every cause of a
-   stall (a hard limit, a soft-limit edge, a singular reduced arm) shows this way.
+1. **Stall** (`StallWatch`): the pose goal's error has not dropped below its best value
+   by `progress` (or by a quarter of it, if that is less: a converging arm near its goal)
+   for `stall_time` s, while it is at least `near` (closer, the error is the final
+   approach or the measurement noise, and the arm is left to it). Every cause of a stall
+   (a hard limit, a soft-limit edge, a singular reduced arm) shows this way.
 2. **Plan** (`plan`, run in a worker process, never in the control cycle): inverse
    kinematics of the goal with the locked joints pinned (`selfmotion.project`: Newton
    with an active set on the joint bounds), multi-start: the current configuration,
@@ -56,6 +58,8 @@ from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 from ft_core import measures, robots, selfmotion
 from ft_core.robots import Robot
 
+#: Share of the best error whose drop counts as progress, when less than `progress`.
+RELATIVE_PROGRESS = 0.25
 #: A plan's path has at most this many samples (bounded memory: a longer path is
 #: sampled more coarsely than the control period).
 MAX_SAMPLES = 20000
@@ -67,7 +71,9 @@ class RecoveryConfig:
 
     Attributes:
         stall_time: s without progress before a stall is declared, > 0.
-        progress: smallest drop of the goal's error that counts as progress, > 0.
+        progress: a drop of the goal's error by this much (or by a quarter of it) counts
+            as progress, > 0.
+        near: errors below this are never a stall, >= 0.
         attempts: IK starts of one plan, >= 1.
         timeout: s a plan may take before its result is ignored, > 0.
         acceleration: rad/s^2, largest joint acceleration on the path, > 0.
@@ -78,6 +84,7 @@ class RecoveryConfig:
 
     stall_time: float = 1.0
     progress: float = 0.002
+    near: float = 0.003
     attempts: int = 30
     timeout: float = 10.0
     acceleration: float = 1.0
@@ -91,8 +98,10 @@ class RecoveryConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"recovery {name} must be finite and > 0, got {value}")
-        if not (math.isfinite(self.gain) and self.gain >= 0):
-            raise ValueError(f"recovery gain must be finite and >= 0, got {self.gain}")
+        for name in ("gain", "near"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"recovery {name} must be finite and >= 0, got {value}")
         for name in ("attempts", "plans_per_goal"):
             if getattr(self, name) < 1:
                 raise ValueError(f"recovery {name} must be >= 1, got {getattr(self, name)}")
@@ -107,17 +116,20 @@ class StallWatch:
 
     def reset(self, now: float) -> None:
         """Forget the error seen so far (a new goal, a new locked set, a path done)."""
+        # The error when progress was last made, and when: the reference a drop is
+        # measured from (not the latest error: many small drops add up to progress).
         self._best, self._since = math.inf, now
 
     def update(self, now: float, error: float, reached: bool) -> bool:
-        """Whether the error (>= 0) has not improved by `progress` for `stall_time` s."""
-        if reached or not math.isfinite(error):
+        """Whether the error (>= 0) has not improved for `stall_time` s (see the module)."""
+        config = self.config
+        if reached or not math.isfinite(error) or error < config.near:
             self.reset(now)
             return False
-        if math.isnan(self._since) or error < self._best - self.config.progress:
+        if math.isnan(self._since) or error < self._best - min(config.progress,
+                                                               RELATIVE_PROGRESS * self._best):
             self._best, self._since = error, now
             return False
-        self._best = min(self._best, error)
         return now - self._since >= self.config.stall_time
 
 
