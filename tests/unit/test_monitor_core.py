@@ -115,8 +115,10 @@ def test_the_command_path_never_waits_for_the_disk(tmp_path: Path, monkeypatch) 
     assert not lp.monitor.declare([2], 0.1).changed  # returns at once, nothing written
     assert lp.monitor.command(np.full(7, 0.1), 0.1)[2] == 0.0
     assert lp.monitor.announced == {} and not lp.monitor.settled().changed
+    assert lp.monitor.writing  # what a lock-step clock waits for (ft_sim.scenario)
     written.set()
     change = lp.monitor.flush(5.0)
+    assert not lp.monitor.writing
     assert change.changed and change.events == ["joint panda_joint3 declared locked"]
     assert list(lp.monitor.announced) == ["panda_joint3"]
     assert not lp.monitor.close().changed  # nothing left to write

@@ -147,6 +147,13 @@ class Monitor:
         return dict(self._announced)
 
     @property
+    def writing(self) -> bool:
+        """Whether a change waits for a write of the locked set still under way."""
+        if not self._held or self._writer is None:
+            return False
+        return self._writer.done()[0] < self._held[-1][0]
+
+    @property
     def swinging(self) -> list[str]:
         """Names of the joints declared free-swinging (and not locked since), sorted."""
         return sorted(self.robot.joint_names[j] for j in self.detector.swinging)

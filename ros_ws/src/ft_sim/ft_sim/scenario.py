@@ -54,7 +54,7 @@ PHYSICS_ROBOT = "panda_inertial"
 ANGLE_PER_METRE = 10.0
 #: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
 WAIT_PERIOD = 0.01
-#: Longest wall-clock wait (s) of the simulated clock for a recovery plan.
+#: Longest wall-clock wait (s) of the simulated clock for a recovery plan or a write.
 PLAN_WAIT = 60.0
 
 
@@ -300,14 +300,17 @@ class Scenario:
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant.
 
-        While the controller plans a recovery (in its worker process, in wall time), the
-        simulated clock waits for the plan, at most `PLAN_WAIT` s: in simulated time a
-        planner is as fast as the computer allows, like the rest of the loop.
+        While the controller plans a recovery (in its worker process) or the monitor writes
+        a new locked set (in its writer thread), both in wall time, the simulated clock
+        waits for them, at most `PLAN_WAIT` s: in simulated time a planner and a disk are
+        as fast as the computer allows, like the rest of the loop, so a run's simulated
+        times do not depend on the machine's load.
         """
-        core = self.controller.core
+        core, monitor = self.controller.core, self.monitor.core
         deadline = time.monotonic() + PLAN_WAIT
-        while (core is not None and core.recovery is not None and core.recovery.planning
-               and time.monotonic() < deadline):
+        while time.monotonic() < deadline and (
+                (core is not None and core.recovery is not None and core.recovery.planning)
+                or (monitor is not None and monitor.writing)):
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
         if core is not None and (not self.record.recovery
