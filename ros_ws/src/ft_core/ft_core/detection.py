@@ -184,8 +184,8 @@ class JointEvidence:
     measured: float = 0.0  #: slope of the measured positions (rad/s)
     commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
     standard_error: float = 0.0  #: of the slope (rad/s)
-    #: position lost against the plausible models during the window (rad, along the
-    #: command; computed only for joints that stall, else 0)
+    #: position lost against the best plant model during the window (rad, along the
+    #: command; computed only when a never-swinging joint stalls, else 0)
     deficit: float = 0.0
     evidence_since: float | None = None  #: when the current lock evidence started (s)
     at_limit: bool = False  #: stalled at a physical limit
@@ -301,11 +301,16 @@ class _Buffers:
     """
 
     NAMES: tuple[str, ...] = ()
+    times: np.ndarray
     start: int = 0
     end: int = 0
 
     def __len__(self) -> int:
         return self.end - self.start
+
+    def drop_before(self, time: float) -> None:
+        """Forget entries whose `times` are before `time` (sorted times)."""
+        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
 
     def _make_room(self) -> None:
         size = len(self)
@@ -490,10 +495,6 @@ class Samples(_Buffers):
         self.times[k], self.positions[k], self.predicted[k] = time, position, predicted
         self.end += 1
 
-    def drop_before(self, time: float) -> None:
-        """Forget measurements older than `time`."""
-        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
-
     def window(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(times, positions, predicted) of the window, as views."""
         return (self.times[self.start:self.end], self.positions[self.start:self.end],
@@ -520,10 +521,6 @@ class Offsets(_Buffers):
             self._make_room()
         self.times[self.end], self.values[self.end] = time, offsets
         self.end += 1
-
-    def drop_before(self, time: float) -> None:
-        """Forget offsets of windows ending before `time`."""
-        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
 
     def until(self, time: float) -> np.ndarray:
         """The kept offsets of windows ending at or before `time`, (k, models, n)."""
