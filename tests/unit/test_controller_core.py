@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import time
 
 import numpy as np
@@ -167,3 +169,17 @@ def test_configure_keeps_the_traced_box_and_takes_new_settings(name: str) -> Non
     assert getattr(c.config, name) == 1.5
     assert c.engine.config.resolution == "least_norm"
     np.testing.assert_allclose(c.engine.config.soft_lower, PANDA.lower + 0.1)
+
+
+def test_start_worker_starts_the_worker_process_before_any_cycle_needs_it() -> None:
+    """A node starts it at model load, so no plan or boxes spawn it inside a cycle."""
+    before = set(multiprocessing.active_children())
+    c = core()
+    try:
+        assert set(multiprocessing.active_children()) == before  # nothing at construction
+        c.start_worker()
+        started = set(multiprocessing.active_children()) - before
+        assert len(started) == 1
+        assert started.pop().pid != os.getpid()
+    finally:
+        c.close()

@@ -57,3 +57,13 @@ def test_a_worker_ends_with_its_killed_parent_and_would_not_by_itself(tmp_path: 
     assert orphaned, "a plain pool worker was expected to outlive its parent"
     _, orphaned = orphan_after_kill(tmp_path, "watch")
     assert not orphaned
+
+
+def test_a_worker_runs_nicer_than_its_parent() -> None:
+    """Its heavy work yields the CPU to the control loops beside it."""
+    pool = workers.pool()
+    try:
+        worker_niceness = pool.submit(os.nice, 0).result(timeout=60)
+    finally:
+        pool.shutdown()
+    assert worker_niceness == min(19, os.nice(0) + workers.NICENESS)

@@ -176,6 +176,7 @@ class ControllerNode(SuiteNode):
             return
         if self.core is not None:
             self.core.close()
+        core.start_worker()
         self.robot, self._order, self.core = robot, order, core
         self.command_joints = [robot.joint_names[i] for i in order]
         self._labels = metrics.labels(self.command_joints)

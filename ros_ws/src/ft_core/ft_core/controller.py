@@ -25,6 +25,7 @@ bad state or target: it returns explicit zeros and says why (`Step.problems`).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -307,13 +308,32 @@ class Controller:
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,
                      locked: tuple[int, ...], lower: np.ndarray, upper: np.ndarray) -> Future:
         """Plan a recovery in the worker process (`recovery.plan_for_model`)."""
+        engine = self.engine.config
+        return self._submit(recovery.plan_for_model, *self._model_source, goal, q, locked,
+                            lower, upper, self.robot.velocity_limits * engine.velocity_scale,
+                            engine.dt, config)
+
+    def start_worker(self) -> None:
+        """Start the worker process now, off the control loop (a node does at model load).
+
+        Otherwise the first plan or boxes start it inside a cycle: some ms of spawning.
+        Where no process can start (inside a daemon process) the plan and the boxes
+        report it when they need it.
+        """
+        try:
+            self._submit(os.getpid)
+        except (AssertionError, RuntimeError, OSError):
+            pass
+
+    def _submit(self, fn: Callable, *args) -> Future:
+        """Run fn(*args) in the worker process, started on first use (`workers.pool`).
+
+        Submitted `workers.lowered`: the worker starts here, never at the loop's priority.
+        """
         if self._background is None:
             self._background = workers.pool()
-        engine = self.engine.config
         with workers.lowered():
-            return self._background.submit(
-                recovery.plan_for_model, *self._model_source, goal, q, locked, lower, upper,
-                self.robot.velocity_limits * engine.velocity_scale, engine.dt, config)
+            return self._background.submit(fn, *args)
 
     # ------------------------------------------------------ soft limits (worker)
     def _start_boxes(self, q: np.ndarray) -> None:
@@ -335,11 +355,8 @@ class Controller:
         self.soft_limits_note = (f"computing soft limits from {len(flat)} values of critical "
                                  "points (the previous limits meanwhile)")
         try:
-            if self._background is None:
-                self._background = workers.pool()
-            with workers.lowered():  # the worker starts here: never at the loop's
-                self._boxes_job = (self._boxes_generation, self._background.submit(
-                    selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+            self._boxes_job = (self._boxes_generation, self._submit(
+                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
         except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
             self.soft_limits_note = "none (critical points failed)"
             self._report("critical points", f"cannot start the process that traces the boxes "

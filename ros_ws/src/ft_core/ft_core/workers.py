@@ -3,7 +3,9 @@
 A process pool's worker blocks on its task queue; when its parent is killed (kill -9,
 the OOM killer) nobody closes that queue and the worker lives on, an orphan, one per
 crash. `exit_with_parent` as the pool's initializer ends it within `PERIOD`; `pool`
-makes such a pool. A worker inherits the scheduling of the thread that starts it: a
+makes such a pool, whose worker also runs `NICENESS` steps below its parent, so that on
+a busy machine its heavy work waits for the loops, not the loops for it (a control
+cycle beside a planning worker on 2 cores). A worker inherits the scheduling of the thread that starts it: a
 loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) starts it `lowered`, so the heavy
 work never runs at the loop's priority, not even its start-up imports.
 """
@@ -20,6 +22,8 @@ from contextlib import contextmanager
 
 #: How often (s) a worker checks that its parent still runs.
 PERIOD = 0.5
+#: How much nicer (lower priority) a worker runs than the process that starts it.
+NICENESS = 10
 
 
 def exit_with_parent(parent: int) -> None:
@@ -33,14 +37,20 @@ def exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
+def _start_worker(parent: int) -> None:
+    """Pool initializer: `NICENESS` below the parent, ending with it (`exit_with_parent`)."""
+    os.nice(NICENESS)
+    exit_with_parent(parent)
+
+
 def pool() -> ProcessPoolExecutor:
-    """One spawned worker process that ends with this process (`exit_with_parent`).
+    """One spawned worker process, `NICENESS` below this one, that ends with it.
 
     Spawned, not forked: a fork of a process running rclpy or numba threads may
     inherit a lock held by a thread that does not exist in the child.
     """
     return ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=exit_with_parent, initargs=(os.getpid(),))
+                               initializer=_start_worker, initargs=(os.getpid(),))
 
 
 @contextmanager
