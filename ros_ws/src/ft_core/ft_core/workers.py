@@ -5,9 +5,10 @@ the OOM killer) nobody closes that queue and the worker lives on, an orphan, one
 crash. `exit_with_parent` as the pool's initializer ends it within `PERIOD`; `pool`
 makes such a pool, whose worker also runs `NICENESS` steps below its parent, so that on
 a busy machine its heavy work waits for the loops, not the loops for it (a control
-cycle beside a planning worker on 2 cores). A worker inherits the scheduling of the thread that starts it: a
-loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) starts it `lowered`, so the heavy
-work never runs at the loop's priority, not even its start-up imports.
+cycle beside a planning worker on 2 cores). A worker inherits the scheduling of the
+thread that starts it: a loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) starts it
+`lowered`, so the heavy work never runs at the loop's priority, not even its start-up
+imports.
 """
 
 from __future__ import annotations
