@@ -37,7 +37,8 @@ def draw(robot: Robot, record: Record, points: tuple[tuple[float, ...], ...],
     tool = np.array([robot.transform(qi)[:3, 3] for qi in q[::5]])
     skeletons = {index: np.vstack([np.zeros(3), robot.skeleton(q[index])])  # from the base
                  for _, index in moments(record)}
-    every = np.vstack([tool, *skeletons.values(), np.array(points)[:, :3]])
+    xyz = np.array([(*point[:3], 0.0)[:3] for point in points])  # a planar point: z = 0
+    every = np.vstack([tool, *skeletons.values(), xyz])
     centre = (every.max(axis=0) + every.min(axis=0)) / 2
     half = float((every.max(axis=0) - every.min(axis=0)).max()) / 2 + 0.05
     locked = robot.joint_names.index(locked_joint) if locked_joint in robot.joint_names else None
@@ -57,7 +58,7 @@ def draw(robot: Robot, record: Record, points: tuple[tuple[float, ...], ...],
                 ("critical point", critical, {"marker": "*", "s": 140, "color": "tab:orange"}),
                 ("waypoint", others, {"marker": "o", "s": 20, "color": "tab:green"})):
             if chosen:
-                ax.scatter(*np.array([points[i][:3] for i in chosen]).T, label=kind, **style)
+                ax.scatter(*xyz[chosen].T, label=kind, **style)
         for axis, c in zip("xyz", centre, strict=True):
             getattr(ax, f"set_{axis}lim")(c - half, c + half)
             getattr(ax, f"set_{axis}label")(f"{axis} (m)")

@@ -54,9 +54,7 @@ FAR = 0.3
 LOCK_WINDOW = (12.0, 24.0)
 GOAL_TOLERANCE = 5e-3  #: m
 GOAL_TIMEOUT = 5.0  #: s per visit
-#: s per visit of the tour after the lock: room for the controller's recovery (a stall,
-#: a plan and a joint path of a few seconds) before the point counts as missed.
-TOUR_TIMEOUT = 12.0
+TOUR_TIMEOUT = ScenarioConfig.tour_timeout  #: s per visit of the tour after the lock
 
 
 @dataclass(frozen=True)

@@ -68,6 +68,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "soft_limits": record.soft_limits,
         "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
         "recovery_paths": sum(n.startswith("following") for n in record.recovery),
+        "replaced": record.replaced,
     }
 
 
@@ -94,6 +95,8 @@ def _fmt(value, unit: str = "", digits: int = 4) -> str:
 def report(summary: dict, problems: list[str]) -> str:
     """The report as Markdown."""
     s = summary
+    replaced = ", ".join(f"point {p} by one {1000 * d:.0f} mm away"
+                         for p, d in sorted(s["replaced"].items())) or "none"
     lines = [
         f"# ft-arms demo: {s['robot']}, {s['resolution']}, {s['locked']} locks", "",
         "| | |", "|---|---|",
@@ -110,7 +113,8 @@ def report(summary: dict, problems: list[str]) -> str:
         f"| soft limits | {s['soft_limits']} |",
         f"| recovery paths (local control stalled) | {s['recovery_paths']} |",
         f"| task points reached after the lock | "
-        f"{len(s['reached_after'])} of {s['points']} |", "",
+        f"{len(s['reached_after'])} of {s['points']} |",
+        f"| task points out of the locked arm's reach, replaced | {replaced} |", "",
         "Verdict: " + ("the task went on after the failure." if not problems
                        else "FAILED: " + "; ".join(problems)),
     ]
@@ -159,8 +163,9 @@ def main(argv: list[str] | None = None) -> int:
                         "overshoot, gravity; docs/sim.md) (default %(default)s)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
-    parser.add_argument("--task", default=defaults.task_space, choices=["position", "pose"],
-                        help="task space (default %(default)s)")
+    parser.add_argument("--task", default=defaults.task_space,
+                        choices=["position", "pose", "planar"],
+                        help="task space (default %(default)s; planar for the planar3r)")
     parser.add_argument("--resolution", default=defaults.resolution,
                         choices=["least_norm", "max_kfm", "min_jump", "blend"])
     parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
@@ -192,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
         robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
         task_space=args.task, resolution=args.resolution, plant=args.plant, lock_joint=joint,
         lock_time=args.lock_time, duration=args.duration, seed=args.seed,
-        soft_limits=not args.no_soft_limits), bag=args.out / "bag" if args.record else None)
+        soft_limits=not args.no_soft_limits, reachable_tour=True),
+        bag=args.out / "bag" if args.record else None)
     print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "
           f"{args.lock_time:g} s, then it visits every task point again; task points "
           f"{[[round(v, 3) for v in p] for p in scenario.config.points]} ...", flush=True)

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from ft_controller.controller_node import ControllerNode
-from ft_core import robots, selfmotion
+from ft_core import recovery, robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, metrics, names, qos, spin
 from geometry_msgs.msg import PoseStamped
@@ -56,6 +56,10 @@ ANGLE_PER_METRE = 10.0
 WAIT_PERIOD = 0.01
 #: Longest wall-clock wait (s) of the simulated clock for a recovery plan or a write.
 PLAN_WAIT = 60.0
+#: Inverse-kinematics starts that decide whether the locked arm reaches a tour point.
+REACH_ATTEMPTS = 30
+#: Random configurations searched for the nearest replacement of an unreachable point.
+REACH_SAMPLES = 2000
 
 
 @dataclass
@@ -85,7 +89,14 @@ class ScenarioConfig:
         command_latency, response_time (s), hold_last_command: the sim's plant options.
         start: the initial configuration (rad, chain order; default the bent one).
         recovery: the controller's recovery after a lock (`recovery.enabled`).
-        tour_timeout: s per visit of the tour after the lock (None: `goal_timeout`).
+        tour_timeout: s per visit of the tour after the lock: room for the controller's
+            recovery (a stall, a plan and a joint path of a few seconds) before the point
+            counts as missed.
+        reachable_tour: at the lock, replace each tour point the locked arm cannot reach
+            (no inverse kinematics with the joint pinned at its locked value) by a
+            reachable one near it (`Scenario.keep_reachable`; `Record.replaced` says
+            which). The demo does: where a pose task leaves no redundancy after the lock, a
+            point is generally out of reach. A campaign does not: it counts such points.
     """
 
     robot: str = "panda"
@@ -98,7 +109,7 @@ class ScenarioConfig:
     soft_limits: bool = True
     lock_joint: str = "panda_joint2"
     lock_time: float = 5.0
-    duration: float = 20.0
+    duration: float = 60.0
     rate: float = 250.0
     noise: float = 1e-3
     seed: int = 0
@@ -110,7 +121,8 @@ class ScenarioConfig:
     hold_last_command: bool = False
     start: tuple[float, ...] = ()
     recovery: bool = True
-    tour_timeout: float | None = None
+    tour_timeout: float = 12.0
+    reachable_tour: bool = False
 
 
 @dataclass
@@ -137,6 +149,9 @@ class Record:
     non_finite: int = 0
     #: The controller's recovery notes, in order (`Controller.recovery_note`).
     recovery: list[str] = field(default_factory=list)
+    #: Tour points out of the locked arm's reach, replaced (`ScenarioConfig.reachable_tour`):
+    #: index -> distance (m) from the original point's position to the replacement's.
+    replaced: dict[int, float] = field(default_factory=dict)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The step series as arrays."""
@@ -258,6 +273,47 @@ class Scenario:
         self._publish_failure(self._inject_pub, joint, lambda: joint in self.sim.locked)
         self.record.injected_at = self.sim.t
 
+    def keep_reachable(self, joint: str, points: list[int]) -> None:
+        """Replace those of `points` the arm cannot reach with `joint` held where it is.
+
+        Reachable: `recovery.solutions` (inverse kinematics with the joint pinned, inside
+        the hard limits, `REACH_ATTEMPTS` starts) finds a configuration. A replacement is
+        the tool point of such a configuration, reachable by construction: for a pose
+        task, one reaching the point's position (the orientation the locked arm has
+        there); otherwise, or if none does, the nearest in position of `REACH_SAMPLES`
+        seeded random configurations with the joint at its locked value. The run is in
+        simulated time: this wall time does not count.
+        """
+        robot, cfg, q = self.robot, self.config, self.sim.q.copy()
+        locked = robot.joint_names.index(joint)
+        position = robots.load(cfg.robot, cfg.base_link or None, cfg.tip_link or None,
+                               task_space="position") if robot.task_space == "pose" else None
+        rng = np.random.default_rng(cfg.seed)
+        points_now = list(cfg.points)
+
+        def where(target: np.ndarray) -> np.ndarray:  # the position of a task target (m)
+            return target[:3, 3] if position is not None else target
+
+        for p in points:
+            target = self._targets[p]
+            if recovery.solutions(robot, target, q, [locked], robot.lower, robot.upper,
+                                  REACH_ATTEMPTS):
+                continue
+            found = [] if position is None else recovery.solutions(
+                position, where(target), q, [locked], robot.lower, robot.upper, REACH_ATTEMPTS)
+            if found:
+                nearest = min(found, key=lambda s: float(np.linalg.norm(s - q)))
+            else:
+                samples = rng.uniform(robot.lower, robot.upper, (REACH_SAMPLES, robot.n))
+                samples[:, locked] = q[locked]
+                nearest = min(samples, key=lambda s: float(np.linalg.norm(
+                    where(robot.forward(s)) - where(target))))
+            replacement = robot.forward(nearest)
+            self.record.replaced[p] = float(np.linalg.norm(where(replacement) - where(target)))
+            self._targets[p] = replacement
+            points_now[p] = tuple(selfmotion.flat_from_targets(robot, [replacement]))
+        self.config = replace(cfg, points=tuple(points_now))
+
     def _publish_failure(self, publisher, joint: str, done) -> None:
         publisher.publish(JointState(name=[joint]))
         if not spin.spin_until(self.executor, done, 5.0):
@@ -340,6 +396,8 @@ class Scenario:
                 self.inject(cfg.lock_joint)
                 tour = [p for p in range(goal, len(cfg.points)) if p in self.critical]
                 tour += [p for p in range(goal) if p in self.critical]
+                if cfg.reachable_tour:
+                    self.keep_reachable(cfg.lock_joint, tour)
                 goal, since = tour[0], self.sim.t
                 self.send_goal(goal)
             # The controller's command in force during this step, before the monitor.
@@ -358,8 +416,7 @@ class Scenario:
             error = robot.task_error(self._targets[goal], q)
             reached = bool(np.linalg.norm(error[:3]) < cfg.goal_tolerance
                            and np.linalg.norm(error[3:]) < ANGLE_PER_METRE * cfg.goal_tolerance)
-            timeout = cfg.goal_timeout if rec.injected_at is None or (
-                cfg.tour_timeout is None) else cfg.tour_timeout
+            timeout = cfg.goal_timeout if rec.injected_at is None else cfg.tour_timeout
             if not reached and self.sim.t - since <= timeout:
                 continue
             if rec.injected_at is None:
