@@ -88,6 +88,38 @@ def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
     assert (tmp_path / "demo.png").stat().st_size > 10_000
 
 
+#: Locks the demo's default joint (2) on a 7-joint pose task still misses: the lock leaves
+#: the arm 2 to 4 mm short, where the null space keeps commanding joint 2 at 0.02 to
+#: 0.07 rad/s, below what the monitor can judge through 1 mrad of position noise
+#: (docs/detection.md), so it is declared only when a later goal moves it fast.
+SLOW_LOCK = pytest.mark.xfail(strict=True, reason="a lock commanded below the monitor's "
+                              "observable speed goes undetected (issue 30, docs/sim.md)")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("robot", "task"), [
+    ("panda", "position"), pytest.param("panda", "pose", marks=SLOW_LOCK),
+    (str(PANDA_URDF), "position"), pytest.param(str(PANDA_URDF), "pose", marks=SLOW_LOCK),
+    ("iiwa14", "position"), ("iiwa14", "pose"), ("puma560", "position"),
+    ("puma560", "pose"), ("planar3r", "planar")])
+def test_the_demo_holds_on_every_arm_with_robot_and_task_alone(
+        tmp_path: Path, robot: str, task: str) -> None:
+    """Issue 30: `ft-demo --robot R --task T` on each arm fixture and example-robot-data's
+    Panda: the right joint detected and every task point reached after the lock. Where
+    the locked arm cannot reach a point (a 6-joint arm's pose task), the demo replaces
+    it by one it can reach, and the report says so."""
+    status = demo.main(["--robot", robot, "--task", task, "--out", str(tmp_path)])
+    text = (tmp_path / "report.md").read_text()
+    assert "Verdict: the task went on after the failure." in text, text
+    assert status == 0
+    reached = text.split("| task points reached after the lock | ")[1].split(" |")[0]
+    count, points = reached.split(" of ")
+    assert count == points and int(points) >= 2
+    replaced = text.split("| task points out of the locked arm's reach, replaced | ")[1]
+    if robot == "puma560" and task == "pose":  # 5 joints left for 6 task coordinates
+        assert replaced.startswith("point ")
+
+
 @pytest.mark.slow
 def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     config = ScenarioConfig(lock_joint="panda_joint2", lock_time=3.0, duration=12.0)

@@ -67,9 +67,16 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "non_finite": record.non_finite, "false_locks": record.false_locks,
         "soft_limits": record.soft_limits,
         "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
-        "recovery_paths": sum(n.startswith("following") for n in record.recovery),
+        "recovery_paths": len(recovery_paths(record)),
         "replaced": record.replaced,
     }
+
+
+def recovery_paths(record: Record) -> list[tuple[float, float]]:
+    """(start, end) in simulated s of each recovery path the controller followed."""
+    notes = [*record.recovery, (record.t[-1] if record.t else 0.0, "end of the run")]
+    return [(t, notes[k + 1][0]) for k, (t, note) in enumerate(notes[:-1])
+            if note.startswith("following")]
 
 
 def verdict(summary: dict) -> list[str]:
@@ -140,11 +147,17 @@ def figure(record: Record, summary: dict, path: Path) -> None:
     axes[2].set_ylabel("kfm (m)")
     axes[2].set_xlabel("simulated time (s)")
     for ax in axes:
+        for k, (start, end) in enumerate(recovery_paths(record)):
+            ax.axvspan(start, end, color="tab:purple", alpha=0.15,
+                       label="recovery path" if k == 0 else None)
         if summary["injected_at_s"] is not None:
             ax.axvline(summary["injected_at_s"], color="r", ls="--", lw=1)
         if summary["detected_at_s"] is not None:
             ax.axvline(summary["detected_at_s"], color="g", ls=":", lw=1)
-    axes[0].set_title(f"{summary['locked']} locks (red), detected (green)")
+    axes[0].set_title(f"{summary['locked']} locks (red), detected (green); recovery paths "
+                      "(shaded): local control stalled, a joint path went round")
+    if summary["recovery_paths"]:
+        axes[0].legend(loc="upper right", fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -147,8 +147,9 @@ class Record:
     detected: list[str] = field(default_factory=list)
     false_locks: list[str] = field(default_factory=list)  #: declared before the injection
     non_finite: int = 0
-    #: The controller's recovery notes, in order (`Controller.recovery_note`).
-    recovery: list[str] = field(default_factory=list)
+    #: The controller's recovery notes as they changed (`Controller.recovery_note`):
+    #: (simulated time s, note).
+    recovery: list[tuple[float, str]] = field(default_factory=list)
     #: Tour points out of the locked arm's reach, replaced (`ScenarioConfig.reachable_tour`):
     #: index -> distance (m) from the original point's position to the replacement's.
     replaced: dict[int, float] = field(default_factory=dict)
@@ -370,8 +371,8 @@ class Scenario:
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
         if core is not None and (not self.record.recovery
-                                 or self.record.recovery[-1] != core.recovery_note):
-            self.record.recovery.append(core.recovery_note)
+                                 or self.record.recovery[-1][1] != core.recovery_note):
+            self.record.recovery.append((self.sim.t, core.recovery_note))
 
     def start(self) -> float:
         """Wait for the model and the soft limits (if any); the simulated start time (s)."""
