@@ -13,6 +13,14 @@ from models import chain_urdf
 from paths import PANDA_URDF, REPO
 from rosutil import fresh_domain
 
+#: Locks of joint 2 or 3 on a 7-joint pose task the demo still misses: the lock leaves
+#: the arm 2 to 4 mm short, where the null space keeps commanding the locked joint at
+#: 0.02 to 0.07 rad/s (the equilibrium of its objective), below what the monitor can
+#: judge through 1 mrad of position noise (docs/detection.md), so it is declared only
+#: when a later goal moves it fast, or never.
+SLOW_LOCK = pytest.mark.xfail(strict=True, reason="a lock commanded below the monitor's "
+                              "observable speed goes undetected (issue 30, docs/sim.md)")
+
 
 @pytest.mark.slow
 def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> None:
@@ -65,6 +73,7 @@ def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
+@SLOW_LOCK
 def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
     """Issue 15: `--task pose`: pose points chosen around the home, soft limits from them."""
     assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "3",
@@ -88,14 +97,6 @@ def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
     assert (tmp_path / "demo.png").stat().st_size > 10_000
 
 
-#: Locks the demo's default joint (2) on a 7-joint pose task still misses: the lock leaves
-#: the arm 2 to 4 mm short, where the null space keeps commanding joint 2 at 0.02 to
-#: 0.07 rad/s, below what the monitor can judge through 1 mrad of position noise
-#: (docs/detection.md), so it is declared only when a later goal moves it fast.
-SLOW_LOCK = pytest.mark.xfail(strict=True, reason="a lock commanded below the monitor's "
-                              "observable speed goes undetected (issue 30, docs/sim.md)")
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(("robot", "task"), [
     ("panda", "position"), pytest.param("panda", "pose", marks=SLOW_LOCK),
@@ -104,12 +105,19 @@ SLOW_LOCK = pytest.mark.xfail(strict=True, reason="a lock commanded below the mo
     ("puma560", "pose"), ("planar3r", "planar")])
 def test_the_demo_holds_on_every_arm_with_robot_and_task_alone(
         tmp_path: Path, robot: str, task: str) -> None:
-    """Issue 30: `ft-demo --robot R --task T` on each arm fixture and example-robot-data's
-    Panda: the right joint detected and every task point reached after the lock. Where
-    the locked arm cannot reach a point (a 6-joint arm's pose task), the demo replaces
-    it by one it can reach, and the report says so."""
+    """Issue 30: `ft-demo --robot R --task T` holds on each arm fixture.
+
+    Example-robot-data's Panda among them: the right joint detected and every task point
+    reached after the lock.
+
+    Where the locked arm cannot reach a point (a 6-joint arm's pose task), the demo
+    replaces it by one it can reach, and the report says so. Soft limits come from the
+    task points wherever redundancy leaves boxes to trace.
+    """
     status = demo.main(["--robot", robot, "--task", task, "--out", str(tmp_path)])
     text = (tmp_path / "report.md").read_text()
+    redundant = not (robot == "puma560" and task == "pose")
+    assert ("| soft limits | 3 critical points |" in text) == redundant
     assert "Verdict: the task went on after the failure." in text, text
     assert status == 0
     reached = text.split("| task points reached after the lock | ")[1].split(" |")[0]

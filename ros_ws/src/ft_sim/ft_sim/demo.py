@@ -102,8 +102,10 @@ def _fmt(value, unit: str = "", digits: int = 4) -> str:
 def report(summary: dict, problems: list[str]) -> str:
     """The report as Markdown."""
     s = summary
-    replaced = ", ".join(f"point {p} by one {1000 * d:.0f} mm away"
-                         for p, d in sorted(s["replaced"].items())) or "none"
+    replaced = ", ".join(
+        f"point {p} by one {1000 * metres:.0f} mm"
+        + (f" and {np.degrees(radians):.0f} deg" if radians else "") + " away"
+        for p, (metres, radians) in sorted(s["replaced"].items())) or "none"
     lines = [
         f"# ft-arms demo: {s['robot']}, {s['resolution']}, {s['locked']} locks", "",
         "| | |", "|---|---|",

@@ -62,6 +62,16 @@ REACH_ATTEMPTS = 30
 REACH_SAMPLES = 2000
 
 
+def mismatch(robot: robots.Robot, target: np.ndarray, other: np.ndarray,
+             ) -> tuple[float, float]:
+    """(m, rad) between two task targets of `robot`: positions, and orientations (pose)."""
+    if robot.task_space != "pose":
+        return float(np.linalg.norm(other - target)), 0.0
+    cosine = (np.trace(target[:3, :3].T @ other[:3, :3]) - 1) / 2
+    return (float(np.linalg.norm(other[:3, 3] - target[:3, 3])),
+            float(np.arccos(np.clip(cosine, -1.0, 1.0))))
+
+
 @dataclass
 class ScenarioConfig:
     """What to run.
@@ -151,8 +161,8 @@ class Record:
     #: (simulated time s, note).
     recovery: list[tuple[float, str]] = field(default_factory=list)
     #: Tour points out of the locked arm's reach, replaced (`ScenarioConfig.reachable_tour`):
-    #: index -> distance (m) from the original point's position to the replacement's.
-    replaced: dict[int, float] = field(default_factory=dict)
+    #: index -> how far the replacement is (`mismatch`: m, rad).
+    replaced: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The step series as arrays."""
@@ -279,11 +289,12 @@ class Scenario:
 
         Reachable: `recovery.solutions` (inverse kinematics with the joint pinned, inside
         the hard limits, `REACH_ATTEMPTS` starts) finds a configuration. A replacement is
-        the tool point of such a configuration, reachable by construction: for a pose
-        task, one reaching the point's position (the orientation the locked arm has
-        there); otherwise, or if none does, the nearest in position of `REACH_SAMPLES`
-        seeded random configurations with the joint at its locked value. The run is in
-        simulated time: this wall time does not count.
+        the tool point of a configuration with the joint at its locked value, reachable by
+        construction, the nearest of some candidates: for a pose task the pinned inverse
+        kinematics of the point's position alone (the nearest orientation the locked
+        arm has there), else `REACH_SAMPLES` seeded random configurations. Nearest by
+        `mismatch`, orientation counted 1 m per `ANGLE_PER_METRE` rad as for a goal's
+        tolerance. The run is in simulated time: this wall time does not count.
         """
         robot, cfg, q = self.robot, self.config, self.sim.q.copy()
         locked = robot.joint_names.index(joint)
@@ -292,25 +303,25 @@ class Scenario:
         rng = np.random.default_rng(cfg.seed)
         points_now = list(cfg.points)
 
-        def where(target: np.ndarray) -> np.ndarray:  # the position of a task target (m)
-            return target[:3, 3] if position is not None else target
+        def distance(target: np.ndarray, s: np.ndarray) -> float:
+            metres, radians = mismatch(robot, target, robot.forward(s))
+            return metres + radians / ANGLE_PER_METRE
 
         for p in points:
             target = self._targets[p]
             if recovery.solutions(robot, target, q, [locked], robot.lower, robot.upper,
                                   REACH_ATTEMPTS):
                 continue
-            found = [] if position is None else recovery.solutions(
-                position, where(target), q, [locked], robot.lower, robot.upper, REACH_ATTEMPTS)
-            if found:
-                nearest = min(found, key=lambda s: float(np.linalg.norm(s - q)))
-            else:
-                samples = rng.uniform(robot.lower, robot.upper, (REACH_SAMPLES, robot.n))
-                samples[:, locked] = q[locked]
-                nearest = min(samples, key=lambda s: float(np.linalg.norm(
-                    where(robot.forward(s)) - where(target))))
-            replacement = robot.forward(nearest)
-            self.record.replaced[p] = float(np.linalg.norm(where(replacement) - where(target)))
+            candidates = [] if position is None else recovery.solutions(
+                position, target[:3, 3], q, [locked], robot.lower, robot.upper,
+                REACH_ATTEMPTS)
+            if not candidates:
+                candidates = list(rng.uniform(robot.lower, robot.upper,
+                                              (REACH_SAMPLES, robot.n)))
+                for candidate in candidates:
+                    candidate[locked] = q[locked]
+            replacement = robot.forward(min(candidates, key=lambda s: distance(target, s)))
+            self.record.replaced[p] = mismatch(robot, target, replacement)
             self._targets[p] = replacement
             points_now[p] = tuple(selfmotion.flat_from_targets(robot, [replacement]))
         self.config = replace(cfg, points=tuple(points_now))
