@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from ft_core import robots, selfmotion
@@ -62,9 +64,31 @@ def test_a_healthy_stall_or_a_slow_approach_is_not_suspected() -> None:
 def test_configuration_and_task_checks() -> None:
     with pytest.raises(ValueError, match="explained"):
         TaskChannelConfig(explained=1.0)
-    with pytest.raises(ValueError, match="position"):
-        TaskChannel(robots.load("panda", task_space="pose"))
 
 
 
 
+
+
+def test_a_pose_task_explains_rotation_and_names_a_lone_locked_joint() -> None:
+    """Pose tasks too (`Robot.displacement`).
+
+    A healthy arm turning and moving leaves no unexplained motion; one that stands still
+    while only joint 2 is commanded (the equilibrium of Theorem 1) has joint 2 named.
+    """
+    panda = robots.load("panda", task_space="pose")
+    channel, q = TaskChannel(panda), panda.home()
+    qd = np.array([0.3, -0.2, 0.25, 0.2, -0.3, 0.3, 0.4])
+    for k in range(200):  # an error that does not shrink: the test runs at every update
+        assert channel.update(k * DT, q, qd, 0.1) is None
+        q = q + DT * qd
+    path = [panda.home() + k * DT * qd for k in range(201)]  # 0.8 s, 0.9 rad of turn
+    integrated = sum(panda.jacobian(p) @ qd * DT for p in path[:-1])
+    summed = sum(panda.displacement(panda.forward(a), panda.forward(b))
+                 for a, b in itertools.pairwise(path))
+    # Per cycle, the angular rows integrate to the rotation's log (to second order).
+    assert np.linalg.norm(summed - integrated) < 0.01 * np.linalg.norm(integrated)
+    channel, qd = TaskChannel(panda), np.zeros(7)
+    qd[1] = 0.05
+    suspects = [channel.update(k * DT, panda.home(), qd, 0.1) for k in range(200)]
+    assert suspects[-1] == 1

@@ -127,7 +127,7 @@ class Controller:
         self._report, self._log = report, log
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
-        self.channel = TaskChannel(robot) if robot.task_space != "pose" else None
+        self.channel = TaskChannel(robot)
         self.target: Target | None = None
         self.locked: tuple[int, ...] = ()
         self.last: CycleResult | None = None
@@ -284,8 +284,6 @@ class Controller:
         Announced when new, and again every channel window while it lasts (the
         monitor may not have had the evidence the first time).
         """
-        if self.channel is None:
-            return
         joint = self.channel.update(now, kinematics, step.qd, error, tuple(locked))
         step.suspect, step.new_suspect = joint, joint is not None and joint != self.suspect
         step.announce = joint is not None and (

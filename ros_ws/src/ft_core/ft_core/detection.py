@@ -117,6 +117,10 @@ IDENTIFY_PERIOD = 0.01
 #: Widening of the plausible set: latency below and above (s), response-time grid steps.
 LATENCY_MARGIN = (0.01, 0.02)
 RESPONSE_STEPS = 1
+#: s over which a suspect from elsewhere, commanded too slowly for the window's test, is
+#: judged (`LockDetector.confirm`): the task-space channel's window, over which it
+#: suspected the joint.
+SLOW_SPAN = 0.5
 
 
 @dataclass(frozen=True)
@@ -502,30 +506,36 @@ class Samples(_Buffers):
 
 
 class Offsets(_Buffers):
-    """Every model's window-mean offset (measured minus predicted position) per update.
+    """Per update: every model's window-mean offset, and the window-mean position.
 
-    Kept for `horizon` s, so that a stalled joint's position can be compared with where
-    it stood against the same model before the stall (the position-deficit rule).
+    The offset is measured minus predicted position. Kept for `horizon` s, so that a
+    stalled joint's position can be compared with where it stood against the same model
+    before the stall (the position-deficit rule), and a slowly commanded suspect's motion
+    over that span (`LockDetector.confirm`).
     """
 
-    NAMES = ("times", "values")
+    NAMES = ("times", "values", "means")
 
     def __init__(self, n: int, models: int, capacity: int = 256):
         self.times = np.zeros(capacity)
         self.values = np.zeros((capacity, models, n))
+        self.means = np.zeros((capacity, n))
         self.start = self.end = 0
 
-    def append(self, time: float, offsets: np.ndarray) -> None:
-        """The offsets (models, n) of the window ending at `time`."""
+    def append(self, time: float, offsets: np.ndarray, means: np.ndarray) -> None:
+        """The offsets (models, n) and mean positions (n) of the window ending at `time`."""
         if self.end == self.times.size:
             self._make_room()
         self.times[self.end], self.values[self.end] = time, offsets
+        self.means[self.end] = means
         self.end += 1
 
-    def until(self, time: float) -> np.ndarray:
-        """The kept offsets of windows ending at or before `time`, (k, models, n)."""
+    def between(self, start: float, end: float) -> np.ndarray:
+        """The kept offsets of windows ending in [start, end], (k, models, n)."""
         times = self.times[self.start:self.end]
-        return self.values[self.start:self.start + int(np.searchsorted(times, time, "right"))]
+        first = int(np.searchsorted(times, start, side="left"))
+        last = int(np.searchsorted(times, end, side="right"))
+        return self.values[self.start + first:self.start + last]
 
 
 @dataclass
@@ -648,8 +658,9 @@ class LockDetector:
                              self.history.positions(time - self._latencies).reshape(-1, self.n))
         self._samples.drop_before(time - self.config.window)
         _times, positions, predicted = self._samples.window()
-        self._offsets.append(time, _window_offsets(positions, predicted))
-        self._offsets.drop_before(time - self._horizon())
+        self._offsets.append(time, _window_offsets(positions, predicted),
+                             positions.mean(axis=0))
+        self._offsets.drop_before(time - max(self._horizon(), SLOW_SPAN))
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
@@ -666,15 +677,68 @@ class LockDetector:
         Locked when the joint is a candidate of the detector's own stall test at the
         last update, without the witness of another joint seen following (a suspect
         comes exactly where no such witness exists: the task-space channel of issue 16);
-        the noise tests, the joint-limit rule and the plant-fault rule all apply.
+        the noise tests, the joint-limit rule and the plant-fault rule all apply. Or,
+        for a joint commanded too slowly for the window's test, when it lost its motion
+        over the longer span of the kept window offsets (`_slow_stall`): at the
+        equilibrium of Maciejewski et al. Theorem 1 an undetected lock leaves the arm
+        short of its goal with the null space commanding the locked joint at a few
+        hundredths of a rad/s, below what the window can judge through the noise.
         """
         evidence = self.joints[joint]
         if evidence.locked_at is not None:
             return Confirmation("known", replace(evidence))
         if not evidence.candidate:
-            return Confirmation("refused", replace(evidence))
+            slow = self._slow_stall(joint)
+            if slow is None:
+                return Confirmation("refused", replace(evidence))
+            evidence = slow
         self.lock(joint, position, time)
-        return Confirmation("locked", replace(evidence))
+        return Confirmation("locked", replace(evidence, locked_at=time, position=position))
+
+    def _slow_stall(self, j: int) -> JointEvidence | None:
+        """Joint j's evidence over the last `SLOW_SPAN` s if it lost its motion there.
+
+        For a suspect commanded too slowly for the window's test (`confirm`). Over each
+        half of the span (window means `SLOW_SPAN` / 2 apart) the best model predicts a
+        displacement d = (change of the window-mean position) - (change of its offset).
+        Stalled when, in both halves, |d| is at least `confidence` standard errors of a
+        difference of two window means and the joint moved less than `ratio` of d
+        (along the span's d), and the whole span's |d| at least twice that; not pushing
+        into a limit, with decisions allowed and commands flowing for the whole span.
+        Both halves: a servo that ran ahead and then waits for its reference (a pause
+        of 0.1 to 0.2 s on the physics plant) lost nothing over the half that holds its
+        lead; a lock loses steadily. The evidence's velocities are the span's (rad/s),
+        its deficit the position lost (rad). None: not stalled.
+        """
+        cfg, offsets = self.config, self._offsets
+        now = self.latest_time
+        if (self.not_observing is not None or self.plant_fault is not None
+                or self._resumed_at + self._settling_time() > now - SLOW_SPAN
+                or offsets.times[offsets.start] > now - SLOW_SPAN + self.config.window):
+            return None
+        times = offsets.times[offsets.start:offsets.end]
+        marks = offsets.start + np.searchsorted(
+            times, [now - SLOW_SPAN, now - SLOW_SPAN / 2, now], side="left")
+        marks[-1] = offsets.end - 1
+        best = int(np.argmin(self._scores))
+        moved = np.diff(offsets.means[marks, j])
+        predicted = moved - np.diff(offsets.values[marks, best, j])
+        window_times = self._samples.window()[0]
+        centred = window_times - window_times.mean()
+        evidence = self.joints[j]
+        sigma = (evidence.standard_error * math.sqrt(centred @ centred)  # of one position
+                 * math.sqrt(2.0 / window_times.size))
+        total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
+        latest = float(self._samples.positions[self._samples.end - 1, j])
+        pushing = ((total > 0 and latest >= self.upper[j] - cfg.limit_margin)
+                   or (total < 0 and latest <= self.lower[j] + cfg.limit_margin))
+        lost = (along * predicted >= cfg.confidence * sigma) & (
+            along * moved < cfg.ratio * along * predicted)
+        if pushing or not lost.all() or abs(total) < 2 * cfg.confidence * sigma:
+            return None
+        span = float(offsets.times[marks[-1]] - offsets.times[marks[0]])
+        return replace(evidence, measured=float(moved.sum()) / span, commanded=total / span,
+                       deficit=abs(total) - along * float(moved.sum()), candidate=True)
 
     # -------------------------------------------------------------- decisions
     def _set_plausible(self, plausible: np.ndarray) -> None:
@@ -700,7 +764,7 @@ class LockDetector:
         window to compare with. The best model alone: the plausible models' offsets
         differ by their lags times the change of command, which is no loss of position.
         """
-        past = self._offsets.until(now - self.config.window)
+        past = self._offsets.between(now - self._horizon(), now - self.config.window)
         if not len(past):
             return np.full(self.n, math.inf)
         direction = -np.sign(weakest)  # behind: measured short of predicted, along c

@@ -415,12 +415,18 @@ class Robot:
         for pose, where the angular rows are log3(R_target R(q)^T) (rad, base axes),
         so that J+ e is a Newton step towards the target.
         """
-        pose = self.transform(q)
-        target = np.asarray(target, dtype=float)
+        return self.displacement(self.forward(q), np.asarray(target, dtype=float))
+
+    def displacement(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """From task target `start` to `end` (what `forward` returns), in `jacobian`'s rows.
+
+        The difference; for pose the position's and log3(R_end R_start^T) (rad, base
+        axes), which a constant angular velocity integrates to.
+        """
         if self.task_space != "pose":
-            return target - pose[self._rows, 3]
-        rotation = target[:3, :3] @ pose[:3, :3].T
-        return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(rotation)])
+            return end - start
+        return np.concatenate([end[:3, 3] - start[:3, 3],
+                               pin.log3(end[:3, :3] @ start[:3, :3].T)])
 
     def _reach(self) -> float:
         points = self.skeleton(pin.neutral(self._model))

@@ -9,16 +9,17 @@ decreasing while joints are commanded.
 
 This channel watches that symptom. Over a sliding `window` it compares the task
 displacement the commands should have produced, sum J(q_k) qd_k dt_k with the measured
-q_k, with the measured one, x(q_end) - x(q_start); the difference r is the unexplained
-motion. When the task error has not shrunk by `progress` over the window while
-joints were commanded, and |r| is at least `min_residual`, each joint i is tested as
+q_k, with the measured one, the sum of `Robot.displacement` between consecutive samples
+(x(q_end) - x(q_start) for a position; for a pose task also the rotation's log, which
+the angular rows integrate to over one cycle); the difference r is the unexplained
+motion. When the task error has not shrunk by `progress` over the window while joints
+were commanded, and |r| is at least `min_residual`, each joint i is tested as
 the culprit: had it not moved, the expected motion would lack c_i = sum j_i(q_k) qd_ik
 dt_k, so the residual left is |r - c_i|. The joint that leaves at most `explained`
 of |r|, and less than half of what any other joint leaves, is the suspect; the
 monitor decides (`MonitorNode`: it declares the suspect locked only if its own
 measurements show that joint still while commanded). Units: the task rows of
-`Robot.jacobian` (m; position and planar tasks only: a measured displacement of
-orientation is not the integral of the angular rows).
+`Robot.jacobian`, scaled (`Robot.scale_task`: m, and rad times the task's length scale).
 Reading taken: the paper gives the theorem, not a detector; this is our test of its
 condition (17) on measured data.
 """
@@ -68,14 +69,13 @@ class TaskChannel:
     """
 
     def __init__(self, robot: Robot, config: TaskChannelConfig | None = None):
-        if robot.task_space == "pose":
-            raise ValueError("the task channel compares positions: a position or planar task")
         self.robot = robot
         self.config = config or TaskChannelConfig()
-        #: (time, task position, task error, expected motion per joint until the next
-        #: sample (m, n))
-        self._samples: deque[tuple[float, np.ndarray, float, np.ndarray]] = deque()
+        #: (time, task target, task error, expected motion per joint from the previous
+        #: sample (m, n), measured motion from the previous sample (m,))
+        self._samples: deque[tuple[float, np.ndarray, float, np.ndarray, np.ndarray]] = deque()
         self._columns = np.zeros((robot.m, robot.n))
+        self._measured = np.zeros(robot.m)  #: the window's measured motion, summed
         self._last: tuple[float, np.ndarray] | None = None  # (time, J(q) qd) of the newest
         self.suspect: int | None = None  #: the joint whose loss explains the motion, if any
         self.residuals: np.ndarray = np.zeros(robot.n)  #: |r - c_i| / |r| at the last test
@@ -92,29 +92,32 @@ class TaskChannel:
         if self._last is not None and t <= self._last[0]:
             self._samples.clear()
             self._columns[:] = 0.0
+            self._measured[:] = 0.0
             self._last = None
-        motion = np.zeros((robot.m, robot.n))
+        motion, moved, x = np.zeros((robot.m, robot.n)), np.zeros(robot.m), robot.forward(at)
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
+            moved = robot.task_scale * robot.displacement(self._samples[-1][1], x)
             self._columns += motion
-        self._samples.append((t, robot.forward(at), float(error), motion))
+            self._measured += moved
+        self._samples.append((t, x, float(error), motion, moved))
         self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float))
         while self._samples[0][0] < t - self.config.window:
             self._samples.popleft()
-            self._columns -= self._samples[0][3]  # the motion that led to the new first
+            # The motion that led to the new first sample leaves the window.
+            self._columns -= self._samples[0][3]
+            self._measured -= self._samples[0][4]
         self.suspect = self._test(locked)
         return self.suspect
 
     def _test(self, locked: tuple[int, ...]) -> int | None:
-        cfg, robot = self.config, self.robot
+        cfg = self.config
         first, last = self._samples[0], self._samples[-1]
         if len(self._samples) < 3 or last[0] - first[0] < 0.8 * cfg.window:
             return None
         if last[2] < (1 - cfg.progress) * first[2]:
             return None  # the task error is still going down
-        expected = self._columns.sum(axis=1)
-        measured = robot.task_scale * (last[1] - first[1])
-        residual = expected - measured
+        residual = self._columns.sum(axis=1) - self._measured
         size = float(np.linalg.norm(residual))
         if size < cfg.min_residual:
             return None
