@@ -13,14 +13,6 @@ from models import chain_urdf
 from paths import PANDA_URDF, REPO
 from rosutil import fresh_domain
 
-#: Locks of joint 2 or 3 on a 7-joint pose task the demo still misses: the lock leaves
-#: the arm 2 to 4 mm short, where the null space keeps commanding the locked joint at
-#: 0.02 to 0.07 rad/s (the equilibrium of its objective), below what the monitor can
-#: judge through 1 mrad of position noise (docs/detection.md), so it is declared only
-#: when a later goal moves it fast, or never.
-SLOW_LOCK = pytest.mark.xfail(strict=True, reason="a lock commanded below the monitor's "
-                              "observable speed goes undetected (issue 30, docs/sim.md)")
-
 
 @pytest.mark.slow
 def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> None:
@@ -73,7 +65,6 @@ def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-@SLOW_LOCK
 def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
     """Issue 15: `--task pose`: pose points chosen around the home, soft limits from them."""
     assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "3",
@@ -99,8 +90,8 @@ def test_the_demo_on_an_arm_without_task_points(tmp_path: Path, capsys) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("robot", "task"), [
-    ("panda", "position"), pytest.param("panda", "pose", marks=SLOW_LOCK),
-    (str(PANDA_URDF), "position"), pytest.param(str(PANDA_URDF), "pose", marks=SLOW_LOCK),
+    ("panda", "position"), ("panda", "pose"), (str(PANDA_URDF), "position"),
+    (str(PANDA_URDF), "pose"),
     ("iiwa14", "position"), ("iiwa14", "pose"), ("puma560", "position"),
     ("puma560", "pose"), ("planar3r", "planar")])
 def test_the_demo_holds_on_every_arm_with_robot_and_task_alone(

@@ -313,6 +313,66 @@ def test_a_lock_at_a_small_command_is_still_found() -> None:
     assert events[0][1] == [0] and 3.0 < events[0][0] < 3.3, events
 
 
+def _then_joint_2_alone(t: float) -> np.ndarray:
+    """Every joint moving for 1 s (the plant seen following), then joint 2 alone.
+
+    At 0.02 rad/s: the equilibrium an undetected lock leaves (Maciejewski et al. Theorem
+    1), below the window's observable speed at 1 mrad of noise.
+    """
+    if t < 1.0:
+        return np.full(7, 0.3)
+    alone = np.zeros(7)
+    alone[1] = 0.02
+    return alone
+
+
+def _suspect_at_the_end(lock: tuple[tuple[int, ...], float] | None,
+                        plant: PlantConfig | None = None):
+    data = record(_then_joint_2_alone, 3.0, plant, lock)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    assert replay(data, detector) == []  # the window's test alone declares nothing
+    assert not detector.joints[1].observable and not detector.joints[1].candidate
+    return detector, detector.confirm(1, -0.3, 3.0)
+
+
+@pytest.mark.parametrize("plant", [None, PlantConfig(latency=0.05, response_time=0.05)])
+def test_a_slowly_commanded_suspect_that_lost_its_motion_is_confirmed(plant) -> None:
+    """Joint 2 locked at 2 s while commanded 0.02 rad/s: confirmed over the last 0.5 s."""
+    detector, answer = _suspect_at_the_end(((1,), 2.0), plant)
+    assert answer.decision == "locked"
+    evidence = answer.evidence
+    assert 0.015 < evidence.commanded < 0.025 and abs(evidence.measured) < 0.005
+    assert 0.005 < evidence.deficit < 0.015  # about 10 mrad lost in 0.5 s
+    assert detector.locked == {1: -0.3}
+
+
+def test_a_slowly_commanded_healthy_suspect_is_refused() -> None:
+    _, answer = _suspect_at_the_end(None, PlantConfig(latency=0.05, response_time=0.05))
+    assert answer.decision == "refused"
+
+
+def test_a_servo_catching_up_is_refused_as_a_suspect_too() -> None:
+    """The catch-up pause above, suspected at every instant of it: never confirmed.
+
+    Over the last 0.5 s the joint moved less than commanded (it ends its lead), but the
+    half that holds the lead lost nothing: a lock loses in both halves.
+    """
+    data = record(lambda t: SLOW_FIRST, 4.0, PlantConfig(latency=0.03, response_time=0.03))
+    for kind, t, values in data.events:
+        if kind == "measure":
+            values[0] += _catching_up(t)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    decisions = set()
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        detector.measure(t, values)
+        if 3.0 <= t:
+            decisions.add(detector.confirm(0, float(values[0]), t).decision)
+    assert decisions == {"refused"}
+
+
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     for k in range(100):  # commanded, never moving: not one lock, and why
