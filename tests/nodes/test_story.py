@@ -67,10 +67,10 @@ def test_the_demo_on_a_real_world_urdf(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_the_demo_with_a_pose_task_on_a_real_world_urdf(tmp_path: Path) -> None:
     """Issue 15: `--task pose`: pose points chosen around the home, soft limits from them."""
-    assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "3",
-                      "--duration", "16", "--out", str(tmp_path)]) == 0
+    assert demo.main(["--robot", str(PANDA_URDF), "--task", "pose", "--joint", "4",
+                      "--out", str(tmp_path)]) == 0
     text = (tmp_path / "report.md").read_text()
-    assert "detected | panda_joint3" in text and "3 of 3" in text
+    assert "detected | panda_joint4" in text and "3 of 3" in text
     assert "| soft limits | 3 critical points |" in text
 
 

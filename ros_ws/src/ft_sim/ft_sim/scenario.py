@@ -287,8 +287,10 @@ class Scenario:
     def keep_reachable(self, joint: str, points: list[int]) -> None:
         """Replace those of `points` the arm cannot reach with `joint` held where it is.
 
-        Reachable: `recovery.solutions` (inverse kinematics with the joint pinned, inside
-        the hard limits, `REACH_ATTEMPTS` starts) finds a configuration. A replacement is
+        Reachable: inverse kinematics with the joint pinned, inside the hard limits,
+        finds a configuration: `selfmotion.project` from each configuration that reached
+        the point before the lock (with the joint put where it locked), then
+        `recovery.solutions` (`REACH_ATTEMPTS` starts). A replacement is
         the tool point of a configuration with the joint at its locked value, reachable by
         construction, the nearest of some candidates: for a pose task the pinned inverse
         kinematics of the point's position alone (the nearest orientation the locked
@@ -307,10 +309,17 @@ class Scenario:
             metres, radians = mismatch(robot, target, robot.forward(s))
             return metres + radians / ANGLE_PER_METRE
 
+        def reaches(target: np.ndarray, start: np.ndarray) -> bool:
+            start = start.copy()
+            start[locked] = q[locked]
+            return selfmotion.project(robot, target, start, fixed=[locked]) is not None
+
         for p in points:
             target = self._targets[p]
-            if recovery.solutions(robot, target, q, [locked], robot.lower, robot.upper,
-                                  REACH_ATTEMPTS):
+            visits = [self.record.q[int(np.searchsorted(self.record.t, t))]
+                      for t, point, reached in self.record.visits if point == p and reached]
+            if any(reaches(target, v) for v in visits) or recovery.solutions(
+                    robot, target, q, [locked], robot.lower, robot.upper, REACH_ATTEMPTS):
                 continue
             candidates = [] if position is None else recovery.solutions(
                 position, target[:3, 3], q, [locked], robot.lower, robot.upper,
