@@ -156,8 +156,8 @@ def figure(record: Record, summary: dict, path: Path) -> None:
             ax.axvline(summary["injected_at_s"], color="r", ls="--", lw=1)
         if summary["detected_at_s"] is not None:
             ax.axvline(summary["detected_at_s"], color="g", ls=":", lw=1)
-    axes[0].set_title(f"{summary['locked']} locks (red), detected (green); recovery paths "
-                      "(shaded): local control stalled, a joint path went round")
+    axes[0].set_title(f"{summary['locked']} locks (red), detected (green), recovery paths "
+                      "shaded")
     if summary["recovery_paths"]:
         axes[0].legend(loc="upper right", fontsize=7)
     fig.tight_layout()
