@@ -178,3 +178,30 @@ def test_a_plan_that_does_not_come_back_in_time_is_given_up_and_tried_again() ->
 def test_invalid_recovery_settings_are_refused(field: str) -> None:
     with pytest.raises(ValueError, match=field):
         RecoveryConfig(**{field: -1.0 if field == "near" else 0.0})
+
+
+def test_a_pose_out_of_a_locked_six_joint_arms_reach_is_replaced_by_the_nearest_reachable() -> None:
+    """The demo's tour after a lock (`ft_sim.scenario.Scenario.keep_reachable`).
+
+    A 6-joint arm's pose task has no redundancy: with joint 2 locked, a pose reached with
+    joint 2 elsewhere is out of reach, one reached with it where it locked is not. The
+    replacement is reachable and nearer than where the arm stands (here no configuration
+    keeps the position: the PUMA's wrist centre moves on a surface with joint 2 locked).
+    """
+    puma = robots.load("puma560", task_space="pose")
+    q = puma.home()
+    moved = q.copy()
+    moved[1] += 0.3
+    moved[0] += 0.2
+    same = q.copy()
+    same[0] += 0.2
+    assert recovery.reachable(puma, puma.forward(same), q, [1], [], 30)
+    goal = puma.forward(moved)
+    assert not recovery.reachable(puma, goal, q, [1], [moved], 30)
+    assert recovery.reachable(puma, goal, moved, [1], [moved], 0)  # seeded: at once
+    replacement = recovery.nearest_reachable(puma, goal, q, [1], 30, 2000, 10.0)
+    metres, radians = recovery.mismatch(puma, goal, replacement)
+    staying = recovery.mismatch(puma, goal, puma.forward(q))
+    assert 0 < metres + radians / 10 < staying[0] + staying[1] / 10
+    assert metres < 0.1
+    assert recovery.reachable(puma, replacement, q, [1], [], 30)

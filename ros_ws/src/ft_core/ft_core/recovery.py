@@ -183,6 +183,64 @@ def solutions(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[in
     return found
 
 
+def reachable(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
+              seeds: Sequence[np.ndarray], attempts: int) -> bool:
+    """Whether inverse kinematics reaches `goal` with the `locked` joints at q's values.
+
+    Inside the hard limits: Newton (`selfmotion.project`) from each seed with the locked
+    joints put at q's values (configurations known to have reached the goal before),
+    then `solutions` (`attempts` starts).
+    """
+    pinned = list(locked)
+    for seed in seeds:
+        start = np.array(seed, dtype=float)
+        start[pinned] = q[pinned]
+        if selfmotion.project(robot, goal, start, fixed=pinned) is not None:
+            return True
+    return bool(solutions(robot, goal, q, pinned, robot.lower, robot.upper, attempts))
+
+
+def mismatch(robot: Robot, goal: np.ndarray, other: np.ndarray) -> tuple[float, float]:
+    """(m, rad) between two task targets (`Robot.forward`): positions, orientations (pose)."""
+    if robot.task_space != "pose":
+        return float(np.linalg.norm(other - goal)), 0.0
+    cosine = (np.trace(goal[:3, :3].T @ other[:3, :3]) - 1) / 2
+    return (float(np.linalg.norm(other[:3, 3] - goal[:3, 3])),
+            float(np.arccos(np.clip(cosine, -1.0, 1.0))))
+
+
+def nearest_reachable(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
+                      attempts: int, samples: int, angle_per_metre: float,
+                      seed: int = 0) -> np.ndarray:
+    """The task target nearest `goal` that the arm reaches with `locked` at q's values.
+
+    The target of a configuration with the locked joints at q's values, so reachable by
+    construction, the nearest of some candidates by `mismatch` (orientation counted 1 m
+    per `angle_per_metre` rad): for a pose task the pinned inverse kinematics of the
+    goal's position alone (`solutions`, `attempts` starts: the same position at the
+    nearest orientation the locked arm has there); otherwise, or if none is found,
+    `samples` seeded random configurations inside the limits.
+    """
+    pinned = list(locked)
+    candidates: list[np.ndarray] = []
+    if robot.task_space == "pose":
+        position = robots.load(robot.urdf, robot.base_link, robot.tip_link,
+                               task_space="position")
+        candidates = solutions(position, goal[:3, 3], q, pinned, robot.lower, robot.upper,
+                               attempts, seed)
+    if not candidates:
+        drawn = np.random.default_rng(seed).uniform(robot.lower, robot.upper,
+                                                    (samples, robot.n))
+        drawn[:, pinned] = q[pinned]
+        candidates = list(drawn)
+
+    def distance(configuration: np.ndarray) -> float:
+        metres, radians = mismatch(robot, goal, robot.forward(configuration))
+        return metres + radians / angle_per_metre
+
+    return robot.forward(min(candidates, key=distance))
+
+
 def choose(robot: Robot, found: Sequence[np.ndarray], q: np.ndarray,
            locked: Sequence[int]) -> tuple[np.ndarray, float]:
     """The nearest solution among those keeping at least half the best remaining kfm."""

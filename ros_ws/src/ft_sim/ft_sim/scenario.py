@@ -62,16 +62,6 @@ REACH_ATTEMPTS = 30
 REACH_SAMPLES = 2000
 
 
-def mismatch(robot: robots.Robot, target: np.ndarray, other: np.ndarray,
-             ) -> tuple[float, float]:
-    """(m, rad) between two task targets of `robot`: positions, and orientations (pose)."""
-    if robot.task_space != "pose":
-        return float(np.linalg.norm(other - target)), 0.0
-    cosine = (np.trace(target[:3, :3].T @ other[:3, :3]) - 1) / 2
-    return (float(np.linalg.norm(other[:3, 3] - target[:3, 3])),
-            float(np.arccos(np.clip(cosine, -1.0, 1.0))))
-
-
 @dataclass
 class ScenarioConfig:
     """What to run.
@@ -161,7 +151,7 @@ class Record:
     #: (simulated time s, note).
     recovery: list[tuple[float, str]] = field(default_factory=list)
     #: Tour points out of the locked arm's reach, replaced (`ScenarioConfig.reachable_tour`):
-    #: index -> how far the replacement is (`mismatch`: m, rad).
+    #: index -> how far the replacement is (`recovery.mismatch`: m, rad).
     replaced: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -287,50 +277,24 @@ class Scenario:
     def keep_reachable(self, joint: str, points: list[int]) -> None:
         """Replace those of `points` the arm cannot reach with `joint` held where it is.
 
-        Reachable: inverse kinematics with the joint pinned, inside the hard limits,
-        finds a configuration: `selfmotion.project` from each configuration that reached
-        the point before the lock (with the joint put where it locked), then
-        `recovery.solutions` (`REACH_ATTEMPTS` starts). A replacement is
-        the tool point of a configuration with the joint at its locked value, reachable by
-        construction, the nearest of some candidates: for a pose task the pinned inverse
-        kinematics of the point's position alone (the nearest orientation the locked
-        arm has there), else `REACH_SAMPLES` seeded random configurations. Nearest by
-        `mismatch`, orientation counted 1 m per `ANGLE_PER_METRE` rad as for a goal's
-        tolerance. The run is in simulated time: this wall time does not count.
+        Reachable: `recovery.reachable`, seeded with the configurations that reached the
+        point before the lock, `REACH_ATTEMPTS` starts besides. A replacement is
+        `recovery.nearest_reachable` (`REACH_SAMPLES` random configurations; orientation
+        weighed as for a goal's tolerance, `ANGLE_PER_METRE`). The run is in simulated
+        time: this wall time does not count.
         """
         robot, cfg, q = self.robot, self.config, self.sim.q.copy()
-        locked = robot.joint_names.index(joint)
-        position = robots.load(cfg.robot, cfg.base_link or None, cfg.tip_link or None,
-                               task_space="position") if robot.task_space == "pose" else None
-        rng = np.random.default_rng(cfg.seed)
+        locked = [robot.joint_names.index(joint)]
         points_now = list(cfg.points)
-
-        def distance(target: np.ndarray, s: np.ndarray) -> float:
-            metres, radians = mismatch(robot, target, robot.forward(s))
-            return metres + radians / ANGLE_PER_METRE
-
-        def reaches(target: np.ndarray, start: np.ndarray) -> bool:
-            start = start.copy()
-            start[locked] = q[locked]
-            return selfmotion.project(robot, target, start, fixed=[locked]) is not None
-
         for p in points:
             target = self._targets[p]
             visits = [self.record.q[int(np.searchsorted(self.record.t, t))]
                       for t, point, reached in self.record.visits if point == p and reached]
-            if any(reaches(target, v) for v in visits) or recovery.solutions(
-                    robot, target, q, [locked], robot.lower, robot.upper, REACH_ATTEMPTS):
+            if recovery.reachable(robot, target, q, locked, visits, REACH_ATTEMPTS):
                 continue
-            candidates = [] if position is None else recovery.solutions(
-                position, target[:3, 3], q, [locked], robot.lower, robot.upper,
-                REACH_ATTEMPTS)
-            if not candidates:
-                candidates = list(rng.uniform(robot.lower, robot.upper,
-                                              (REACH_SAMPLES, robot.n)))
-                for candidate in candidates:
-                    candidate[locked] = q[locked]
-            replacement = robot.forward(min(candidates, key=lambda s: distance(target, s)))
-            self.record.replaced[p] = mismatch(robot, target, replacement)
+            replacement = recovery.nearest_reachable(robot, target, q, locked, REACH_ATTEMPTS,
+                                                     REACH_SAMPLES, ANGLE_PER_METRE, cfg.seed)
+            self.record.replaced[p] = recovery.mismatch(robot, target, replacement)
             self._targets[p] = replacement
             points_now[p] = tuple(selfmotion.flat_from_targets(robot, [replacement]))
         self.config = replace(cfg, points=tuple(points_now))
