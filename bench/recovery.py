@@ -55,6 +55,9 @@ def closed_loop(q0: np.ndarray, locked: int, goal: np.ndarray, enabled: bool,
     engine = EngineConfig()
     config = ControllerConfig(recovery=RecoveryConfig() if enabled else None)
     controller = Controller(PANDA, engine, config, ("panda", (None, None, "position", None)))
+    started = controller.start_worker()  # as the controller node does at model load,
+    if started is not None:  # before its first cycle
+        started.result(timeout=PLAN_WAIT)
     plant = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, q0, driver)
     plant.lock(locked)
     if known:

@@ -151,6 +151,11 @@ class Controller:
     def _recovery(self, config: ControllerConfig) -> Recovery | None:
         if config.recovery is None:
             return None
+        # The compiled velocity bounds the follower uses load from numba's cache now, not
+        # in the first cycle (about 5 ms).
+        lower, upper = self.engine.bounds()
+        limits.velocity_bounds(np.clip(np.zeros(self.robot.n), lower, upper), lower, upper,
+                               self.robot.velocity_limits, self.engine.config.dt)
         return Recovery(config.recovery, partial(self._submit_plan, config.recovery))
 
     def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
@@ -311,17 +316,18 @@ class Controller:
                             lower, upper, self.robot.velocity_limits * engine.velocity_scale,
                             engine.dt, config)
 
-    def start_worker(self) -> None:
+    def start_worker(self) -> Future | None:
         """Start the worker process now, off the control loop (a node does at model load).
 
         Otherwise the first plan or boxes start it inside a cycle: some ms of spawning.
-        Where no process can start (inside a daemon process) the plan and the boxes
-        report it when they need it.
+        Returns the future of a first, empty job (done once the worker runs), or None
+        where no process can start (inside a daemon process): the plan and the boxes
+        report that when they need the worker.
         """
         try:
-            self._submit(os.getpid)
+            return self._submit(os.getpid)
         except (AssertionError, RuntimeError, OSError):
-            pass
+            return None
 
     def _submit(self, fn: Callable, *args) -> Future:
         """Run fn(*args) in the worker process, started on first use (`workers.pool`).
