@@ -99,6 +99,8 @@ class Graph:
         self._declare = self.node.create_publisher(JointState, "ft/declare_failure",
                                                    qos.RELIABLE)
         self._goal_index = 0
+        #: Orientation (x, y, z, w) of every goal sent (a pose task needs a reachable one).
+        self.orientation = (0.0, 0.0, 0.0, 1.0)
 
     def _on_locked(self, msg: JointState) -> None:
         if self.on_locked is not None:
@@ -189,7 +191,8 @@ class Graph:
         msg.header.stamp = self.node.get_clock().now().to_msg()
         x, y, z = GOALS[self._goal_index % len(GOALS)]
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
-        msg.pose.orientation.w = 1.0
+        o = msg.pose.orientation
+        o.x, o.y, o.z, o.w = self.orientation
         self._goal.publish(msg)
         self._goal_index += 1
 

@@ -343,6 +343,30 @@ def test_observability_motion_finds_a_lock_the_task_never_reveals(tmp_path: Path
 
 
 @pytest.mark.slow
+def test_a_lock_on_a_pose_task_is_found_where_the_arm_settles_short(tmp_path: Path) -> None:
+    """Issue 30: the Panda's pose task, joint 2 locked at a held goal, then a new goal.
+
+    The task-space channel runs on pose tasks now. The lock is found by the monitor's
+    window while the arm moves or, should the arm settle short with the null space
+    commanding joint 2 too slowly for the window (the equilibrium of Maciejewski et al.
+    Theorem 1), by the channel's suspicion confirmed over 0.5 s (that path is pinned down
+    in `tests/unit/test_detection.py` and by the pose demos of `tests/nodes/test_story.py`).
+    Separate processes, a plant that holds the last command.
+    """
+    with graph(tmp_path, parameters(tmp_path, HOLDING_PLANT, task_space="pose")) as g:
+        g.orientation = (1.0, 0.0, 0.0, 0.0)  # the tool pointing down, as at home
+        g.spin(6.0, goal_period=1.5)
+        observing(g)
+        g.spin(4.0)  # the last goal held
+        assert g.ever_locked() == set(), g.log("monitor")[-2000:]
+        g.inject("panda_joint2")
+        g.spin(0.5)
+        g.send_goal()
+        g.wait(lambda: g.locked_names() == ["panda_joint2"], 20.0, "panda_joint2 detected")
+        assert g.ever_locked() == {"panda_joint2"}
+
+
+@pytest.mark.slow
 def test_a_free_swinging_joint_is_reported_not_locked(tmp_path: Path) -> None:
     """Issue 16: joint 5 of the example-robot-data Panda (with inertias) loses its torque.
 
