@@ -695,6 +695,17 @@ class LockDetector:
         self.lock(joint, position, time)
         return Confirmation("locked", replace(evidence, locked_at=time, position=position))
 
+    def _mean_difference_error(self, slope_error: float | np.ndarray) -> float | np.ndarray:
+        """Standard error (rad) of a difference of two window means of positions.
+
+        From the window's slope standard errors (rad/s, a float or per joint): one
+        position's scatter is the slope's error times the root of the times' spread,
+        and a mean of the window's samples has sqrt(1 / samples) of it, twice over.
+        """
+        times = self._samples.window()[0]
+        centred = times - times.mean()
+        return slope_error * math.sqrt(centred @ centred) * math.sqrt(2.0 / times.size)
+
     def _slow_stall(self, j: int) -> JointEvidence | None:
         """Joint j's evidence over the last `SLOW_SPAN` s if it lost its motion there.
 
@@ -723,11 +734,8 @@ class LockDetector:
         best = int(np.argmin(self._scores))
         moved = np.diff(offsets.means[marks, j])
         predicted = moved - np.diff(offsets.values[marks, best, j])
-        window_times = self._samples.window()[0]
-        centred = window_times - window_times.mean()
         evidence = self.joints[j]
-        sigma = (evidence.standard_error * math.sqrt(centred @ centred)  # of one position
-                 * math.sqrt(2.0 / window_times.size))
+        sigma = self._mean_difference_error(evidence.standard_error)
         total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
         latest = float(self._samples.positions[self._samples.end - 1, j])
         pushing = ((total > 0 and latest >= self.upper[j] - cfg.limit_margin)
@@ -824,9 +832,7 @@ class LockDetector:
             # A lock loses position; a servo pausing to catch up after it ran ahead does
             # not. (A joint once seen swinging moved on its own: stopping is its test.)
             deficit = self._deficit(now, weakest, best)
-            centred = times - times.mean()
-            sigma = error * math.sqrt(centred @ centred)  # of one position (rad)
-            lost = deficit > cfg.confidence * sigma * math.sqrt(2.0 / times.size)
+            lost = deficit > cfg.confidence * self._mean_difference_error(error)
             candidates = candidates & (lost | ~undeclared)
         for j, evidence in enumerate(self.joints):
             evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
