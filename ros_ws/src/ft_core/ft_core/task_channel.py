@@ -71,12 +71,13 @@ class TaskChannel:
     def __init__(self, robot: Robot, config: TaskChannelConfig | None = None):
         self.robot = robot
         self.config = config or TaskChannelConfig()
-        #: (time, task target, task error, expected motion per joint from the previous
-        #: sample (m, n), measured motion from the previous sample (m,))
-        self._samples: deque[tuple[float, np.ndarray, float, np.ndarray, np.ndarray]] = deque()
+        #: (time, task error, expected motion per joint from the previous sample (m, n),
+        #: measured motion from the previous sample (m,))
+        self._samples: deque[tuple[float, float, np.ndarray, np.ndarray]] = deque()
         self._columns = np.zeros((robot.m, robot.n))
         self._measured = np.zeros(robot.m)  #: the window's measured motion, summed
-        self._last: tuple[float, np.ndarray] | None = None  # (time, J(q) qd) of the newest
+        #: (time, J(q) qd, task target) of the newest sample
+        self._last: tuple[float, np.ndarray, np.ndarray] | None = None
         self.suspect: int | None = None  #: the joint whose loss explains the motion, if any
         self.residuals: np.ndarray = np.zeros(robot.n)  #: |r - c_i| / |r| at the last test
 
@@ -97,16 +98,16 @@ class TaskChannel:
         motion, moved, x = np.zeros((robot.m, robot.n)), np.zeros(robot.m), robot.forward(at)
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
-            moved = robot.task_scale * robot.displacement(self._samples[-1][1], x)
+            moved = robot.task_scale * robot.displacement(self._last[2], x)
             self._columns += motion
             self._measured += moved
-        self._samples.append((t, x, float(error), motion, moved))
-        self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float))
+        self._samples.append((t, float(error), motion, moved))
+        self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float), x)
         while self._samples[0][0] < t - self.config.window:
             self._samples.popleft()
             # The motion that led to the new first sample leaves the window.
-            self._columns -= self._samples[0][3]
-            self._measured -= self._samples[0][4]
+            self._columns -= self._samples[0][2]
+            self._measured -= self._samples[0][3]
         self.suspect = self._test(locked)
         return self.suspect
 
@@ -115,7 +116,7 @@ class TaskChannel:
         first, last = self._samples[0], self._samples[-1]
         if len(self._samples) < 3 or last[0] - first[0] < 0.8 * cfg.window:
             return None
-        if last[2] < (1 - cfg.progress) * first[2]:
+        if last[1] < (1 - cfg.progress) * first[1]:
             return None  # the task error is still going down
         residual = self._columns.sum(axis=1) - self._measured
         size = float(np.linalg.norm(residual))
