@@ -55,6 +55,47 @@ def test_near_the_goal_slow_convergence_and_noise_are_no_stall() -> None:
         assert not watch.update(t + 0.01 * k, 0.002 + 0.001 * (k % 2), False)
 
 
+def test_creeping_while_pressed_against_a_limit_is_a_stall() -> None:
+    """Seed 48 of the campaign: joint 3 at its limit, the error falling 1 cm/s from 0.35 m.
+
+    Each 10 ms step is progress by the first rule (2 mm in a second add up), so only the
+    pressed rule declares the stall, one `stall_time` after the pressing starts.
+    """
+    config = RecoveryConfig()
+    free, held = StallWatch(config), StallWatch(config)
+    stalled_at = None
+    for k in range(1000):  # 10 s
+        t, error = 0.01 * k, 0.35 - 0.0001 * k
+        assert not free.update(t, error, False)
+        if held.update(t, error, False, pressed=True) and stalled_at is None:
+            stalled_at = t
+    assert stalled_at is not None, "the creep was never declared a stall"
+    assert stalled_at == pytest.approx(config.stall_time, abs=0.02)
+
+
+def test_a_fast_or_converging_arm_pressed_against_a_limit_is_no_stall() -> None:
+    watch = StallWatch(RecoveryConfig())
+    for k in range(500):  # 0.2 m/s on a long move, a joint at its limit all along
+        assert not watch.update(0.01 * k, 0.9 - 0.002 * k, False, pressed=True)
+    watch.reset(5.0)
+    t, error = 5.0, 0.04
+    while error >= 0.003:  # the final approach, halving every 0.5 s
+        assert not watch.update(t, error, False, pressed=True)
+        t, error = t + 0.01, error * 0.5 ** (0.01 / 0.5)
+
+
+def test_pressed_is_a_healthy_joint_at_a_bound_with_the_task_pushing_out() -> None:
+    lower, upper = -np.ones(3), np.ones(3)
+    q = np.array([0.0, 0.995, -0.999])
+    assert recovery.pressed(q, np.array([0.0, 1.0, 0.0]), (lower, upper), ())
+    assert recovery.pressed(q, np.array([0.0, 0.0, -1.0]), (lower, upper), ())
+    # Pushed back into the bounds, or not at a bound, or locked: not pressed.
+    assert not recovery.pressed(q, np.array([0.0, -1.0, 1.0]), (lower, upper), ())
+    assert not recovery.pressed(q, np.array([5.0, 0.0, 0.0]), (lower, upper), ())
+    assert not recovery.pressed(q, np.array([0.0, 1.0, 0.0]), (lower, upper), (1,))
+    assert not recovery.pressed(q - [0, 0.02, 0], np.array([0.0, 1.0, 0.0]), (lower, upper), ())
+
+
 def test_a_plan_reaches_the_goal_with_the_locked_joint_pinned_on_a_straight_line() -> None:
     lower, upper = PANDA.lower, PANDA.upper
     velocity = 0.5 * PANDA.velocity_limits
@@ -134,7 +175,8 @@ def _stall(rec: recovery.Recovery, until: float, t: float = 0.0) -> float:
     bounds = (PANDA.lower, PANDA.upper)
     speeds = (-PANDA.velocity_limits, PANDA.velocity_limits)
     while t < until:
-        assert rec.step(t, START, GOAL, 0.3, False, (LOCKED,), bounds, speeds) is None
+        assert rec.step(t, START, GOAL, 0.3, np.zeros(PANDA.n), False, (LOCKED,), bounds,
+                        speeds) is None
         t += 0.01
     return t
 

@@ -234,7 +234,7 @@ class Controller:
         locked = list(self.locked)
         try:
             kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
-            xd, idle, error = self._task_velocity(kinematics, now)
+            xd, idle, task_error = self._task_velocity(kinematics, now)
             result = self.engine.step(kinematics, xd, locked)
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
@@ -244,9 +244,10 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
-        if error is not None and self.recovery is not None and self.target:
+        error = None if task_error is None else float(np.linalg.norm(task_error))
+        if task_error is not None and self.recovery is not None and self.target:
             qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked, now,
-                               error, idle)
+                               task_error, idle)
         if not np.isfinite(qd).all():
             qd = np.zeros(robot.n)
         self.last = result
@@ -256,15 +257,15 @@ class Controller:
         return step
 
     def _task_velocity(self, kinematics: Kinematics, now: float,
-                       ) -> tuple[np.ndarray, bool, float | None]:
-        """(task velocity, idle, the pose goal's error norm or None) from the latest target."""
+                       ) -> tuple[np.ndarray, bool, np.ndarray | None]:
+        """(task velocity, idle, the pose goal's error e or None) from the latest target."""
         target, robot = self.target, self.robot
         if target is None:
             return np.zeros(robot.m), True, None
         if target.kind == "pose":
             error = robot.task_error(target.value, kinematics)
             xd, reached = pose_velocity(robot, error, self.config.tracking)
-            return xd, reached, float(np.linalg.norm(error))
+            return xd, reached, error
         scale = staleness_scale(now - target.stamp, self.config.target_timeout)
         return scale * target.value, scale == 0.0, None
 
@@ -298,14 +299,16 @@ class Controller:
         self.suspect = joint
 
     def _recover(self, rec: Recovery, goal: np.ndarray, kinematics: Kinematics,
-                 qd: np.ndarray, locked: list[int], now: float, error: float,
+                 qd: np.ndarray, locked: list[int], now: float, error: np.ndarray,
                  reached: bool) -> np.ndarray:
         """The recovery path's command while one is followed, else `qd` unchanged."""
         q, engine = kinematics.q, self.engine
+        descent = self.robot.jacobian(kinematics).T @ error
         bounds = engine.bounds(locked)
         velocity = self.robot.velocity_limits * engine.config.velocity_scale
         lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
-        command = rec.step(now, q, goal, error, reached, tuple(locked), bounds, (lo, hi))
+        command = rec.step(now, q, goal, float(np.linalg.norm(error)), descent, reached,
+                           tuple(locked), bounds, (lo, hi))
         return qd if command is None else command
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,

@@ -9,7 +9,13 @@ arm cannot make the task direction without leaving it (docs/campaign.md). Recove
    by `progress` (or by a quarter of it, if that is less: a converging arm near its goal)
    for `stall_time` s, while it is at least `near` (closer, the error is the final
    approach or the measurement noise, and the arm is left to it). Every cause of a stall
-   (a hard limit, a soft-limit edge, a singular reduced arm) shows this way.
+   (a hard limit, a soft-limit edge, a singular reduced arm) shows this way. While a
+   healthy joint is **pressed** against a bound in force (`pressed`: within `AT_BOUND` of
+   it, the error's steepest descent pointing out of the bounds), the drop needed is
+   larger: `PRESSED_PROGRESS` (or a quarter of the error, if less). Pressed against a
+   limit, local control creeps: the other joints make what they can of the task
+   direction, and the error falls by a few mm/s, each step counted as progress by the
+   first rule, for the whole visit (docs/campaign.md).
 2. **Plan** (`plan`, run in a worker process, never in the control cycle): inverse
    kinematics of the goal with the locked joints pinned (`selfmotion.project`: Newton
    with an active set on the joint bounds), multi-start: the current configuration,
@@ -60,6 +66,12 @@ from ft_core.robots import Robot
 
 #: Share of the best error whose drop counts as progress, when less than `progress`.
 RELATIVE_PROGRESS = 0.25
+#: Task units (m) per `stall_time` the error must drop by while a joint is pressed
+#: against a bound (`pressed`), when less than `RELATIVE_PROGRESS` of it: a quarter of the
+#: tool speed a velocity-limited arm makes on a long move (about 0.2 m/s).
+PRESSED_PROGRESS = 0.05
+#: rad; a joint this close to a bound in force is at it (10 x the sensor noise).
+AT_BOUND = 0.01
 #: A plan's path has at most this many samples (bounded memory: a longer path is
 #: sampled more coarsely than the control period).
 MAX_SAMPLES = 20000
@@ -120,17 +132,41 @@ class StallWatch:
         # measured from (not the latest error: many small drops add up to progress).
         self._best, self._since = math.inf, now
 
-    def update(self, now: float, error: float, reached: bool) -> bool:
-        """Whether the error (>= 0) has not improved for `stall_time` s (see the module)."""
+    def update(self, now: float, error: float, reached: bool, pressed: bool = False) -> bool:
+        """Whether the error (>= 0) has not improved for `stall_time` s (see the module).
+
+        `pressed`: a healthy joint holds at a bound against the task direction (`pressed`).
+        """
         config = self.config
         if reached or not math.isfinite(error) or error < config.near:
             self.reset(now)
             return False
-        if math.isnan(self._since) or error < self._best - min(config.progress,
+        needed = max(config.progress, PRESSED_PROGRESS) if pressed else config.progress
+        if math.isnan(self._since) or error < self._best - min(needed,
                                                                RELATIVE_PROGRESS * self._best):
             self._best, self._since = error, now
             return False
         return now - self._since >= self.config.stall_time
+
+
+def pressed(q: np.ndarray, descent: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
+            locked: Sequence[int]) -> bool:
+    """Whether a healthy joint holds at a bound in force against the task direction.
+
+    `descent`: J^T e, the steepest descent of the task error e's squared norm in joint
+    space (rad/s per unit gain); its sign for joint j is the way j alone would reduce the
+    error. Pressed: some joint not in `locked` is within `AT_BOUND` of its lower bound
+    with descent < 0, or of its upper bound with descent > 0. Reading taken: the issue's
+    "a joint holds at a hard or soft limit against the task direction" judged joint by
+    joint on the Jacobian-transpose direction, which needs no solve and has the same sign
+    as the least-squares solution's component whenever the columns are orthogonal.
+    """
+    lower, upper = bounds
+    low = (q - lower < AT_BOUND) & (descent < 0)
+    high = (upper - q < AT_BOUND) & (descent > 0)
+    push = low | high
+    push[list(locked)] = False
+    return bool(push.any())
 
 
 @dataclass(frozen=True)
@@ -364,13 +400,15 @@ class Recovery:
         self._job, self._path, self._plans = None, None, 0
         self.note = "idle"
 
-    def step(self, now: float, q: np.ndarray, goal: np.ndarray, error: float, reached: bool,
-             locked: tuple[int, ...], bounds: tuple[np.ndarray, np.ndarray],
+    def step(self, now: float, q: np.ndarray, goal: np.ndarray, error: float,
+             descent: np.ndarray, reached: bool, locked: tuple[int, ...],
+             bounds: tuple[np.ndarray, np.ndarray],
              velocity_bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray | None:
         """The command (rad/s) while a path is followed; None: the task controller's.
 
-        `error`: the goal's error norm; `bounds`: the joint bounds in force (rad);
-        `velocity_bounds`: the engine's (lo, hi) at q for one cycle (rad/s).
+        `error`: the goal's error norm; `descent`: J^T e (`pressed`); `bounds`: the joint
+        bounds in force (rad); `velocity_bounds`: the engine's (lo, hi) at q for one
+        cycle (rad/s).
         """
         if self._job is not None:
             self._take(*self._job, now, locked)
@@ -386,7 +424,7 @@ class Recovery:
                          "path not completed in time, tracking the goal again")
             return None
         if self._job is None and self._plans < self.config.plans_per_goal and (
-                self._watch.update(now, error, reached)):
+                self._watch.update(now, error, reached, pressed(q, descent, bounds, locked))):
             try:
                 self._job = (now, self._submit(goal, q.copy(), locked, *bounds))
             except (AssertionError, RuntimeError, OSError) as problem:  # no worker process

@@ -52,6 +52,11 @@ WAYPOINTS = 8
 FAR = 0.3
 #: The lock comes this long (simulated s) after the task starts, drawn uniformly.
 LOCK_WINDOW = (12.0, 24.0)
+#: Critical-point sets (`--points`): the arm's task points, or points near the boundary of
+#: its workspace, where the self-motion boxes are small (`boundary_points`).
+POINT_SETS = ("task", "boundary")
+#: The boundary set's middle point is this fraction of the reach along its ray.
+BOUNDARY = 0.9
 GOAL_TOLERANCE = 5e-3  #: m
 GOAL_TIMEOUT = 5.0  #: s per visit
 TOUR_TIMEOUT = ScenarioConfig.tour_timeout  #: s per visit of the tour after the lock
@@ -77,12 +82,53 @@ class Task:
         return f"{self.seed}-{self.mode}-{'soft' if self.soft else 'free'}"
 
 
-def critical_points(robot: robots.Robot) -> tuple[tuple[float, ...], ...]:
-    """Three critical points (m): the built-in's task points, or around a bent configuration."""
-    if robot.name in TASK_POINTS:
+def critical_points(robot: robots.Robot, kind: str = "task") -> tuple[tuple[float, ...], ...]:
+    """Three critical points (m) of set `kind` (`POINT_SETS`).
+
+    "task": the built-in's task points, or around a bent configuration; "boundary":
+    `boundary_points`.
+    """
+    if kind == "boundary":
+        chosen = boundary_points(robot)
+    elif robot.name in TASK_POINTS:
         return TASK_POINTS[robot.name]
-    chosen = selfmotion.points_around(robot, selfmotion.bent_configuration(robot))
+    else:
+        chosen = selfmotion.points_around(robot, selfmotion.bent_configuration(robot))
     return tuple(tuple(float(v) for v in p[:3]) for p in chosen)
+
+
+def boundary_points(robot: robots.Robot, steps: int = 20) -> list[np.ndarray]:
+    """Three critical points near the boundary of the workspace (m).
+
+    On the ray from the shoulder (the second joint's origin) through the tool point of
+    `selfmotion.bent_configuration`, the farthest point inverse kinematics reaches is found
+    by bisection (`steps` halvings, so bounded); the middle point is `BOUNDARY` of the way
+    there, and the other two are `selfmotion.points_around` its configuration. Near the
+    boundary the self-motion manifolds shrink, and so do their bounding boxes: the case
+    Lewis & Maciejewski 1997 (sec. III) say the soft limits matter in. On the Panda the
+    common box spans 0.3 to 0.5 of the range of joints 1, 2 and 4 (the task set: 0.6 to
+    0.9).
+
+    Raises selfmotion.UnreachableError when the bent configuration's own tool point is
+    out of reach (a chain without room to move).
+    """
+    q0 = selfmotion.bent_configuration(robot)
+    shoulder = robot.skeleton(q0)[1]
+    ray = robot.forward(q0)[:3] - shoulder
+    # In lengths of the ray: 1 is the bent tool point itself; `Robot.reach` (the sum of
+    # the links) is beyond any point the arm reaches.
+    near, far = 1.0, max(1.0, 2 * robot.reach / max(float(np.linalg.norm(ray)), 1e-9))
+    selfmotion.find_seed(robot, shoulder + ray, q0)
+    for _ in range(steps):
+        middle = 0.5 * (near + far)
+        try:
+            selfmotion.find_seed(robot, shoulder + middle * ray, q0, attempts=10)
+        except selfmotion.UnreachableError:
+            far = middle
+        else:
+            near = middle
+    q = selfmotion.find_seed(robot, shoulder + BOUNDARY * near * ray, q0)
+    return selfmotion.points_around(robot, q)
 
 
 def waypoints(robot: robots.Robot, box: tuple[np.ndarray, np.ndarray],
@@ -154,18 +200,22 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
     value = summary["locked_value"]
     q_lock = record.arrays()["q"][int(np.searchsorted(record.t, record.injected_at))] \
         if value is not None else None
+    possible = None if q_lock is None else reachable(robot, critical, q_lock, j)
     summary.update(seed=task.seed, soft_limits=task.soft,
                    success=len(summary["reached_after"]) == summary["points"],
                    correct_detection=summary["detected"] == [joint],
                    outside_box=value is not None and not bool(box[0][j] <= value <= box[1][j]),
-                   reachable=None if q_lock is None else reachable(robot, critical, q_lock, j),
+                   reachable=None if possible is None else len(possible),
+                   reachable_points=possible,
+                   reached_points=[marks.index(i) for i in summary["reached_after"]
+                                   if i in marks],
                    last_joint=robot.joint_names[-1])
     return summary
 
 
 def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: np.ndarray,
-              joint: int) -> int:
-    """How many critical points the arm can reach at all with `joint` locked where q has it.
+              joint: int) -> list[int]:
+    """The critical points (indices) the arm can reach at all with `joint` locked where q has it.
 
     Inverse kinematics with that joint pinned, from q and 30 seeded random starts
     (`selfmotion.find_seed`): what the bounding boxes guarantee (Lewis & Maciejewski 1997 sec. III),
@@ -173,23 +223,24 @@ def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: n
     """
     lower, upper = robot.lower.copy(), robot.upper.copy()
     lower[joint] = upper[joint] = q[joint]
-    return sum(found is not None for found in selfmotion.reachability(
-        robot, [np.array(p) for p in critical], lower, upper, q))
+    return [k for k, found in enumerate(selfmotion.reachability(
+        robot, [np.array(p) for p in critical], lower, upper, q)) if found is not None]
 
 
 def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
-              recovery: bool = True) -> dict:
+              recovery: bool = True, points: str = "task") -> dict:
     """What every run of a campaign shares: arm, plant, recovery, critical points, box.
 
-    Raises selfmotion.UnreachableError when the critical points have no common box.
+    `points`: the critical-point set (`POINT_SETS`). Raises selfmotion.UnreachableError
+    when the critical points have no common box.
     """
     robot = robots.load(robot_spec, base_link or None, tip_link or None,
                         task_space="position")
-    critical = critical_points(robot)
+    critical = critical_points(robot, points)
     box, _ = selfmotion.soft_limits(robot, [v for p in critical for v in p],
                                     selfmotion.bent_configuration(robot))
     return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link,
-            "plant": plant, "critical": [list(p) for p in critical],
+            "plant": plant, "points": points, "critical": [list(p) for p in critical],
             "box": [[float(v) for v in side] for side in box],
             "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW),
             "recovery": recovery, "tour_timeout": TOUR_TIMEOUT}
@@ -271,6 +322,32 @@ def table(results: list[dict]) -> str:
         p = stats.binomtest(only_free, only_free + only_soft).pvalue if only_free + only_soft \
             else 1.0
         lines.append(f"| {mode} | {len(pairs)} | {only_free} | {only_soft} | {p:.2g} |")
+    return "\n".join(lines) + "\n"
+
+
+def points_table(results: list[dict]) -> str:
+    """Markdown: per locked joint and critical point, reached against reachable.
+
+    A cell is "reached / reachable (IK)" over the runs in which that joint locked, without
+    and with soft limits (every mode together): the runs in which the point stayed
+    reachable with the joint pinned, and how many of them reached it after the lock.
+    Runs without a lock (none injected) are left out.
+    """
+    done = [r for r in results if r.get("reachable_points") is not None]
+    if not done:
+        return ""
+    count = max(r["points"] for r in done)
+    header = " | ".join(f"point {k + 1} {side}" for k in range(count)
+                        for side in ("without", "with"))
+    lines = [f"| locked joint | {header} |", "|---|" + "---:|" * (2 * count)]
+    for joint in sorted({r["locked"] for r in done}):
+        cells = []
+        for k in range(count):
+            for soft in (False, True):
+                group = [r for r in done if r["locked"] == joint and r["soft_limits"] == soft
+                         and k in r["reachable_points"]]
+                cells.append(f"{sum(k in r['reached_points'] for r in group)}/{len(group)}")
+        lines.append(f"| {joint} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -366,6 +443,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="the plant holds the last command (ros2_control)")
     parser.add_argument("--no-recovery", action="store_true",
                         help="the controller without its recovery after a lock")
+    parser.add_argument("--points", default="task", choices=POINT_SETS,
+                        help="critical points: the arm's task points, or near the boundary "
+                        "of its workspace (small boxes)")
     parser.add_argument("--first-domain", type=int,
                         default=int(os.environ.get("ROS_DOMAIN_ID", "29")) + 1,
                         help="first DDS domain id of the runs (default ROS_DOMAIN_ID + 1)")
@@ -375,7 +455,7 @@ def main(argv: list[str] | None = None) -> int:
              "response_time": args.response_time, "hold_last_command": args.hold_last_command}
     try:
         design = design_of(args.robot, args.base_link, args.tip_link, plant,
-                           not args.no_recovery)
+                           not args.no_recovery, args.points)
     except robots.RobotModelError as error:
         parser.error(f"--robot: {error}")
     except selfmotion.UnreachableError as error:
@@ -391,7 +471,7 @@ def main(argv: list[str] | None = None) -> int:
     crashed = execute(todo, args.out, args.workers, args.record)
     results = [json.loads(kept(args.out, task).read_text()) for task in every
                if kept(args.out, task).exists()]
-    text = table(results) if results else "no finished runs\n"
+    text = table(results) + "\n" + points_table(results) if results else "no finished runs\n"
     (args.out / "campaign.md").write_text(text)
     (args.out / "campaign.json").write_text(json.dumps(results, indent=1) + "\n")
     if results:
