@@ -471,6 +471,35 @@ def test_joint_states_going_back_in_time_are_rejected() -> None:
         np.testing.assert_array_equal(lp.monitor.core.q, latest)  # the older state is not used
 
 
+def test_physically_absurd_joint_states_are_refused_and_never_reach_diagnostics() -> None:
+    """Issue 31 items 1 and 2: absurd positions never reach the detector.
+
+    A position of 1e308 made the monitor exit (an empty selection in the detector's
+    identification), 1e300 put inf and nan in diagnostics.
+    """
+    with loop() as lp:
+        for _ in range(50):
+            lp.step(sweep)
+        latest = lp.monitor.core.q.copy()
+        states = lp.node.create_publisher(JointState, "joint_states", qos.RELIABLE)
+        for huge in (1e308, -1e300, 3.5):  # 3.5 rad: more than 1 rad past panda_joint4's 0.07
+            position = latest.copy()
+            position[3] = huge
+            states.publish(convert.joint_state(PANDA.joint_names, lp.stamp(), position=position))
+            assert spin_until(lp.executor, lambda: "outside its limits" in lp.monitor.problems
+                              .active.get("joint_states", ""), 2.0), huge
+            np.testing.assert_array_equal(lp.monitor.core.q, latest)  # not used
+            lp.monitor.problems.report("joint_states", None)
+        status = lp.diagnostics_after(lp.sim.t, sweep)  # the loop goes on
+        assert "joint_states" not in lp.monitor.problems.active
+        for item in status.values:
+            try:
+                value = float(item.value)
+            except ValueError:
+                continue
+            assert math.isfinite(value), (item.key, item.value)
+
+
 def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
     with loop(sim_parameters={"response_time": 0.05, "hold_last_command": True}) as lp:
         lp.step(constant(np.full(7, 0.2)))

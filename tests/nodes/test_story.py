@@ -6,7 +6,9 @@ import ast
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
+from ft_core import robots
 from ft_sim import campaign, demo
 from ft_sim.scenario import ScenarioConfig, run
 from models import chain_urdf
@@ -149,6 +151,41 @@ def test_a_campaign_run(soft: bool, plant: str) -> None:
         assert not result["outside_box"] and result["reachable"] == 3
     row = campaign.table([result]).splitlines()[2]
     assert row.startswith(f"| blend, {'with' if soft else 'without'} soft limits | 1 |")
+
+
+def test_the_per_point_table_counts_reached_among_reachable() -> None:
+    def result(joint: str, soft: bool, reachable: list[int], reached: list[int]) -> dict:
+        return {"locked": joint, "soft_limits": soft, "points": 3,
+                "reachable_points": reachable, "reached_points": reached}
+
+    rows = campaign.points_table([
+        result("j1", False, [0, 1, 2], [0, 2]), result("j1", False, [0, 2], [0, 1]),
+        result("j1", True, [0, 1, 2], [0, 1, 2]), result("j2", False, [1], [1]),
+        {"locked": "j2", "soft_limits": True, "points": 3, "reachable_points": None},
+    ]).splitlines()
+    assert rows[0].startswith("| locked joint | point 1 without | point 1 with |")
+    # j1 without: point 1 reachable twice, reached twice; point 2 reachable once, missed
+    # (reached once where IK found it out of reach: not counted); point 3 1 of 2.
+    assert rows[2] == "| j1 | 2/2 | 1/1 | 0/1 | 1/1 | 1/2 | 1/1 |"
+    assert rows[3] == "| j2 | 0/0 | 0/0 | 1/1 | 0/0 | 0/0 | 0/0 |"
+
+
+def test_the_boundary_set_has_smaller_boxes_than_the_task_set() -> None:
+    """`--points boundary`: near the workspace boundary the boxes shrink.
+
+    The case Lewis & Maciejewski 1997 (sec. III) mean the soft limits for (issue 30).
+    """
+    robot = robots.load("panda", task_space="position")
+    widths = {}
+    for kind in campaign.POINT_SETS:
+        design = campaign.design_of("panda", "", "", {}, points=kind)
+        lower, upper = (np.array(side) for side in design["box"])
+        widths[kind] = (upper - lower) / (robot.upper - robot.lower)
+        assert design["points"] == kind and len(design["critical"]) == 3
+    boundary = np.linalg.norm(np.array(campaign.critical_points(robot, "boundary")) -
+                              robot.skeleton(robot.home())[1], axis=1)
+    assert boundary.min() > 0.75, boundary  # the Panda reaches about 0.86 m from its shoulder
+    assert widths["boundary"].min() < 0.35 and widths["task"].min() > 0.5, widths
 
 
 def test_launch_files_compile() -> None:

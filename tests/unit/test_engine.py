@@ -410,6 +410,20 @@ def test_engine_starts_from_exactly_singular_straight_chains(axes: str, mode: st
         assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)
 
 
+def test_a_continuous_joint_beyond_a_million_radians_is_absurd() -> None:
+    """Issue 31 item 2: no limits to be outside of, yet 1e300 rad squares to inf."""
+    planar = robots.load("planar3r")
+    assert np.all(np.isinf(planar.lower))
+    assert limits.absurd_joint(np.array([0.0, 1e5, -9e5]), planar.lower, planar.upper) == -1
+    assert limits.absurd_joint(np.array([0.0, 1e300, 0.0]), planar.lower, planar.upper) == 1
+    reason = limits.absurd_position(np.array([-2e6, 0.0, 0.0]), planar.lower, planar.upper,
+                                    planar.joint_names)
+    assert reason is not None and reason.startswith(planar.joint_names[0])
+    with pytest.raises(ValueError, match="beyond 1e\\+06 rad"):
+        ResolutionEngine(planar, EngineConfig()).step(np.array([0.0, 0.0, 1e300]),
+                                                      np.zeros(planar.m))
+
+
 @pytest.mark.parametrize("mode", RESOLUTIONS)
 def test_huge_inputs_are_refused_or_bounded_and_never_hang(mode: str) -> None:
     """Issue 14: a twist of 1e306 or a position of 1e300 never ended the null-space loop."""

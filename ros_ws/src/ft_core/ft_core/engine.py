@@ -49,9 +49,8 @@ from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Kinematics, Robot
 
 RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
-#: Inputs beyond these are physically absurd and refused: a measured position further
-#: outside its joint limits (rad), a task velocity component (m/s or rad/s).
-ABSURD_POSITION = 1.0
+#: A task velocity component beyond this is physically absurd and refused (m/s or rad/s;
+#: absurd positions: `limits.absurd_joint`).
 ABSURD_TASK_SPEED = 1e3
 
 
@@ -280,9 +279,8 @@ def _input_problem(q: np.ndarray, xd: np.ndarray, lower: np.ndarray, upper: np.n
         for value in values:
             if not np.isfinite(value):
                 return 1
-    for j in range(q.size):
-        if q[j] < lower[j] - ABSURD_POSITION or q[j] > upper[j] + ABSURD_POSITION:
-            return 2
+    if limits.absurd_joint(q, lower, upper) >= 0:
+        return 2
     for value in xd:
         if abs(value) > ABSURD_TASK_SPEED:
             return 3
@@ -291,7 +289,8 @@ def _input_problem(q: np.ndarray, xd: np.ndarray, lower: np.ndarray, upper: np.n
 
 _INPUT_PROBLEMS = {
     1: "q and xd must be finite",
-    2: f"q is more than {ABSURD_POSITION} rad outside the joint limits",
+    2: f"q is more than {limits.ABSURD_POSITION:g} rad outside the joint limits or beyond "
+       f"{limits.ABSURD_MAGNITUDE:g} rad",
     3: f"xd exceeds {ABSURD_TASK_SPEED:g} (m/s, rad/s): no arm can do that",
 }
 
@@ -456,8 +455,9 @@ class ResolutionEngine:
         `at`: the configuration q (rad) or its snapshot (`Robot.kinematics`).
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
-        xd, physically absurd ones (q more than `ABSURD_POSITION` outside the joint
-        limits, a component of xd beyond `ABSURD_TASK_SPEED`), or locked indices that
+        xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
+        limits or beyond `limits.ABSURD_MAGNITUDE`, a component of xd beyond
+        `ABSURD_TASK_SPEED`), or locked indices that
         are not joints.
         """
         cfg, robot = self.config, self.robot

@@ -21,6 +21,32 @@ from ft_core.pseudoinverse import damped_from_svd
 
 #: Slack (rad/s) in bound checks against round-off.
 TOLERANCE = 1e-10
+#: Measured positions beyond these are physically absurd and refused where they come in:
+#: further outside the joint's limits (rad), or larger in magnitude (rad: 160 000 turns
+#: of a continuous joint; beyond, differences of positions lose the precision detection
+#: needs, and squares overflow).
+ABSURD_POSITION = 1.0
+ABSURD_MAGNITUDE = 1e6
+
+
+@njit(cache=True, error_model="numpy")
+def absurd_joint(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
+    """The first joint whose finite position q is absurd (see `ABSURD_POSITION`), else -1."""
+    for j in range(q.size):
+        if (q[j] < lower[j] - ABSURD_POSITION or q[j] > upper[j] + ABSURD_POSITION
+                or abs(q[j]) > ABSURD_MAGNITUDE):
+            return j
+    return -1
+
+
+def absurd_position(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                    names: list[str]) -> str | None:
+    """Why the measured configuration q (finite, rad) is physically absurd, or None."""
+    j = absurd_joint(q, lower, upper)
+    if j < 0:
+        return None
+    return (f"{names[j]} at {q[j]:.4g} rad is more than {ABSURD_POSITION:g} rad outside its "
+            f"limits [{lower[j]:.4g}, {upper[j]:.4g}] or beyond {ABSURD_MAGNITUDE:g} rad")
 
 
 @njit(cache=True, error_model="numpy")

@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ft_core import locked_set, remap, swing
+from ft_core import limits, locked_set, remap, swing
 from ft_core.detection import Confirmation, DetectorConfig, JointEvidence, LockDetector
 from ft_core.robots import Robot
 
@@ -198,6 +198,15 @@ class Monitor:
         return qd
 
     # ------------------------------------------------------------- detection
+    def absurd(self, q: np.ndarray) -> str | None:
+        """Why a measured configuration (finite, rad) is physically absurd, else None.
+
+        Such a joint state is refused before `observe` (`limits.absurd_position`): its
+        differences would carry inf and nan into detection and diagnostics.
+        """
+        robot = self.robot
+        return limits.absurd_position(q, robot.lower, robot.upper, robot.joint_names)
+
     def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q

@@ -225,7 +225,7 @@ class MonitorNode(SuiteNode):
             listener(msg)
         if self.core is None:
             return
-        q = self.read_joint_state(msg, self.core.robot.joint_names)
+        q = self.read_joint_state(msg, self.core.robot.joint_names, self.core.absurd)
         if q is None:
             return
         listeners = (self._command_pub.get_subscription_count()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from rclpy.node import Node
@@ -57,11 +57,14 @@ class SuiteNode(Node):
         """The node clock (wall or simulated) in seconds."""
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def read_joint_state(self, msg: JointState, joints: Sequence[str]) -> np.ndarray | None:
+    def read_joint_state(self, msg: JointState, joints: Sequence[str],
+                         absurd: Callable[[np.ndarray], str | None] | None = None,
+                         ) -> np.ndarray | None:
         """Positions of `joints` from a joint state, or None (reported under `joint_states`).
 
-        Rejected: a stamp ahead of the clock or going backwards, and what
-        `convert.joint_vector` rejects. On success `state_stamp` is the message's time.
+        Rejected: a stamp ahead of the clock or going backwards, what
+        `convert.joint_vector` rejects, and positions `absurd` gives a reason for. On
+        success `state_stamp` is the message's time.
         """
         stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
         if stamp is None:
@@ -74,6 +77,10 @@ class SuiteNode(Node):
             q = convert.joint_vector(msg, joints)
         except convert.MessageError as error:
             self.problems.report("joint_states", str(error))
+            return None
+        reason = None if absurd is None else absurd(q)
+        if reason is not None:
+            self.problems.report("joint_states", f"{reason}: joint state ignored")
             return None
         self.problems.report("joint_states", None)
         self.state_stamp = stamp
