@@ -500,6 +500,19 @@ def test_physically_absurd_joint_states_are_refused_and_never_reach_diagnostics(
             assert math.isfinite(value), (item.key, item.value)
 
 
+def test_an_injection_naming_a_hundred_thousand_joints_is_refused_at_once() -> None:
+    """Issue 31 item 3: one warning per unknown name froze the sim for 15.5 s."""
+    with loop() as lp:
+        swing = lp.node.create_publisher(JointState, "ft/inject_free_swing", qos.RELIABLE)
+        flood = JointState(name=[f"bogus_{k}" for k in range(100_000)])
+        swing.publish(flood)
+        lp.inject.publish(flood)
+        lp.inject.publish(JointState(name=["bogus", "panda_joint2"]))  # one unknown: dropped
+        assert spin_until(lp.executor, lambda: set(lp.sim.locked) == {"panda_joint2"}, 5.0), (
+            "the sim did not take the next injection within 5 s")
+        assert lp.sim.swinging == []
+
+
 def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
     with loop(sim_parameters={"response_time": 0.05, "hold_last_command": True}) as lp:
         lp.step(constant(np.full(7, 0.2)))

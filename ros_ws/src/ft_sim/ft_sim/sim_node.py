@@ -204,14 +204,28 @@ class SimNode(SuiteNode):
         """Plant time (s) at which the newest command arrived; -inf before any."""
         return self.plant.command_time if self.plant is not None else -math.inf
 
+    def _known(self, topic: str, joint_names: list[str]) -> dict[str, int]:
+        """{name: index} of the model's joints among an injection's names.
+
+        More than `convert.MAX_NAMES` names, or a duplicate, refuse the whole request
+        unread; unknown names are dropped. Either is one rate-limited warning.
+        """
+        try:
+            known = convert.names_to_indices(joint_names, self.robot.joint_names)
+        except convert.MessageError as error:
+            self.get_logger().warning(f"{topic} ignored: {error}", throttle_duration_sec=5.0)
+            return {}
+        if len(known) < len(joint_names):
+            unknown = [name[:64] for name in joint_names if name not in known]
+            self.get_logger().warning(f"{topic}: {len(unknown)} unknown joints rejected "
+                                      f"{unknown[:10]}", throttle_duration_sec=5.0)
+        return known
+
     def lock(self, joint_names: list[str]) -> None:
         """Lock joints where they are (failure injection)."""
-        unknown = [n for n in joint_names if n not in self.robot.joint_names]
-        if unknown:
-            self.get_logger().warning(f"inject_failure: unknown joints {unknown[:10]} rejected")
-        for name in joint_names:
-            if name in self.robot.joint_names and name not in self.locked:
-                self.plant.lock(self.robot.joint_names.index(name))
+        for name, j in self._known("inject_failure", joint_names).items():
+            if name not in self.locked:
+                self.plant.lock(j)
                 self.get_logger().warning(f"joint {name} locked at {self.locked[name]:.4f} rad "
                                           f"(t = {self.t:.3f} s)")
 
@@ -228,13 +242,11 @@ class SimNode(SuiteNode):
 
     def free_swing(self, joint_names: list[str]) -> None:
         """Joints lose their torque and swing under gravity (failure injection)."""
+        known = self._known("inject_free_swing", joint_names)
+        if not known:
+            return
         _, inertia = self.robot.gravity_dynamics(self.plant.q)
-        for name in joint_names:
-            if name not in self.robot.joint_names:
-                self.get_logger().warning(f"inject_free_swing: unknown joint {name[:64]!r} "
-                                          "rejected", throttle_duration_sec=5.0)
-                continue
-            j = self.robot.joint_names.index(name)
+        for name, j in known.items():
             if inertia[j] <= 0:
                 self.get_logger().warning(f"inject_free_swing: {name} has no inertia outboard "
                                           "in the URDF, so it cannot swing: rejected")
