@@ -349,6 +349,24 @@ def test_declared_failure_reset_and_the_latched_locked_set() -> None:
         assert lp.commands[-1].velocity[4] != 0.0
 
 
+def test_a_flood_of_declarations_is_answered_once_per_period() -> None:
+    """Issue 31 item 4: each repeated declaration was published again, 10 kHz of them."""
+    from ft_monitor.monitor_node import REANNOUNCE_PERIOD
+
+    with loop() as lp:
+        lp.step(constant(np.full(7, 0.1)))
+        lp.declare.publish(JointState(name=["panda_joint5"]))
+        assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint5"], 2.0)
+        before, started = len(lp.locked), time.monotonic()
+        for _ in range(2000):
+            lp.declare.publish(JointState(name=["panda_joint5"]))
+        lp.declare.publish(JointState(name=["panda_joint6"]))  # behind the flood
+        assert spin_until(lp.executor, lambda: "panda_joint6" in lp.locked_names(), 20.0)
+        elapsed = time.monotonic() - started
+        repeats = len(lp.locked) - before - 1
+        assert 1 <= repeats <= elapsed / REANNOUNCE_PERIOD + 2, (repeats, elapsed)
+
+
 def test_watchdog_publishes_zeros_until_commands_return() -> None:
     with loop(monitor_parameters={"command_timeout": 0.05}) as lp:
         command = constant(np.full(7, 0.1))

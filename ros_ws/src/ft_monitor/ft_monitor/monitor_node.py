@@ -55,6 +55,10 @@ from std_srvs.srv import Trigger
 DIAGNOSTICS_PERIOD = 0.5
 #: s between checks for a written locked set while no joint state arrives (steady time).
 ANNOUNCE_PERIOD = 0.02
+#: s (steady) between two re-announcements of an unchanged locked set asked for on
+#: `ft/declare_failure`: a flood of declarations costs one publication per period, and
+#: the latched topic gives a late subscriber the set anyway.
+REANNOUNCE_PERIOD = 0.1
 
 
 _DETECTION, _MONITOR = DetectorConfig(), MonitorConfig()
@@ -137,6 +141,7 @@ class MonitorNode(SuiteNode):
         parameters.request_model(self, self._set_model)
         # On steady time: with use_sim_time and no /clock the watchdog must still run.
         self._last_command_steady = time.monotonic()
+        self._reannounced = -math.inf  # steady time of the last re-announcement (s)
         self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog,
                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
@@ -275,7 +280,10 @@ class MonitorNode(SuiteNode):
         before = self.core.locked
         change = self.core.declare(known.values(), now)
         self._announce(change)
-        if self.core.locked == before and not change.changed:
+        steady = time.monotonic()
+        if (self.core.locked == before and not change.changed
+                and steady - self._reannounced >= REANNOUNCE_PERIOD):
+            self._reannounced = steady
             self._publish_locked(now)  # nothing new, announced again: the sender asked
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
