@@ -347,6 +347,7 @@ def test_critical_points_become_soft_limits() -> None:
     ("failure_probabilities", [1.0, -1.0, 1.0, 1.0, 1.0, 1.0, 1.0], "probabilit"),
     ("critical_points", [0.5, 0.1], "multiple of 3"),
     ("robot_model", "puma560", "read-only"),
+    ("swing_gain", 1.0, "needs a model with inertias"),  # issue 31 item 5: once it hung
 ])
 def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value, reason: str,
                                                                 ) -> None:
@@ -355,6 +356,15 @@ def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful and reason in result.reason
         assert node.param(name) == before
+
+
+def test_a_swing_gain_the_model_cannot_honour_refuses_the_model_not_the_node() -> None:
+    """Issue 31 item 5: swing_gain > 0 on a URDF without inertias killed the controller."""
+    with controller(swing_gain=1.0) as (node, _):
+        assert node.core is None
+        assert "needs a model with inertias" in node.problems.active["model"]
+    with controller(swing_gain=1.0, robot_model="panda_inertial") as (node, _):
+        assert node.core is not None and "model" not in node.problems.active
 
 
 def test_default_parameters_are_the_cores_defaults_written_once() -> None:

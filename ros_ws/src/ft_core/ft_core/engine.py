@@ -316,11 +316,15 @@ def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
     """What of `config` depends on the robot, checked: (failure probabilities, soft box).
 
     Raises ValueError where the engine would refuse it (a probability per joint; soft
-    limits of n finite values each, lower below upper), without building an engine:
-    the node validates parameter changes with it. No probabilities: None; no soft
-    limits: two empty arrays.
+    limits of n finite values each, lower below upper; swing_gain > 0 on a model without
+    inertias, whose swing measure is undefined), without building an engine: the node
+    validates parameter changes with it. No probabilities: None; no soft limits: two
+    empty arrays.
     """
     n = robot.n
+    if config.swing_gain > 0 and not robot.has_inertias:
+        raise ValueError(f"swing_gain > 0 needs a model with inertias: {robot.name}'s URDF "
+                         "gives its links no mass (use swing_gain 0 or a URDF with <inertial>)")
     probabilities = None
     if len(config.failure_probabilities):
         probabilities = np.asarray(config.failure_probabilities, dtype=float)
