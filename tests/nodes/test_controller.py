@@ -348,6 +348,9 @@ def test_critical_points_become_soft_limits() -> None:
     ("critical_points", [0.5, 0.1], "multiple of 3"),
     ("robot_model", "puma560", "read-only"),
     ("swing_gain", 1.0, "needs a model with inertias"),  # issue 31 item 5: once it hung
+    # Issue 31 item 6: refused before reading, with a short reason (17 MB before).
+    ("failure_probabilities", [0.5] * 1_000_000, "at most 4096"),
+    ("soft_limits.lower", [0.0] * 5000, "at most 4096"),
 ])
 def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value, reason: str,
                                                                 ) -> None:
@@ -355,6 +358,7 @@ def test_invalid_parameters_are_rejected_and_the_old_value_kept(name: str, value
         before = node.param(name)
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful and reason in result.reason
+        assert len(result.reason) < 300, len(result.reason)
         assert node.param(name) == before
 
 

@@ -193,7 +193,8 @@ class ControllerNode(SuiteNode):
         """Per-joint values given in command order, put in chain order."""
         values = np.asarray(values, dtype=float)
         if values.shape != (order.size,) or not np.all(np.isfinite(values)):
-            raise ValueError(f"{what} needs {order.size} finite values, got {list(values)}")
+            raise ValueError(f"{what} needs {order.size} finite values, got {values.size}"
+                             + (" with a non-finite one" if values.size == order.size else ""))
         chain = np.empty(order.size)
         chain[order] = values
         return chain
@@ -236,9 +237,10 @@ class ControllerNode(SuiteNode):
             if value["recovery.enabled"] else None)
 
     # -------------------------------------------------------------- parameters
-    def _validate(self, parameters: list[Parameter]) -> SetParametersResult:
-        changes = {p.name: p.value for p in parameters}
+    def _validate(self, params: list[Parameter]) -> SetParametersResult:
+        changes = {p.name: p.value for p in params}
         try:
+            parameters.check_sizes(changes)
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
             self._controller_config(changes)
