@@ -99,6 +99,16 @@ def test_sub_case_3_equal_rotations_then_the_far_joint_eqs_4_13_to_4_15(d1: floa
         second_failures=False) == pytest.approx(float(at_zero), rel=1e-9)
 
 
+def test_the_first_order_sum_is_clamped_to_a_probability() -> None:
+    """Issue 31 item 13: at high rates the chapter's sum exceeded 1."""
+    points = chapter_points(2)
+    start = np.array([-1.0, -1.0])
+    rates, v = np.array([5.0, 5.0]), 0.5
+    best = planning.plan(points, start, rates, v)
+    # The sum gave 1.97 here.
+    assert reliability.task_failure_probability(points, best.trajectory, rates, v) == 1.0
+
+
 def test_sub_case_2_only_the_outside_joint_is_exposed() -> None:
     rates, v = np.array([0.03, 0.05]), 0.5
     start = np.array([BOX[0][0] - 0.7, 2.5])  # region 4: scenario A only

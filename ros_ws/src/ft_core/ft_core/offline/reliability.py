@@ -251,6 +251,9 @@ def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory
         speed: joint speed v of the post-failure trajectories (rad/s), > 0.
         second_failures: add scenarios C and D.
         segments: the trajectory is cut into at least this many pieces for C and D.
+
+    The chapter's sum is first order: at high rates it can exceed 1, and is clamped
+    there (a probability; where the clamp acts, `monte_carlo` is the figure to use).
     """
     lam = check_rates(rates, trajectory.configurations.shape[1])
     if not speed > 0:
@@ -267,7 +270,7 @@ def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory
             after = post_failure_time(points, first, q, int(i), speed)
             others = np.delete(lam, i)
             total += float(here[i] * _interval_probability(others, t1, t1 + after).sum())
-    return total
+    return min(total, 1.0)
 
 
 def monte_carlo(points: Sequence[TaskPoint], trajectory: Trajectory, rates: Rates,
