@@ -390,6 +390,18 @@ def test_malformed_commands_become_explicit_zeros() -> None:
             assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
         lp.step(lambda lp: lp.send([0.1] * 7, [*PANDA.joint_names[:6], "elbow"]))
         assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+        # Issue 31 item 13: 1e308 rad/s was forwarded at the velocity limit; refused now.
+        array = lp.node.create_publisher(Float64MultiArray, "ft/command_raw_array",
+                                         qos.RELIABLE)
+        for topic, send in (
+                ("ft/command_raw", lambda lp: lp.send([0.1] * 6 + [1e308])),
+                ("ft/command_raw_array", lambda lp: array.publish(Float64MultiArray(
+                    data=[-2e3] + [0.1] * 6)))):
+            lp.step(send)
+            assert np.all(np.array(lp.commands[-1].velocity) == 0.0)
+            assert "beyond 1000" in lp.monitor.problems.active[topic]
+        lp.step(constant(np.full(7, 5.0)))  # above the velocity limits: scaled, not refused
+        assert np.all(np.abs(lp.commands[-1].velocity) > 0.0)
         lp.step(constant(np.full(7, 0.1)))
         assert np.all(np.array(lp.commands[-1].velocity) == 0.1)  # recovered
 

@@ -49,9 +49,6 @@ from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Kinematics, Robot
 
 RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
-#: A task velocity component beyond this is physically absurd and refused (m/s or rad/s;
-#: absurd positions: `limits.absurd_joint`).
-ABSURD_TASK_SPEED = 1e3
 
 
 
@@ -282,7 +279,7 @@ def _input_problem(q: np.ndarray, xd: np.ndarray, lower: np.ndarray, upper: np.n
     if limits.absurd_joint(q, lower, upper) >= 0:
         return 2
     for value in xd:
-        if abs(value) > ABSURD_TASK_SPEED:
+        if abs(value) > limits.ABSURD_SPEED:
             return 3
     return 0
 
@@ -291,7 +288,7 @@ _INPUT_PROBLEMS = {
     1: "q and xd must be finite",
     2: f"q is more than {limits.ABSURD_POSITION:g} rad outside the joint limits or beyond "
        f"{limits.ABSURD_MAGNITUDE:g} rad",
-    3: f"xd exceeds {ABSURD_TASK_SPEED:g} (m/s, rad/s): no arm can do that",
+    3: f"xd exceeds {limits.ABSURD_SPEED:g} (m/s, rad/s): no arm can do that",
 }
 
 
@@ -461,7 +458,7 @@ class ResolutionEngine:
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
         limits or beyond `limits.ABSURD_MAGNITUDE`, a component of xd beyond
-        `ABSURD_TASK_SPEED`), or locked indices that
+        `limits.ABSURD_SPEED`), or locked indices that
         are not joints.
         """
         cfg, robot = self.config, self.robot

@@ -27,6 +27,9 @@ TOLERANCE = 1e-10
 #: needs, and squares overflow).
 ABSURD_POSITION = 1.0
 ABSURD_MAGNITUDE = 1e6
+#: A speed beyond this is physically absurd and refused, not clipped (rad/s, m/s): a task
+#: velocity component, a joint velocity command (10 000 rpm; no arm's joint does).
+ABSURD_SPEED = 1e3
 
 
 @njit(cache=True, error_model="numpy")
@@ -37,6 +40,20 @@ def absurd_joint(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
                 or abs(q[j]) > ABSURD_MAGNITUDE):
             return j
     return -1
+
+
+def absurd_command(qd: np.ndarray, names: list[str]) -> str | None:
+    """Why a joint velocity command (finite, rad/s) is physically absurd, or None.
+
+    Reading taken for issue 31: a command beyond `ABSURD_SPEED` is a fault of its
+    sender (1e308 was forwarded at the velocity limit), so it is refused like a
+    non-finite one; a command merely above a joint's velocity limit is scaled into it.
+    """
+    beyond = np.flatnonzero(np.abs(qd) > ABSURD_SPEED)
+    if beyond.size == 0:
+        return None
+    j = int(beyond[0])
+    return f"{names[j]} commanded {qd[j]:.4g} rad/s (beyond {ABSURD_SPEED:g})"
 
 
 def absurd_position(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,

@@ -207,6 +207,13 @@ class Monitor:
         robot = self.robot
         return limits.absurd_position(q, robot.lower, robot.upper, robot.joint_names)
 
+    def absurd_command(self, qd: np.ndarray) -> str | None:
+        """Why a command (finite, rad/s, chain order) is refused as absurd, else None.
+
+        See `limits.absurd_command`.
+        """
+        return limits.absurd_command(qd, self.robot.joint_names)
+
     def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q

@@ -323,13 +323,20 @@ class MonitorNode(SuiteNode):
             return
         self._forward("ft/command_raw_array", qd, stamp, self.now())
 
-    def _refuse(self, topic: str, error: convert.MessageError, stamp: Time, now: float) -> None:
+    def _refuse(self, topic: str, error: Exception | str, stamp: Time, now: float) -> None:
         """A malformed command: reported, and replaced by explicit zeros."""
         self.problems.report(topic, f"{error}: commanding zeros")
         self._publish_command(self.core.zeros(now), stamp)
 
     def _forward(self, source: str, qd: np.ndarray, stamp: Time, now: float) -> None:
-        """A good command from `source` (chain order, rad/s): filtered by the core, published."""
+        """A well-formed command from `source` (chain order, rad/s), published.
+
+        Filtered by the core; an absurd one (`Monitor.absurd_command`) is refused instead.
+        """
+        absurd = self.core.absurd_command(qd)
+        if absurd is not None:
+            self._refuse(source, absurd, stamp, now)
+            return
         self.problems.report(source, None)
         self._last_command = now
         self._last_command_steady = time.monotonic()
