@@ -62,7 +62,7 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "kfm_gain": (_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
                  parameters.float_range(0.0, 1e4)),
     "swing_gain": (_ENGINE.swing_gain, "swing-measure descent for free-swinging failures, "
-                   "rad/s per rad (0: off; needs the URDF's inertias)",
+                   "rad/s per rad (0: off; needs the URDF's inertias, refused without)",
                    parameters.float_range(0.0, 100.0)),
     "jump_gain": (_ENGINE.jump_gain, "minimum-jump term (1 = exact)",
                   parameters.float_range(0.0, 100.0)),
