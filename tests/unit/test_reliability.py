@@ -100,12 +100,12 @@ def test_sub_case_3_equal_rotations_then_the_far_joint_eqs_4_13_to_4_15(d1: floa
 
 
 def test_the_first_order_sum_is_clamped_to_a_probability() -> None:
-    """Issue 31 item 13: at high rates the chapter's sum exceeded 1."""
+    """Issue 31 item 13: at high rates (here the largest taken) the sum exceeded 1."""
     points = chapter_points(2)
     start = np.array([-1.0, -1.0])
-    rates, v = np.array([5.0, 5.0]), 0.5
+    rates, v = np.array([1.0, 1.0]), 0.5
     best = planning.plan(points, start, rates, v)
-    # The sum gave 1.97 here.
+    # The sum gave 1.27 here.
     assert reliability.task_failure_probability(points, best.trajectory, rates, v) == 1.0
 
 
@@ -289,7 +289,6 @@ def test_ft_plan_writes_the_plan_its_check_and_a_figure(tmp_path) -> None:
 @pytest.mark.parametrize(("arguments", "status"), [
     (["--points", "1.9,0.3", "--start", "0.2,0.9", "--rates", "0.01"], 1),
     (["--points", "1.9,0.3", "--start", "0.2,0.9,0.9", "--rates", "-1"], 1),
-    (["--points", "1.9,0.3", "--start", "0.2,0.9,0.9", "--rates", "0.01", "--speed", "0"], 1),
     (["--points", "5,5", "--start", "0.2,0.9,0.9", "--rates", "0.01"], 3),
 ])
 def test_ft_plan_refuses_bad_input(tmp_path, arguments: list, status: int) -> None:

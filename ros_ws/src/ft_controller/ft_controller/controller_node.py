@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_core import robots, selfmotion
+from ft_core import limits, robots, selfmotion
 from ft_core.controller import Controller, ControllerConfig
 from ft_core.engine import RESOLUTIONS, EngineConfig, Status, check_config
 from ft_core.observability import ObservabilityConfig
@@ -44,8 +44,6 @@ from std_msgs.msg import Float64MultiArray, Header
 
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
-#: Pose goals further than this (m) from the base are refused as physically absurd.
-ABSURD_DISTANCE = 1e3
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
 WATCHDOG_PERIOD = 0.05
 
@@ -344,9 +342,9 @@ class ControllerNode(SuiteNode):
             return
         try:
             transform = convert.pose_matrix(msg.pose)
-            if np.max(np.abs(transform[:3, 3])) > ABSURD_DISTANCE:
-                raise convert.MessageError(f"goal further than {ABSURD_DISTANCE:g} m: no arm "
-                                           "reaches it")
+            if np.max(np.abs(transform[:3, 3])) > limits.ABSURD_DISTANCE:
+                raise convert.MessageError(f"goal further than {limits.ABSURD_DISTANCE:g} m: "
+                                           "no arm reaches it")
             goal = goal_from_transform(self.robot, transform)
         except convert.MessageError as error:
             self.problems.report("ft/target_pose", str(error))

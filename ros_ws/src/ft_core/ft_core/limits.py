@@ -14,6 +14,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numba import njit
 
@@ -30,6 +32,8 @@ ABSURD_MAGNITUDE = 1e6
 #: A speed beyond this is physically absurd and refused, not clipped (rad/s, m/s): a task
 #: velocity component, a joint velocity command (10 000 rpm; no arm's joint does).
 ABSURD_SPEED = 1e3
+#: m; a task point further than this from the base is no arm's (and 1e308 overflows).
+ABSURD_DISTANCE = 1e3
 
 
 @njit(cache=True, error_model="numpy")
@@ -42,7 +46,7 @@ def absurd_joint(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
     return -1
 
 
-def absurd_command(qd: np.ndarray, names: list[str]) -> str | None:
+def absurd_command(qd: np.ndarray, names: Sequence[str]) -> str | None:
     """Why a joint velocity command (finite, rad/s) is physically absurd, or None.
 
     Reading taken for issue 31: a command beyond `ABSURD_SPEED` is a fault of its
@@ -57,7 +61,7 @@ def absurd_command(qd: np.ndarray, names: list[str]) -> str | None:
 
 
 def absurd_position(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                    names: list[str]) -> str | None:
+                    names: Sequence[str]) -> str | None:
     """Why the measured configuration q (finite, rad) is physically absurd, or None."""
     j = absurd_joint(q, lower, upper)
     if j < 0:

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ft_core import limits
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot
 
@@ -133,6 +134,9 @@ def check_target(robot: Robot, target: np.ndarray) -> np.ndarray:
                          f"{target.shape}")
     if not np.all(np.isfinite(target)):
         raise ValueError("the target has non-finite entries")
+    position = target[:3, 3] if robot.task_space == "pose" else target
+    if not np.all(np.abs(position) <= limits.ABSURD_DISTANCE):
+        raise ValueError(f"the target is further than {limits.ABSURD_DISTANCE:g} m: no arm's")
     return target
 
 
@@ -580,16 +584,18 @@ def targets_from_flat(robot: Robot, flat: Sequence[float]) -> list[np.ndarray]:
     targets = []
     for chunk in values.reshape(-1, size):
         if robot.task_space != "pose":
-            targets.append(chunk.copy())
+            targets.append(check_target(robot, chunk.copy()))
             continue
         quaternion = chunk[3:]
-        norm = np.linalg.norm(quaternion)
-        if not norm > 0:
-            raise ValueError("a pose critical point has a zero quaternion")
+        with np.errstate(over="ignore"):  # 1e308: an infinite norm, refused
+            norm = np.linalg.norm(quaternion)
+        if not 0 < norm < np.inf:
+            raise ValueError("a pose critical point's quaternion must be non-zero (and its "
+                             "norm finite)")
         pose = np.eye(4)
         pose[:3, :3] = pin.Quaternion(*(quaternion[[3, 0, 1, 2]] / norm)).toRotationMatrix()
         pose[:3, 3] = chunk[:3]
-        targets.append(pose)
+        targets.append(check_target(robot, pose))
     return targets
 
 

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 from ft_core import robots, selfmotion
+from ft_core.offline import cli
 from scipy import stats
 from tqdm import tqdm
 
@@ -57,6 +58,8 @@ LOCK_WINDOW = (12.0, 24.0)
 POINT_SETS = ("task", "boundary")
 #: The boundary set's middle point is this fraction of the reach along its ray.
 BOUNDARY = 0.9
+#: Most seeds per condition.
+MAX_RUNS = 100_000
 GOAL_TOLERANCE = 5e-3  #: m
 GOAL_TIMEOUT = 5.0  #: s per visit
 TOUR_TIMEOUT = ScenarioConfig.tour_timeout  #: s per visit of the tour after the lock
@@ -232,10 +235,14 @@ def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
     """What every run of a campaign shares: arm, plant, recovery, critical points, box.
 
     `points`: the critical-point set (`POINT_SETS`). Raises selfmotion.UnreachableError
-    when the critical points have no common box.
+    when the critical points have no common box, robots.RobotModelError when the chain
+    has no joint to spare for a position task (after a lock it could not go on).
     """
     robot = robots.load(robot_spec, base_link or None, tip_link or None,
                         task_space="position")
+    if robot.n <= robot.m:
+        raise robots.RobotModelError(f"{robot.name} has {robot.n} joint(s): a campaign needs "
+                                     f"more than the position task's {robot.m}")
     critical = critical_points(robot, points)
     box, _ = selfmotion.soft_limits(robot, [v for p in critical for v in p],
                                     selfmotion.bent_configuration(robot))
@@ -420,13 +427,14 @@ def execute(todo: list[Task], out: Path, workers: int, record: bool) -> int:
     return crashed
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the campaign and write its outputs; 0 unless a run crashed or went non-finite."""
+def parser() -> argparse.ArgumentParser:
+    """`ft-campaign`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-campaign", description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=20, help="seeds per condition")
+    parser.add_argument("--runs", type=cli.bounded(int, 1, MAX_RUNS), default=20,
+                        help=f"seeds per condition (1 to {MAX_RUNS})")
     parser.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES),
                         help="resolution modes, each with and without soft limits")
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--workers", **cli.workers(os.cpu_count() or 1))
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--record", action="store_true",
                         help="keep every run's topics as a rosbag2 (MCAP) beside its result")
@@ -436,9 +444,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="the sim's plant (physics: MuJoCo, docs/sim.md)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
-    parser.add_argument("--latency", type=float, default=0.0, help="plant latency (s)")
-    parser.add_argument("--response-time", type=float, default=0.0,
-                        help="plant velocity response time (s)")
+    parser.add_argument("--latency", type=cli.bounded(float, 0.0, 1.0), default=0.0,
+                        help="plant latency (s, 0 to 1)")
+    parser.add_argument("--response-time", type=cli.bounded(float, 0.0, 1.0), default=0.0,
+                        help="plant velocity response time (s, 0 to 1)")
     parser.add_argument("--hold-last-command", action="store_true",
                         help="the plant holds the last command (ros2_control)")
     parser.add_argument("--no-recovery", action="store_true",
@@ -446,10 +455,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", default="task", choices=POINT_SETS,
                         help="critical points: the arm's task points, or near the boundary "
                         "of its workspace (small boxes)")
-    parser.add_argument("--first-domain", type=int,
+    parser.add_argument("--first-domain", type=cli.bounded(int, 0, 232),
                         default=int(os.environ.get("ROS_DOMAIN_ID", "29")) + 1,
                         help="first DDS domain id of the runs (default ROS_DOMAIN_ID + 1)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+@cli.clear_file_errors("ft-campaign")
+def main(argv: list[str] | None = None) -> int:
+    """Run the campaign and write its outputs; 0 unless a run crashed or went non-finite."""
+    arguments = parser()
+    args = arguments.parse_args(argv)
     args.robot = args.robot or (PHYSICS_ROBOT if args.plant == "physics" else "panda")
     plant = {"plant": args.plant, "command_latency": args.latency,
              "response_time": args.response_time, "hold_last_command": args.hold_last_command}
@@ -457,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
         design = design_of(args.robot, args.base_link, args.tip_link, plant,
                            not args.no_recovery, args.points)
     except robots.RobotModelError as error:
-        parser.error(f"--robot: {error}")
+        arguments.error(f"--robot: {error}")
     except selfmotion.UnreachableError as error:
         print(f"ft-campaign: the critical points chosen for this arm have no common "
               f"soft-limit box ({error}); try another --tip-link", file=sys.stderr)

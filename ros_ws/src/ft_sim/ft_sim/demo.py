@@ -31,9 +31,13 @@ from pathlib import Path
 
 import numpy as np
 from ft_core import robots
+from ft_core.offline import cli
 
 from ft_sim import arm_view
 from ft_sim.scenario import PHYSICS_ROBOT, Record, Scenario, ScenarioConfig
+
+#: s of simulated time a demo may last (a run is stepped in memory: bounded).
+MAX_DURATION = 3600.0
 
 
 def summarise(config: ScenarioConfig, record: Record) -> dict:
@@ -165,8 +169,8 @@ def figure(record: Record, summary: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the demo; return 0 when the story holds."""
+def parser() -> argparse.ArgumentParser:
+    """`ft-demo`'s command line (every number bounded: `cli.bounded`)."""
     defaults = ScenarioConfig()
     parser = argparse.ArgumentParser(prog="ft-demo", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", help="built-in name "
@@ -185,29 +189,42 @@ def main(argv: list[str] | None = None) -> int:
                         choices=["least_norm", "max_kfm", "min_jump", "blend"])
     parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
                         "name (default %(default)s)")
-    parser.add_argument("--lock-time", type=float, default=defaults.lock_time,
+    parser.add_argument("--lock-time", type=cli.bounded(float, 0.0, MAX_DURATION),
+                        default=defaults.lock_time,
                         help="s of simulated time (default %(default)s)")
-    parser.add_argument("--duration", type=float, default=defaults.duration,
-                        help="longest run, s of simulated time (default %(default)s)")
-    parser.add_argument("--seed", type=int, default=defaults.seed, help="noise seed")
+    parser.add_argument("--duration", type=cli.bounded(float, 1.0, MAX_DURATION),
+                        default=defaults.duration, help="longest run, s of simulated time "
+                        f"(1 to {MAX_DURATION:g}, default %(default)s)")
+    parser.add_argument("--seed", type=cli.bounded(int, 0, cli.MAX_SEED), default=defaults.seed,
+                        help="noise seed")
     parser.add_argument("--no-soft-limits", action="store_true",
                         help="run without the critical points' bounding-box soft limits")
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     parser.add_argument("--record", action="store_true", help="also write every topic as a "
                         "rosbag2 (MCAP) to <out>/bag, for Foxglove, PlotJuggler or ros2 bag")
-    args = parser.parse_args(argv)
+    return parser
+
+
+@cli.clear_file_errors("ft-demo")
+def main(argv: list[str] | None = None) -> int:
+    """Run the demo; return 0 when the story holds."""
+    defaults = ScenarioConfig()
+    arguments = parser()
+    args = arguments.parse_args(argv)
     args.robot = args.robot or (PHYSICS_ROBOT if args.plant == "physics" else defaults.robot)
     try:
-        joints = robots.load(args.robot, args.base_link or None, args.tip_link or None,
-                             task_space=args.task).joint_names
+        joints = cli.trackable(robots.load(args.robot, args.base_link or None,
+                                           args.tip_link or None,
+                                           task_space=args.task)).joint_names
     except robots.RobotModelError as error:
-        parser.error(f"--robot: {error}")
+        arguments.error(f"--robot: {error}")
     joint = joints[int(args.joint) - 1] if args.joint.isdigit() and \
         1 <= int(args.joint) <= len(joints) else args.joint
     if joint not in joints:
-        parser.error(f"--joint must be 1..{len(joints)} or one of {list(joints)}")
+        arguments.error(f"--joint must be 1..{len(joints)} or one of {list(joints)}")
     if not 0 < args.lock_time < args.duration:
-        parser.error("--lock-time must lie inside the run")
+        arguments.error("--lock-time must lie inside the run")
+    cli.check_folder(args.out)  # a file in the way fails now, not after the run
     scenario = Scenario(ScenarioConfig(
         robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
         task_space=args.task, resolution=args.resolution, plant=args.plant, lock_joint=joint,

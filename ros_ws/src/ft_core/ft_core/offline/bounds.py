@@ -79,24 +79,27 @@ def parameters(args: argparse.Namespace, lower: np.ndarray, upper: np.ndarray,
     return {"/**": {"ros__parameters": params}}
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status."""
+def parser() -> argparse.ArgumentParser:
+    """`ft-bounds`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-bounds", description=__doc__.splitlines()[0])
     cli.add_model_arguments(parser, task="position")
     parser.add_argument("--points", help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: "
                         "x,y,z,qx,qy,qz,qw); default: three points around the seed")
     parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing "
                         "(default: the built-in's home, else a bent configuration)")
-    parser.add_argument("--step", type=float, default=selfmotion.STEP,
-                        help="tracing step (rad), default %(default)s")
+    parser.add_argument("--step", **cli.tracing_step())
     parser.add_argument("--output", "-o", type=Path, default=Path("ft_bounds.yaml"),
                         help="parameters file to write, default %(default)s")
-    args = parser.parse_args(argv)
+    return parser
+
+
+@cli.clear_file_errors("ft-bounds")
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    args = parser().parse_args(argv)
     try:
         robot = cli.load_robot(args)
-        seed = None if args.seed is None else np.array(cli.numbers(args.seed))
-        if seed is not None and seed.shape != (robot.n,):
-            raise ValueError(f"--seed needs {robot.n} joint values, got {seed.size}")
+        seed = None if args.seed is None else cli.configuration(args.seed, robot, "--seed")
         # Without --seed: the built-in's home, else a bent configuration (the all-zero pose
         # of most URDFs is straight and singular, and its components rarely share a box).
         around = selfmotion.bent_configuration(robot) if seed is None else seed
@@ -105,8 +108,6 @@ def main(argv: list[str] | None = None) -> int:
         else:
             flat = cli.parse_points(args.points)
         targets = selfmotion.targets_from_flat(robot, flat)
-        if not (args.step > 0):
-            raise ValueError("--step must be positive")
     except ValueError as error:
         print(f"ft-bounds: {error}", file=sys.stderr)
         return 1

@@ -1,15 +1,37 @@
-"""What the `ft-*` command-line tools share: the model arguments and number lists.
+"""What the `ft-*` command-line tools share: model arguments, bounded numbers, file errors.
 
 Every tool that works on an arm takes the model the way the nodes do: `--robot`
 (a built-in name or a URDF path), `--base-link`, `--tip-link` and `--task`.
+
+Every number a tool takes has a documented bound, checked where it comes in (issue 31):
+`bounded` for one number (argparse refuses it with exit status 2 and says the range),
+`numbers` for a list (finite, at most `MAX_NUMBERS`). A file that cannot be written is
+one line and exit status 1 (`clear_file_errors`), never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+import functools
+import math
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
-from ft_core import robots
+import numpy as np
+
+from ft_core import limits, robots
+
+#: Most numbers one list argument may hold.
+MAX_NUMBERS = 4096
+#: Most worker processes a tool starts.
+MAX_WORKERS = 256
+#: Random seeds: numpy's range.
+MAX_SEED = 2**32 - 1
+#: Tracing steps (rad) along a self-motion manifold (`selfmotion.STEP` by default):
+#: finer costs memory and time without bound, coarser jumps between components.
+STEP_RANGE = (1e-4, 0.5)
 
 
 def add_model_arguments(parser: argparse.ArgumentParser, robot: str | None = None,
@@ -39,15 +61,121 @@ def load_robot(args: argparse.Namespace) -> robots.Robot:
     """The model the arguments of `add_model_arguments` select.
 
     Raises:
-        robots.RobotModelError: the model cannot be loaded.
+        robots.RobotModelError: the model cannot be loaded, or has fewer joints than
+            task coordinates (`trackable`).
     """
-    return robots.load(args.robot, args.base_link or None, args.tip_link or None,
-                       task_space=args.task)
+    return trackable(robots.load(args.robot, args.base_link or None, args.tip_link or None,
+                                 task_space=args.task))
+
+
+def trackable(robot: robots.Robot) -> robots.Robot:
+    """`robot`, if it has at least as many joints as task coordinates, else RobotModelError.
+
+    Fewer cannot follow the task at all (a URDF with a single joint, pose task by
+    default, gave the tools a shape error deep inside).
+    """
+    if robot.n < robot.m:
+        raise robots.RobotModelError(
+            f"{robot.name} has {robot.n} joint(s) for a {robot.task_space} task of {robot.m} "
+            "coordinates: it cannot follow it (another --task, or a longer chain)")
+    return robot
 
 
 def numbers(text: str) -> list[float]:
-    """Comma- or space-separated numbers, e.g. '0.1, 0.2 0.3' (ValueError if not)."""
-    return [float(v) for v in text.replace(",", " ").split()]
+    """Comma- or space-separated finite numbers, e.g. '0.1, 0.2 0.3'.
+
+    Raises ValueError for anything else, a non-finite value or more than `MAX_NUMBERS`.
+    """
+    words = text.replace(",", " ").split()
+    if len(words) > MAX_NUMBERS:
+        raise ValueError(f"{len(words)} numbers in one argument (at most {MAX_NUMBERS})")
+    values = [float(v) for v in words]
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"non-finite number in {text[:80]!r}")
+    return values
+
+
+def bounded(kind: type[int] | type[float], low: float, high: float,
+            ) -> Callable[[str], int | float]:
+    """An argparse type: a `kind` number in [low, high], else a usage error naming the range."""
+    def parse(text: str) -> int | float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not {'an integer' if kind is int else 'a number'}"
+                                             f": {text[:80]!r}") from None
+        if not low <= value <= high:  # also refuses nan
+            shown = f"[{low}, {high}]" if kind is int else f"[{low:g}, {high:g}]"
+            raise argparse.ArgumentTypeError(f"{text[:80]} is outside {shown}")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in its messages
+    parse.bounds = (low, high)  # type: ignore[attr-defined]  # for the tests: documented
+    return parse
+
+
+def tracing_step() -> dict:
+    """`add_argument` keywords of `--step`, a tracing step in `STEP_RANGE` (rad)."""
+    from ft_core.selfmotion import STEP
+
+    return {"type": bounded(float, *STEP_RANGE), "default": STEP,
+            "help": f"tracing step (rad, {STEP_RANGE[0]:g} to {STEP_RANGE[1]:g}), "
+                    "default %(default)s"}
+
+
+def workers(default: int) -> dict:
+    """`add_argument` keywords of a worker-process count: 1 to `MAX_WORKERS`."""
+    return {"type": bounded(int, 1, MAX_WORKERS), "default": default}
+
+
+def check_folder(path: Path) -> None:
+    """Raise OSError now if `path` cannot be made a folder, before the tool's work.
+
+    A file in the way (at `path` or above it) or a folder that cannot be written;
+    nothing is created, so a run refused later leaves nothing behind.
+    """
+    for existing in (path, *path.parents):
+        if not existing.exists():
+            continue
+        if not existing.is_dir():
+            raise NotADirectoryError(f"{existing} is a file, not a folder")
+        if not os.access(existing, os.W_OK):
+            raise PermissionError(f"{existing} cannot be written")
+        return
+
+
+def clear_file_errors(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """Decorate a tool's `main`: a file it cannot read or write is one line, exit status 1.
+
+    (A read-only folder, an output path naming a folder or a file in the way.)
+    """
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def run(*args, **kwargs) -> int:
+            try:
+                return main(*args, **kwargs)
+            except OSError as error:
+                print(f"{prog}: {error}", file=sys.stderr)
+                return 1
+
+        return run
+
+    return wrap
+
+
+def configuration(text: str, robot: robots.Robot, option: str) -> np.ndarray:
+    """A joint configuration 'q1,...,qn' (rad) for `robot`, or ValueError naming `option`.
+
+    n finite values, none physically absurd (`limits.absurd_position`: more than 1 rad
+    outside the joint's limits).
+    """
+    q = np.array(numbers(text))
+    if q.shape != (robot.n,):
+        raise ValueError(f"{option} needs {robot.n} joint values, got {q.size}")
+    absurd = limits.absurd_position(q, robot.lower, robot.upper, robot.joint_names)
+    if absurd is not None:
+        raise ValueError(f"{option}: {absurd}")
+    return q
 
 
 def parse_points(text: str) -> list[float]:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ft_core.measures import failure_weights
+from ft_core.offline import cli
 
 
 def optimal_null_vector(probabilities: Iterable[float]) -> np.ndarray:
@@ -395,13 +396,18 @@ def _load_jacobian(path: Path | None) -> np.ndarray:
     return J
 
 
-def _probabilities(text: str) -> list[float]:
-    from ft_core.offline.cli import numbers
+#: Most joints a design may have (`--probabilities`): 10 000 hung the redundant design.
+MAX_JOINTS = 64
 
+
+def _probabilities(text: str) -> list[float]:
     try:
-        return numbers(text)
+        values = cli.numbers(text)
     except ValueError as error:
-        raise argparse.ArgumentTypeError(f"not a list of numbers: {text!r}") from error
+        raise argparse.ArgumentTypeError(str(error)) from error
+    if not 1 <= len(values) <= MAX_JOINTS:
+        raise argparse.ArgumentTypeError(f"{len(values)} probabilities: 1 to {MAX_JOINTS}")
+    return values
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -413,7 +419,7 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--output", "-o", type=Path, required=True, help="JSON file to write")
     common.add_argument("--figure", type=Path, help="PNG figure to write (optional)")
     workers = argparse.ArgumentParser(add_help=False)
-    workers.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+    workers.add_argument("--workers", **cli.workers(os.cpu_count() or 1),
                          help="processes for long computations (default: all cores)")
 
     dh_cmd = commands.add_parser("dh", parents=[common, workers],
@@ -430,32 +436,39 @@ def _parser() -> argparse.ArgumentParser:
                     help="polish eq 3.24 (with its weights) or start at random")
     r7.add_argument("--fixed-weights", action="store_true",
                     help="keep the weights fixed (usually not realisable)")
-    r7.add_argument("--restarts", type=int, default=8, help="random starts (default 8)")
-    r7.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    r7.add_argument("--restarts", type=cli.bounded(int, 0, 1000), default=8,
+                    help="random starts (0 to 1000, default 8)")
+    r7.add_argument("--seed", type=cli.bounded(int, 0, cli.MAX_SEED), default=0,
+                    help="random seed (default 0)")
 
     red = commands.add_parser("redundant", parents=[common],
                               help="Jacobian with several degrees of redundancy (3.26-3.29)")
     red.add_argument("--probabilities", type=_probabilities, required=True,
                      help="n failure probabilities")
-    red.add_argument("--m", type=int, required=True, help="task dimension m < n")
-    red.add_argument("--sigma", type=float, default=1.0, help="singular value (default 1)")
+    red.add_argument("--m", type=cli.bounded(int, 1, MAX_JOINTS - 1), required=True,
+                     help="task dimension m < n")
+    red.add_argument("--sigma", type=cli.bounded(float, 1e-6, 1e6), default=1.0,
+                     help="singular value (1e-6 to 1e6, default 1)")
 
     multi = commands.add_parser("multicase", parents=[common, workers],
                                 help="planar 3R design for several cases (eq 3.30)")
-    multi.add_argument("--step", type=float, default=0.02, help="link-length step (0.02)")
-    multi.add_argument("--radii", type=int, default=100, help="task-point distances (100)")
-    multi.add_argument("--samples", type=int, default=360, help="points per manifold (360)")
-    multi.add_argument("--family-tolerance", type=float, default=2e-3,
+    multi.add_argument("--step", type=cli.bounded(float, 1e-3, 0.5), default=0.02,
+                       help="link-length step (0.001 to 0.5, default 0.02; 1e-9 took 24 GB)")
+    multi.add_argument("--radii", type=cli.bounded(int, 1, 10000), default=100,
+                       help="task-point distances (1 to 10000, default 100)")
+    multi.add_argument("--samples", type=cli.bounded(int, 4, 100000), default=360,
+                       help="points per manifold (4 to 100000, default 360)")
+    multi.add_argument("--family-tolerance", type=cli.bounded(float, 0.0, 1.0), default=2e-3,
                        help="relative tolerance of the optimal family (default 2e-3)")
     return parser
 
 
+@cli.clear_file_errors("ft-design")
 def main(argv: list[str] | None = None) -> int:
     """Run `ft-design`; return the exit status (0 ok, 1 bad input, 2 bad arguments)."""
     args = _parser().parse_args(argv)
+    cli.check_folder(args.output.parent)  # a file in the way fails now, not after the work
     try:
-        if getattr(args, "workers", 1) < 1:
-            raise ValueError("--workers must be >= 1")
         if args.command == "dh":
             report, plot = _dh_report(_load_jacobian(args.jacobian), args.verify,
                                       args.workers), _plot_dh
@@ -468,8 +481,6 @@ def main(argv: list[str] | None = None) -> int:
         elif args.command == "redundant":
             report, plot = _redundant_report(args), _plot_redundant
         else:
-            if args.radii < 1 or args.samples < 4:
-                raise ValueError("--radii must be >= 1 and --samples >= 4")
             report, plot = _multicase_report(args), _plot_multicase
     except (ValueError, OSError, KeyError) as error:
         print(f"ft-design: {error}", file=sys.stderr)

@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ft_core import measures, robots, selfmotion
+from ft_core import limits, measures, robots, selfmotion
 from ft_core.offline import cli
 
 #: Longest straight move (m) of the tool per continuation step when seeding.
@@ -294,7 +294,8 @@ def parse_axis(name: str, text: str) -> np.ndarray:
     """A grid axis from 'value' or 'start:stop:count' (inclusive, like numpy.linspace).
 
     Raises:
-        ValueError: not a number, count not a positive integer, or non-finite.
+        ValueError: not a number, count not an integer in 1..`MAX_TASKS`, or a value
+            beyond `limits.ABSURD_DISTANCE` (or non-finite).
     """
     parts = text.split(":")
     try:
@@ -302,16 +303,19 @@ def parse_axis(name: str, text: str) -> np.ndarray:
             values = np.array([float(parts[0])])
         elif len(parts) == 3:
             count, start, stop = int(parts[2]), float(parts[0]), float(parts[1])
-            if count < 1 or not (math.isfinite(start) and math.isfinite(stop)):
+            if not (1 <= count <= MAX_TASKS and abs(start) <= limits.ABSURD_DISTANCE
+                    and abs(stop) <= limits.ABSURD_DISTANCE):
                 raise ValueError
             values = np.linspace(start, stop, count)
         else:
             raise ValueError
     except ValueError:
-        raise ValueError(f"--{name} must be a value or start:stop:count (count >= 1 an "
-                         f"integer), got {text!r}") from None
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"--{name} must be finite, got {text!r}")
+        raise ValueError(f"--{name} must be a value or start:stop:count (count an integer, "
+                         f"1 to {MAX_TASKS}; within +-{limits.ABSURD_DISTANCE:g} m), "
+                         f"got {text[:80]!r}") from None
+    if not np.all(np.abs(values) <= limits.ABSURD_DISTANCE):  # also refuses nan
+        raise ValueError(f"--{name} must be within +-{limits.ABSURD_DISTANCE:g} m, "
+                         f"got {text[:80]!r}")
     return values
 
 
@@ -526,19 +530,18 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--joints", metavar="I,J,...",
                         help="joints (1-based) spanning the volume, e.g. 1,2,3,4,5 for "
                         "the PUMA's rad^5 of Lewis & Maciejewski 1997 Table II (default: all)")
-    parser.add_argument("--restarts", type=int, default=0,
+    parser.add_argument("--restarts", type=cli.bounded(int, 0, 100), default=0,
                         help="further components traced from random configurations per "
                         "point, for best_volume (default %(default)s)")
     parser.add_argument("--suggest", metavar="DX,DY,DZ;...",
                         help="critical points as offsets (m) from a reference point: the grid "
                         "is then of placements of the reference, scored by the volume of "
                         "the intersection of the points' boxes")
-    parser.add_argument("--top", type=int, default=5,
+    parser.add_argument("--top", type=cli.bounded(int, 1, 1000), default=5,
                         help="placements checked for reachability inside the intersection "
                         "and printed (default %(default)s)")
-    parser.add_argument("--step", type=float, default=selfmotion.STEP,
-                        help="tracing step (rad), default %(default)s")
-    parser.add_argument("--jobs", "-j", type=int, default=0,
+    parser.add_argument("--step", **cli.tracing_step())
+    parser.add_argument("--jobs", "-j", type=cli.bounded(int, 0, cli.MAX_WORKERS), default=0,
                         help="worker processes (default 0: one per core; 1: no pool)")
     parser.add_argument("--output", "-o", type=Path, default=Path("ft_map"),
                         help="output prefix (PREFIX.npz, .csv, .png), default %(default)s")
@@ -556,10 +559,8 @@ def _setup(args: argparse.Namespace) -> tuple:
     if missing:
         raise ValueError(f"give {' and '.join(missing)} (a value or start:stop:count)")
     grid = Grid(tuple(names), tuple(parse_axis(n, getattr(args, n)) for n in names))
-    start = selfmotion.bent_configuration(robot) if args.seed is None else np.array(
-        cli.numbers(args.seed))
-    if start.shape != (robot.n,) or not np.all(np.isfinite(start)):
-        raise ValueError(f"--seed needs {robot.n} finite joint values")
+    start = selfmotion.bent_configuration(robot) if args.seed is None else cli.configuration(
+        args.seed, robot, "--seed")
     joints = None
     if args.joints is not None:
         values = cli.numbers(args.joints)
@@ -570,9 +571,11 @@ def _setup(args: argparse.Namespace) -> tuple:
     offsets = np.zeros((1, d))
     if args.suggest is not None:
         flat = cli.parse_points(args.suggest)
-        if not flat or len(flat) % d or not np.all(np.isfinite(flat)):
+        if not flat or len(flat) % d or not np.all(np.abs(flat) <= limits.ABSURD_DISTANCE):
             raise ValueError(f"--suggest needs offsets of {d} numbers each ('dx,dy"
-                             f"{',dz' if d == 3 else ''};...'), got {len(flat)} numbers")
+                             f"{',dz' if d == 3 else ''};...'), within "
+                             f"+-{limits.ABSURD_DISTANCE:g} m, "
+                             f"got {len(flat)} numbers")
         offsets = np.array(flat).reshape(-1, d)
     orientation = None
     if robot.task_space == "pose":
@@ -580,26 +583,21 @@ def _setup(args: argparse.Namespace) -> tuple:
             orientation = robot.transform(start)[:3, :3]
         else:
             quaternion = np.array(cli.numbers(args.orientation))
-            if quaternion.shape != (4,) or not np.linalg.norm(quaternion) > 0:
-                raise ValueError("--orientation needs qx,qy,qz,qw (not all zero)")
+            with np.errstate(over="ignore"):  # 1e308: an infinite norm, refused
+                norm = np.linalg.norm(quaternion)
+            if quaternion.shape != (4,) or not 0 < norm < np.inf:
+                raise ValueError("--orientation needs qx,qy,qz,qw (not all zero, norm finite)")
             quaternion /= np.linalg.norm(quaternion)
             orientation = pin.Quaternion(*quaternion[[3, 0, 1, 2]]).toRotationMatrix()
     elif args.orientation is not None:
         raise ValueError("--orientation is for a pose task")
-    if not args.step > 0:
-        raise ValueError("--step must be positive")
-    if not 0 <= args.restarts <= 100:
-        raise ValueError("--restarts must be in 0..100")
-    if args.top < 1:
-        raise ValueError("--top must be at least 1")
-    if args.jobs < 0:
-        raise ValueError("--jobs must be >= 0")
     tasks = len(grid.points()) * len(offsets)
     if tasks > MAX_TASKS:
         raise ValueError(f"{tasks} task points (grid x critical points): at most {MAX_TASKS}")
     return robot, grid, offsets, start, joints, orientation
 
 
+@cli.clear_file_errors("ft-map")
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args = _parser().parse_args(argv)
@@ -608,6 +606,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:  # RobotModelError is a ValueError
         print(f"ft-map: {error}", file=sys.stderr)
         return 1
+    cli.check_folder(args.output.parent)  # a file in the way fails now, not after the work
     placements = grid.points()
     positions = (placements[:, None, :] + offsets[None]).reshape(-1, placements.shape[1])
     targets = [task_target(robot, p, orientation) for p in positions]

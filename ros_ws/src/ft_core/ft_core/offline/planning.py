@@ -43,6 +43,8 @@ from ft_core.offline.reliability import TaskPoint, Trajectory
 
 #: Most manifold samples kept per task point for the search (every k-th sample).
 CANDIDATES = 400
+#: Most simulated failures of `--monte-carlo` (its draws take samples x joints x 8 bytes).
+MAX_SAMPLES = 10**6
 #: Tie-break (probability per second): of trajectories whose single-failure
 #: probabilities differ by less than this times their durations, the faster wins.
 #: Inside the intersection every lock is survived, so without it any detour there
@@ -241,8 +243,8 @@ def draw(points: Sequence[TaskPoint], plans: dict[str, Trajectory], path: Path,
     plt.close(fig)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run `ft-plan`; return the exit status (0 success, 1 bad input, 3 unreachable)."""
+def parser() -> argparse.ArgumentParser:
+    """`ft-plan`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-plan", description=__doc__.splitlines()[0])
     cli.add_model_arguments(parser, robot="planar3r")
     parser.add_argument("--points", required=True,
@@ -250,29 +252,33 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--start", required=True, help="start configuration 'q1,...,qn' (rad)")
     parser.add_argument("--rates", required=True,
                         help="failure rate per joint (1/s): one value for all, or n values")
-    parser.add_argument("--speed", type=float, default=0.5,
-                        help="joint speed v (rad/s), default %(default)s")
-    parser.add_argument("--monte-carlo", type=int, default=100000,
-                        help="simulated failures for the check (0: none), default %(default)s")
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--speed", type=cli.bounded(float, 1e-3, 100.0), default=0.5,
+                        help="joint speed v (rad/s, 0.001 to 100), default %(default)s")
+    parser.add_argument("--monte-carlo", type=cli.bounded(int, 0, MAX_SAMPLES), default=100000,
+                        help=f"simulated failures for the check (0: none; at most "
+                        f"{MAX_SAMPLES:g}), default %(default)s")
+    parser.add_argument("--workers", **cli.workers(os.cpu_count() or 1))
     parser.add_argument("--out", type=Path, default=Path("plan_out"), help="output folder")
-    args = parser.parse_args(argv)
+    return parser
+
+
+@cli.clear_file_errors("ft-plan")
+def main(argv: list[str] | None = None) -> int:
+    """Run `ft-plan`; return the exit status (0 success, 1 bad input, 3 unreachable)."""
+    args = parser().parse_args(argv)
     try:
         robot = cli.load_robot(args)
-        start = np.array(cli.numbers(args.start))
-        if start.shape != (robot.n,):
-            raise ValueError(f"--start needs {robot.n} joint values, got {start.size}")
+        start = cli.configuration(args.start, robot, "--start")
         rates = reliability.check_rates(cli.numbers(args.rates), robot.n)
-        if not args.speed > 0:
-            raise ValueError("--speed must be positive")
         flat = cli.parse_points(args.points)
         size = selfmotion.point_size(robot)
         selfmotion.targets_from_flat(robot, flat)
     except ValueError as error:
         print(f"ft-plan: {error}", file=sys.stderr)
         return 1
+    cli.check_folder(args.out)  # a file in the way fails now, not at the end
     try:
-        points = trace_points(args, flat, size, start, max(1, args.workers))
+        points = trace_points(args, flat, size, start, args.workers)
     except selfmotion.UnreachableError as error:
         print(f"ft-plan: {error}", file=sys.stderr)
         return 3

@@ -37,6 +37,9 @@ Rates = Sequence[float] | np.ndarray
 EDGE = 1e-9
 #: Segments the trajectory is divided into for the second-failure terms (sec. 4.2.3).
 SEGMENTS = 400
+#: 1/s; the largest failure rate taken: a joint failing once a second on average is no
+#: joint, and far larger rates underflow every interval's probability to 0.
+MAX_RATE = 1.0
 
 
 @dataclass(frozen=True)
@@ -304,10 +307,14 @@ def monte_carlo(points: Sequence[TaskPoint], trajectory: Trajectory, rates: Rate
 
 
 def check_rates(rates: Rates, n: int) -> np.ndarray:
-    """Failure rates (1/s) as an (n,) array: one value for all joints, or n (ValueError)."""
+    """Failure rates (1/s) as an (n,) array: one value for all joints, or n (ValueError).
+
+    Each in [0, `MAX_RATE`]: at 1e308/s every interval's probability underflowed to 0,
+    and the task's failure probability came out 0 where it is 1.
+    """
     lam = np.asarray(rates, dtype=float).reshape(-1)
     if lam.size == 1:
         lam = np.full(n, lam[0])
-    if lam.shape != (n,) or not np.all(np.isfinite(lam)) or np.any(lam < 0):
-        raise ValueError(f"rates must be one or {n} finite values >= 0 (1/s)")
+    if lam.shape != (n,) or not np.all((lam >= 0) & (lam <= MAX_RATE)):
+        raise ValueError(f"rates must be one or {n} values in [0, {MAX_RATE:g}] (1/s)")
     return lam
