@@ -268,6 +268,42 @@ def test_hostile_model_strings_are_refused_quickly() -> None:
         assert time.perf_counter() - start < 2.0
 
 
+def test_cyclic_deep_and_huge_joint_trees_are_refused_or_walked_without_recursion() -> None:
+    """Issue 31 item 9: URDF trees are checked and walked iteratively.
+
+    A cycle made the tip search loop forever (deaf to SIGINT), and the subtree walk
+    recursed without bound.
+    """
+    import threading
+
+    arm = [(f"j{i}", "revolute", f"l{i}", f"l{i + 1}") for i in range(3)]
+    cycles = [_urdf([*arm, ("back", "fixed", "l3", "l1")]),  # l1's parent was l0: two
+              _urdf([("a", "revolute", "x", "y"), ("b", "revolute", "y", "x"),
+                     *arm]),  # a loop, taken as the base: the old walk never ended
+              _urdf([("self", "revolute", "l", "l")])]
+    deep = _urdf([*arm, *((f"f{i}", "fixed", f"l{i}", f"l{i + 1}") for i in range(3, 1500))])
+    huge = _urdf([(f"f{i}", "fixed", f"m{i}", f"m{i + 1}") for i in range(2500)])
+    outcomes: list[str] = []
+
+    def work() -> None:
+        for urdf in [*cycles, huge]:
+            try:
+                robots.load(urdf, base_link="x" if urdf is cycles[1] else None)
+                outcomes.append("loaded")
+            except robots.RobotModelError as error:
+                outcomes.append(str(error))
+        outcomes.append(robots.load(deep).tip_link)
+
+    worker = threading.Thread(target=work, daemon=True)
+    worker.start()
+    worker.join(timeout=60)
+    assert not worker.is_alive(), f"a URDF walk did not end: {outcomes}"
+    assert "two parent joints" in outcomes[0]
+    assert all("form a cycle" in text for text in outcomes[1:3]), outcomes
+    assert "2500 joints (at most 2000)" in outcomes[3]
+    assert outcomes[4] == "l1500"  # the fixed tool chain followed to its end, 1500 deep
+
+
 def test_a_lone_gripper_joint_after_the_arm_is_not_taken_into_the_chain() -> None:
     """Issue 14: Unitree Z1's `jointGripper` (one revolute finger) joined the arm chain."""
     arm = [(f"joint{i}", "revolute", f"link0{i - 1}", f"link0{i}") for i in range(1, 7)]

@@ -138,6 +138,8 @@ def builtin_urdf(name: str) -> str:
 
 #: Largest URDF accepted (bytes): real arms' URDFs are tens of kilobytes.
 MAX_URDF_BYTES = 10_000_000
+#: Most joints a URDF may declare (the tree walks are quadratic in them at worst).
+MAX_URDF_JOINTS = 2000
 
 
 def _resolve(spec: str) -> tuple[str, str | None]:
@@ -175,7 +177,11 @@ def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
         raise RobotModelError(f"URDF root element is <{root.tag}>, expected <robot>")
     links = {link.get("name", "") for link in root.findall("link")}
     by_child: dict[str, _UrdfJoint] = {}
-    for element in root.findall("joint"):
+    elements = root.findall("joint")
+    if len(elements) > MAX_URDF_JOINTS:
+        raise RobotModelError(f"URDF declares {len(elements)} joints (at most "
+                              f"{MAX_URDF_JOINTS})")
+    for element in elements:
         parent, child = element.find("parent"), element.find("child")
         if parent is None or child is None:
             raise RobotModelError(f"URDF joint {element.get('name')!r} lacks <parent> or <child>")
@@ -186,7 +192,31 @@ def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
         by_child[joint.child] = joint
     if not links:
         raise RobotModelError("URDF has no links")
+    _check_acyclic(by_child)
     return root, by_child, links
+
+
+def _check_acyclic(by_child: dict[str, _UrdfJoint]) -> None:
+    """Raise RobotModelError if the joints form a cycle (the tree walks would not end).
+
+    Each link has one parent at most, so a cycle is a walk up the parents that comes
+    back to a link of the same walk. Every link is walked once: linear in the joints.
+    """
+    done: set[str] = set()
+    for start in by_child:
+        walk: list[str] = []
+        seen: set[str] = set()
+        link = start
+        while link in by_child and link not in done:
+            if link in seen:
+                cycle = walk[walk.index(link):]
+                raise RobotModelError(f"URDF joints form a cycle through links "
+                                      f"{[name[:64] for name in cycle[:6]]}"
+                                      f"{' ...' if len(cycle) > 6 else ''}")
+            seen.add(link)
+            walk.append(link)
+            link = by_child[link].parent
+        done.update(walk)
 
 
 def _children(by_child: dict[str, _UrdfJoint]) -> dict[str, list[_UrdfJoint]]:
@@ -197,18 +227,26 @@ def _children(by_child: dict[str, _UrdfJoint]) -> dict[str, list[_UrdfJoint]]:
     return children
 
 
+def _below(link: str, children: dict[str, list[_UrdfJoint]]) -> list[_UrdfJoint]:
+    """Every joint of the subtree below `link`, without recursion (a URDF may be deep)."""
+    found, stack = [], list(children.get(link, []))
+    while stack:
+        joint = stack.pop()
+        found.append(joint)
+        stack.extend(children.get(joint.child, []))
+    return found
+
+
 def _moving_subtrees(link: str, children: dict[str, list[_UrdfJoint]]) -> list[_UrdfJoint]:
     """The joints below `link` whose subtree holds at least one movable joint."""
-    def moves(joint: _UrdfJoint) -> bool:
-        return joint.kind in _MOVABLE or any(moves(j) for j in children.get(joint.child, []))
-
-    return [j for j in children.get(link, []) if moves(j)]
+    return [j for j in children.get(link, []) if j.kind in _MOVABLE
+            or any(k.kind in _MOVABLE for k in _below(j.child, children))]
 
 
 def _leaves(link: str, children: dict[str, list[_UrdfJoint]]) -> list[str]:
     """The links without children below `link` (candidate tool links)."""
-    below = children.get(link, [])
-    return [leaf for j in below for leaf in _leaves(j.child, children)] if below else [link]
+    leaves = [j.child for j in _below(link, children) if j.child not in children]
+    return leaves or [link]
 
 
 def _is_gripper(joint: _UrdfJoint) -> bool:
