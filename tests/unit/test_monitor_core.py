@@ -157,3 +157,32 @@ def test_the_state_file_is_keyed_by_namespace_robot_and_domain(tmp_path: Path) -
         "arm1__monitor--panda--domain7.json")
     assert locked_set.path_for("", "/monitor", "panda", 0).parent == (
         locked_set.default_directory())
+
+
+def test_a_hostile_state_file_is_refused_at_start_without_a_crash_or_a_hang(
+        tmp_path: Path) -> None:
+    """Issue 31 item 10: deeply nested JSON crashed the monitor at start, a FIFO hung it."""
+    import os
+
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 30_000 + "]" * 30_000)  # within the size bound
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    outcomes: list[str | None] = []
+
+    def start() -> None:
+        for store in (deep, fifo):
+            lp = Loop(store)
+            change = lp.monitor.restore(0.0)
+            assert not change.changed and lp.monitor.locked == {}
+            outcomes.append(lp.problems.get("state_directory"))
+
+    worker = threading.Thread(target=start, daemon=True)
+    worker.start()
+    worker.join(timeout=30)
+    if worker.is_alive():  # unblock the reader of the FIFO, then fail
+        with open(fifo, "w"):
+            pass
+    assert not worker.is_alive(), f"restoring hung: {outcomes}"
+    assert outcomes[0] is not None and "nested too deep" in outcomes[0]
+    assert outcomes[1] is not None and "not a regular file" in outcomes[1]

@@ -23,6 +23,7 @@ import json
 import math
 import os
 import re
+import stat
 import tempfile
 import threading
 from pathlib import Path
@@ -80,13 +81,28 @@ def save(path: Path, robot: str, locked: dict[str, float]) -> None:
 
 
 def load(path: Path, robot: str, joint_names: list[str]) -> dict[str, float]:
-    """{joint name: position (rad; nan if unknown)} stored for this robot; {} if no file."""
+    """{joint name: position (rad; nan if unknown)} stored for this robot; {} if no file.
+
+    Raises LockedSetError for anything but a regular file of at most `MAX_BYTES` (a FIFO
+    in its place hung the monitor at start), JSON nested too deep to parse (60 000
+    levels crashed it), or content that is not this robot's locked set.
+    """
     if not path.exists():
         return {}
     try:
-        if path.stat().st_size > MAX_BYTES:
+        status = path.stat()
+        if not stat.S_ISREG(status.st_mode):
+            raise LockedSetError(f"{path} is not a regular file")
+        if status.st_size > MAX_BYTES:
             raise LockedSetError(f"{path} is larger than {MAX_BYTES} bytes")
-        data = json.loads(path.read_text())
+        with path.open("rb") as file:
+            text = file.read(MAX_BYTES + 1)
+        if len(text) > MAX_BYTES:
+            raise LockedSetError(f"{path} is larger than {MAX_BYTES} bytes")
+        try:
+            data = json.loads(text)
+        except RecursionError:
+            raise LockedSetError(f"{path} is nested too deep to be a locked set") from None
         if not isinstance(data, dict) or data.get("robot") != robot:
             raise LockedSetError(f"{path} is not a locked set of robot {robot!r}")
         locked = data.get("locked")
