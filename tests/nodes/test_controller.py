@@ -257,13 +257,28 @@ def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
         assert plant.velocity()[3] == 0.0  # still locked: the forged set is refused
         assert "2 publishers" in node.problems.active["ft/locked_joints"]
         assert "/forger" in node.problems.active["ft/locked_joints"]
-    with controller(task_space="position") as (node, plant):
-        plant.frozen = True
-        monitor_publisher(plant, "impostor").publish(
-            convert.locked_message({"panda_joint2": Q0[1]}, plant.stamp()))
+        # Issue 31 item 11: the monitor's next lock is still taken beside the stranger.
+        monitor.publish(convert.locked_message({"panda_joint4": Q0[3], "panda_joint2": Q0[1]},
+                                               plant.stamp()))
         plant.run(10, twist_sender(plant, twist))
-        assert plant.velocity()[1] != 0.0  # a lone publisher that is not the monitor
-        assert "not by the monitor" in node.problems.active["ft/locked_joints"]
+        assert node.locked_joints == ["panda_joint2", "panda_joint4"]
+        assert plant.velocity()[1] == 0.0 and plant.velocity()[3] == 0.0
+        monitor.publish(convert.locked_message({}, plant.stamp()))  # a release waits
+        plant.run(10, twist_sender(plant, twist))
+        assert node.locked_joints == ["panda_joint2", "panda_joint4"]
+    # Another name, or the monitor's name in another namespace.
+    for namespace, name in ((None, "impostor"), ("/evil", "monitor")):
+        impostor = f"{namespace or ''}/{name}"
+        with controller(task_space="position") as (node, plant):
+            plant.frozen = True
+            stranger = rclpy.create_node(name, namespace=namespace, context=plant.node.context)
+            plant.executor.add_node(stranger)
+            stranger.create_publisher(JointState, "/ft/locked_joints", qos.LATCHED).publish(
+                convert.locked_message({"panda_joint2": Q0[1]}, plant.stamp()))
+            plant.run(10, twist_sender(plant, twist))
+            assert plant.velocity()[1] != 0.0  # a lone publisher that is not the monitor
+            problem = node.problems.active["ft/locked_joints"]
+            assert "not by the monitor '/monitor'" in problem and impostor in problem
 
 
 def test_twist_in_another_frame_is_rejected() -> None:

@@ -32,7 +32,16 @@ from ft_core.observability import ObservabilityConfig
 from ft_core.recovery import RecoveryConfig
 from ft_core.robots import Robot, RobotModelError
 from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
-from ft_msgs_py import convert, diagnostics, metrics, names, parameters, qos, spin
+from ft_msgs_py import (
+    convert,
+    diagnostics,
+    metrics,
+    names,
+    parameters,
+    publishers,
+    qos,
+    spin,
+)
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -89,7 +98,8 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "velocity_scale": (_ENGINE.velocity_scale, "fraction of the URDF velocity limits",
                        parameters.float_range(0.01, 1.0)),
     "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
-                     "in this namespace (empty: any single publisher)", {"read_only": True}),
+                     "in this namespace unless absolute (empty: any single publisher)",
+                     {"read_only": True}),
     "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
                                "null-space motion (kfm ascent, limit avoidance); otherwise "
                                "hold still", {}),
@@ -352,33 +362,28 @@ class ControllerNode(SuiteNode):
         self.problems.report("ft/target_pose", None)
         self.core.set_pose_goal(goal, self.now())
 
-    def _locked_publisher_problem(self) -> str | None:
-        """Why `ft/locked_joints` cannot be trusted now, or None (one publisher: the monitor)."""
-        publishers = self.get_publishers_info_by_topic(
-            self.resolve_topic_name(names.LOCKED_JOINTS))
-        expected = self.param("monitor_name")
-        named = sorted(f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in publishers)
-        if len(publishers) > 1:
-            return (f"{len(publishers)} publishers {named[:10]}: only the monitor may publish "
-                    "the locked set (see docs/security.md on SROS2); ignored")
-        if expected and publishers and publishers[0].node_name != expected:
-            return f"published by {named[0]}, not by the monitor '{expected}'; ignored"
-        return None
-
     def _on_locked(self, msg: JointState) -> None:
         if self.robot is None:
             return
-        problem = self._locked_publisher_problem()
-        self.problems.report("ft/locked_joints", problem)
-        if problem is not None:
+        graph = self.get_publishers_info_by_topic(self.resolve_topic_name(names.LOCKED_JOINTS))
+        monitor = self.param("monitor_name")
+        verdict = publishers.judge(
+            [publishers.full_name(p.node_namespace, p.node_name) for p in graph],
+            publishers.expected(monitor, self.get_namespace()) if monitor else None)
+        self.problems.report("ft/locked_joints", verdict.problem)
+        if verdict.take == "none":
             return
         try:
             locked, unknown = convert.locked_joints(msg, self.robot.joint_names)
         except convert.MessageError as error:
-            self.get_logger().error(f"ft/locked_joints: {error}: ignored")
+            self.get_logger().error(f"ft/locked_joints: {error}: ignored",
+                                    throttle_duration_sec=5.0)
             return
         if unknown:
-            self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored")
+            self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored",
+                                      throttle_duration_sec=5.0)
+        if verdict.take == "additions" and not set(locked) >= set(self.locked_joints):
+            return  # a release while a stranger publishes: not taken (see `publishers`)
         if set(locked) != set(self.locked_joints):
             self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
         self.core.set_locked([self.robot.joint_names.index(name) for name in locked],
