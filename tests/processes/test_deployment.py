@@ -55,6 +55,9 @@ def assert_observed_healthy_motion(g: Graph) -> None:
     assert monitor, "no diagnostics from the monitor"
     assert any(v.get("observing") == "yes" for v in monitor), "the monitor never observed"
     assert monitor[-1].get("plant_model") == "identified", monitor[-1]
+    guard = [s.message for _, s in g.diagnostics.get("/controller", [])
+             if "no answer from the monitor" in s.message]
+    assert guard == [], f"the guard of a dead monitor fired on a live one: {guard[:3]}"
 
 
 def observing(g: Graph) -> None:
@@ -151,6 +154,53 @@ def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
             g.start("controller")
             g.spin(5.0, goal_period=1.5)
         assert_observed_healthy_motion(g)
+
+
+def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Path) -> None:
+    """Issue 31 item 12: a dead monitor no longer leaves the arm moving.
+
+    With the monitor killed, the plant held its last command (1.22 rad in 3 s). The
+    controller's guard sees its commands go unanswered and commands zeros on the plant's
+    topics itself; the arm must move less than 0.05 rad after the kill.
+
+    What the arm travels is about its speed times the guard's timeout (0.05 s), a control
+    period and the plant's 0.1 s of lag: here at most 0.26 rad/s (velocity_scale 0.1),
+    about 0.045 rad. The speed when the monitor dies is in the failure message.
+    """
+    values = parameters(tmp_path, HOLDING_PLANT)
+    values["controller"]["velocity_scale"] = 0.1
+    with graph(tmp_path, values) as g:
+        observing(g)
+        g.send_goal(0)
+        g.spin(0.3)
+        g.send_goal(2)  # a long move: the arm is moving fast when the monitor dies
+        g.wait(lambda: bool(g.commands) and np.max(np.abs(g.commands[-1].velocity)) > 0.08,
+               10.0, "the arm moving")
+        speed = float(np.max(np.abs(g.commands[-1].velocity)))
+        killed = time.time()
+        g.kill("monitor")
+        seen, heard = len(g.states), len(g.commands)
+        g.spin(3.0)
+        after = np.array([m.position for m in g.states[seen:]])
+        assert len(after) >= 10, f"{len(after)} joint states in the 3 s after the kill"
+        travel = float(np.max(np.ptp(after, axis=0)))
+        zeros = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
+                 if not any(c.velocity)]
+        moving = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
+                  if any(c.velocity)]
+        assert travel < 0.05, (
+            f"the arm moved {travel:.3f} rad after the kill (at {speed:.2f} rad/s when it "
+            f"died); guard's first zeros {zeros[:1]} s after it, last motion command "
+            f"{moving[-1:]} s")
+        problems = [s.message for _, s in g.diagnostics.get("/controller", [])]
+        assert any("no answer from the monitor" in m for m in problems), problems[-3:]
+        # The guard's zeros, every control cycle (the dead monitor's last ones came before).
+        assert len(g.commands) - heard > 100 and not any(g.commands[-1].velocity)
+        # A new monitor answers again: the guard stops, motion resumes.
+        g.start("monitor")
+        g.wait(lambda: "no answer from the monitor" not in
+               g.diagnostics["/controller"][-1][1].message, 30.0, "the guard to stop",
+               goal_period=1.5)
 
 
 @pytest.mark.slow

@@ -127,3 +127,32 @@ def test_array_vectors_are_put_in_chain_order_and_checked() -> None:
         convert.array_vector([1.0, 2.0], [0, 1, 2])
     with pytest.raises(convert.MessageError, match="non-finite"):
         convert.array_vector([1.0, float("nan"), 3.0], [0, 1, 2])
+
+
+def test_the_monitor_guard_fires_only_after_an_echo_went_missing() -> None:
+    """Issue 31 item 12: the controller's guard of a dead monitor (ft_msgs_py.monitor_guard)."""
+    from ft_msgs_py.monitor_guard import MonitorGuard
+
+    guard = MonitorGuard(timeout=0.15)
+    for k in range(100):  # no monitor in this graph: no echo ever, never silent
+        guard.sent((k, 0), 0.01 * k)
+        assert guard.silent(0.01 * k) is None
+    guard.received((5, 0))  # an echo of a command sent long ago
+    guard.received((99, 0))  # the latest command's echo: the monitor is there
+    guard.received((1000, 0))  # someone else's message (the guard's own zeros): no echo
+    now = 1.0
+    for k in range(100, 110):  # commands answered within a cycle: never silent
+        guard.sent((k, 0), now)
+        guard.received((k, 0))
+        now += 0.01
+        assert guard.silent(now) is None
+    guard.sent((200, 0), now)  # then the monitor dies
+    assert guard.silent(now + 0.14) is None
+    assert guard.silent(now + 0.2) == pytest.approx(0.2)
+    guard.sent((201, 0), now + 0.21)  # later commands do not restart the wait
+    assert guard.silent(now + 0.22) == pytest.approx(0.22)
+    guard.received((201, 0))  # a restarted monitor answers
+    assert guard.silent(now + 0.3) is None
+    guard.timeout = 0.0  # off
+    guard.sent((202, 0), now + 0.3)
+    assert guard.silent(now + 5.0) is None

@@ -43,6 +43,7 @@ from ft_msgs_py import (
     spin,
 )
 from ft_msgs_py.loop import LoopAccounting
+from ft_msgs_py.monitor_guard import MonitorGuard
 from ft_msgs_py.node import SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -55,6 +56,10 @@ from std_msgs.msg import Float64MultiArray, Header
 DIAGNOSTICS_PERIOD = 0.5
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
 WATCHDOG_PERIOD = 0.05
+#: s of steady time without the monitor's echo before the guard commands zeros
+#: (`ft_msgs_py.monitor_guard`): 5 cycles at 100 Hz; the echo normally takes a few ms.
+#: Each 10 ms more lets a dead monitor's last command run on 10 ms longer.
+MONITOR_TIMEOUT = 0.05
 
 #: The defaults of every parameter that configures the core: its dataclasses' own.
 _ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
@@ -89,6 +94,9 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                        "timeout", parameters.float_range(0.001, 60.0)),
     "state_timeout": (_CYCLE.state_timeout, "s; older joint states stop the arm",
                       parameters.float_range(0.001, 60.0)),
+    "monitor_timeout": (MONITOR_TIMEOUT, "s (steady) without the monitor's answer to a command "
+                        "before the controller publishes zeros on ft/command and "
+                        "ft/command_array itself (0: off)", parameters.float_range(0.0, 60.0)),
     "position_gain": (_TRACKING.gain, "1/s, pose-goal tracking",
                       parameters.float_range(0.01, 100.0)),
     "max_linear_speed": (_TRACKING.max_linear, "m/s, pose-goal tracking",
@@ -142,6 +150,13 @@ class ControllerNode(SuiteNode):
         self._rate = 0.0
 
         self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
+        # The plant's own topics, for the guard's zeros when the monitor is gone.
+        self._guard = MonitorGuard(self.param("monitor_timeout"))
+        self._plant_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
+        self._plant_array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
+                                                      qos.RELIABLE)
+        self._echo_subscription = self.create_subscription(
+            JointState, names.COMMAND, self._on_plant_command, qos.SENSOR_INPUT)
         self._metrics_pub = self.create_publisher(Float64MultiArray, names.METRICS, qos.RELIABLE)
         self._suspect_pub = self.create_publisher(JointState, names.SUSPECTED_FAILURE,
                                                   qos.RELIABLE)
@@ -263,6 +278,7 @@ class ControllerNode(SuiteNode):
 
     def _apply(self, parameters: list[Parameter]) -> None:
         changed = {p.name for p in parameters}
+        self._guard.timeout = self.param("monitor_timeout")
         if "control_rate" in changed:
             self.accounting.period = 1.0 / self.param("control_rate")
             self._timer.cancel()
@@ -313,9 +329,11 @@ class ControllerNode(SuiteNode):
     def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
         """Give every command to `take` as a call (the monitor's, in the same process).
 
-        `ft/command_raw` is then published only while someone else subscribes to it.
+        `ft/command_raw` is then published only while someone else subscribes to it. The
+        guard of a dead monitor is off: the monitor dies only with this process.
         """
         self._command_taker = take
+        self.destroy_subscription(self._echo_subscription)
 
     def use_shared_joint_states(self) -> Callable[[JointState], None]:
         """Stop taking `joint_states` here; returns what to call with each one instead."""
@@ -390,8 +408,31 @@ class ControllerNode(SuiteNode):
                              self.now())
 
     # ------------------------------------------------------------------- cycle
+    def _on_plant_command(self, msg: JointState) -> None:
+        """What the plant is told (`ft/command`): the monitor's echo of a command, or not."""
+        self._guard.received((msg.header.stamp.sec, msg.header.stamp.nanosec))
+
+    def _check_monitor(self) -> None:
+        """Zeros on the plant's topics (and an ERROR) while the monitor does not answer."""
+        silent = self._guard.silent(time.monotonic())
+        if silent is None:
+            self.problems.report("monitor", None)
+            return
+        self.problems.report("monitor", f"no answer from the monitor for {silent:.2f} s: "
+                             "commanding zeros on ft/command and ft/command_array")
+        if self.robot is not None:
+            zeros = [0.0] * self.robot.n
+            self._plant_pub.publish(convert.joint_state(self.command_joints,
+                                                        self.get_clock().now().to_msg(),
+                                                        velocity=zeros))
+            self._plant_array_pub.publish(Float64MultiArray(data=zeros))
+
     def _check_watchdog(self) -> None:
-        """Zeros (and an ERROR) while no control cycle has run for `state_timeout` (steady)."""
+        """Zeros (and an ERROR) while no control cycle has run for `state_timeout` (steady).
+
+        Also the guard of a dead monitor (`_check_monitor`).
+        """
+        self._check_monitor()
         silent = time.monotonic() - self._last_cycle
         if silent <= max(self.param("state_timeout"), 2.0 / self.param("control_rate")):
             self.problems.report("control loop", None)
@@ -406,6 +447,7 @@ class ControllerNode(SuiteNode):
         self.accounting.start()
         try:
             self._control()
+            self._check_monitor()
         finally:
             self.accounting.end()
 
@@ -439,6 +481,7 @@ class ControllerNode(SuiteNode):
         msg.velocity = qd_chain[self._order].tolist()
         if self._command_taker is None or self._command_pub.get_subscription_count():
             self._command_pub.publish(msg)
+        self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic())
         if self._command_taker is not None:
             self._command_taker(msg)
         if result is None or not self._metrics_pub.get_subscription_count():

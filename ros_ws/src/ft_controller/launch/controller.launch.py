@@ -4,7 +4,8 @@
 
 The controller's parameters come from the YAML file (default: this package's
 config/controller.yaml); the monitor shares the model selection. The monitor's
-`ft/command_array` is remapped to a JointGroupVelocityController named
+`ft/command_array` (and the controller's, for its zeros when the monitor is gone) is
+remapped to a JointGroupVelocityController named
 `forward_velocity_controller`; `joint_states` comes from joint_state_broadcaster.
 """
 
@@ -16,6 +17,9 @@ from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+#: The velocity controller's command topic (ros2_control's forward_command_controller).
+PLANT = ("ft/command_array", "/forward_velocity_controller/commands")
+
 
 def generate_launch_description():
     """The controller and monitor nodes."""
@@ -25,9 +29,12 @@ def generate_launch_description():
     return LaunchDescription([
         DeclareLaunchArgument("params", default_value=default,
                               description="YAML parameters file of the controller"),
+        # The plant's topic, for both: the monitor's commands, and the controller's zeros
+        # while the monitor does not answer (its `monitor_timeout`, docs/controller.md).
         Node(package="ft_controller", executable="controller_node", name="controller",
-             parameters=[params], output="screen"),
+             parameters=[params], output="screen", remappings=[PLANT]),
+        # Respawned if it dies.
         Node(package="ft_monitor", executable="monitor_node", name="monitor",
-             parameters=[params], output="screen",
-             remappings=[("ft/command_array", "/forward_velocity_controller/commands")]),
+             parameters=[params], output="screen", respawn=True, respawn_delay=1.0,
+             remappings=[PLANT]),
     ])

@@ -200,11 +200,12 @@ class Scenario:
             "hold_last_command": config.hold_last_command,
             "initial_positions": [float(v) for v in start]})
         # Lock-step on simulated time: wall-clock gaps between steps (a busy machine) are not
-        # stalls of the loop, so neither node's steady-time watchdog may fire in them (the
-        # controller's is max(state_timeout, 2 periods); states are always fresh here).
+        # stalls of the loop, so no steady-time watchdog may fire in them (the controller's
+        # is max(state_timeout, 2 periods), its guard of a dead monitor monitor_timeout;
+        # states are always fresh here).
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
-            state_timeout=60.0, **{"recovery.enabled": config.recovery},
+            state_timeout=60.0, monitor_timeout=60.0, **{"recovery.enabled": config.recovery},
             **({"critical_points": flat} if config.soft_limits and flat else {})))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")

@@ -39,6 +39,7 @@ def generate_launch_description():
              parameters=[{**MODEL, "use_sim_time": True, "resolution": "blend",
                           "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}]),
         Node(package="ft_monitor", executable="monitor_node", name="monitor",
+             respawn=True, respawn_delay=1.0,
              parameters=[{**MODEL, "use_sim_time": True,
                           "state_directory": LaunchConfiguration("state_directory")}]),
     ])
