@@ -11,6 +11,7 @@ clear line and a non-zero exit status, before any long computation.
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -85,7 +86,7 @@ def _one_joint(tmp: Path) -> str:
 
 
 #: (tool's main, arguments, exit status, words of its message); "{tmp}" is a temporary
-#: folder, "{file}" a file in it, "{one}" a URDF with a single joint.
+#: folder, "{file}" a file in it, "{fifo}" a FIFO, "{one}" a URDF with a single joint.
 REFUSED = [
     (bounds.main, ["--robot", "planar3r", "--task", "planar", "--points", "1,0.5", "--step",
                    "inf"], 2, "outside"),
@@ -119,6 +120,8 @@ REFUSED = [
                       "-o", "{file}/map"], 1, "is a file"),
     (design.main, ["multicase", "-o", "{tmp}/x.json", "--step", "1e-9"], 2, "outside"),
     (design.main, ["r7", "-o", "{file}/x.json"], 1, "is a file"),
+    (design.main, ["dh", "-o", "{tmp}/x.json", "--jacobian", "{fifo}"], 1,
+     "not a regular file"),
     (demo.main, ["--seed", "-1"], 2, "outside"),
     (demo.main, ["--duration", "1e308"], 2, "outside"),
     (demo.main, ["--out", "{file}"], 1, "is a file"),
@@ -135,8 +138,9 @@ def test_careless_command_lines_get_one_clear_line_and_a_failure_status(
         main: Callable[[list[str]], int], argv: list[str], status: int, words: str,
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "file").write_text("in the way\n")
-    argv = [a.format(tmp=tmp_path, file=tmp_path / "file", one=_one_joint(tmp_path))
-            for a in argv]
+    os.mkfifo(tmp_path / "fifo")  # reading it would hang
+    argv = [a.format(tmp=tmp_path, file=tmp_path / "file", fifo=tmp_path / "fifo",
+                     one=_one_joint(tmp_path)) for a in argv]
     if "--out" not in argv and main in (planning.main, demo.main, campaign.main):
         argv += ["--out", str(tmp_path / "out")]
     if "-o" not in argv and main in (bounds.main, placement.main):

@@ -389,10 +389,16 @@ def _load_jacobian(path: Path | None) -> np.ndarray:
 
     if path is None:
         return dh.J_STAR
-    data = json.loads(path.read_text())
+    try:
+        data = json.loads(cli.read_small_file(path))
+    except RecursionError:
+        raise ValueError(f"{path} is nested too deep to be a Jacobian") from None
     J = np.asarray(data["jacobian"] if isinstance(data, dict) else data, dtype=float)
-    if J.ndim != 2 or J.shape[0] != 6:
-        raise ValueError(f"{path}: need a 6 x n Jacobian, got shape {J.shape}")
+    if J.ndim != 2 or J.shape[0] != 6 or not 1 <= J.shape[1] <= MAX_JOINTS:
+        raise ValueError(f"{path}: need a 6 x n Jacobian (n 1 to {MAX_JOINTS}), got shape "
+                         f"{J.shape}")
+    if not np.all(np.isfinite(J)):
+        raise ValueError(f"{path}: the Jacobian has non-finite entries")
     return J
 
 
