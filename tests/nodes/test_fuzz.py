@@ -225,7 +225,10 @@ parameter_values = st.one_of(
     numbers, st.integers(min_value=-(2**63), max_value=2**63 - 1), st.booleans(),
     st.sampled_from(["", "panda", "x" * 1000, "<robot/>", "blend", "nonsense"]),
     st.lists(numbers, max_size=20), st.lists(st.sampled_from([*NAMES, "x"]), max_size=10),
-    st.lists(st.integers(-5, 5), max_size=8), st.just([]))
+    st.lists(st.integers(-5, 5), max_size=8), st.just([]),
+    # Issue 31: 10^5-element arrays (refused unread), 1e308 in every entry of 7 (weights).
+    st.builds(lambda v: [v] * 100_000, st.sampled_from([0.5, 1e308])),
+    st.builds(lambda v: [v] * 7, st.sampled_from([1e308, -1e308, 5e-324])))
 
 
 @pytest.mark.parametrize("which", ["controller", "monitor", "sim"])

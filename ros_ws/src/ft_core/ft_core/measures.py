@@ -118,8 +118,9 @@ def failure_weights(probabilities: Iterable[float] | None, n: int,
     if not np.all(np.isfinite(p)) or np.any(p < 0):
         raise ValueError(f"failure probabilities must be finite and >= 0, got {p}")
     p = np.where(mask, 0.0, p)
-    if p.sum() <= 0:
+    if not np.any(p > 0):
         raise ValueError("failure probabilities of the healthy joints are all zero")
+    p = p / p.max()  # relative values up to 1e308 sum without overflow
     return p / p.sum()
 
 
