@@ -181,17 +181,22 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         g.kill("monitor")
         seen, heard = len(g.states), len(g.commands)
         g.spin(3.0)
-        after = np.array([m.position for m in g.states[seen:]])
-        assert len(after) >= 10, f"{len(after)} joint states in the 3 s after the kill"
+        states = g.states[seen:]
+        assert len(states) >= 10, f"{len(states)} joint states in the 3 s after the kill"
+        after = np.array([m.position for m in states])
         travel = float(np.max(np.ptp(after, axis=0)))
         zeros = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
                  if not any(c.velocity)]
-        moving = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
-                  if any(c.velocity)]
-        assert travel < 0.05, (
+        assert zeros and zeros[0] < 0.2, f"the guard's first zeros {zeros[:1]} s after the kill"
+        # The sim integrates the held command over a stall of its own process (a loaded
+        # machine stalled it for 1 s once): that motion is the plant's, not the guard's.
+        stamps = [killed] + [convert.stamp_seconds(m.header.stamp) for m in states]
+        stall = max(0.0, float(np.max(np.diff(stamps))) - 0.05)
+        assert travel < 0.05 + speed * stall, (
             f"the arm moved {travel:.3f} rad after the kill (at {speed:.2f} rad/s when it "
-            f"died); guard's first zeros {zeros[:1]} s after it, last motion command "
-            f"{moving[-1:]} s")
+            f"died; guard's first zeros {zeros[0]:.3f} s after it; the sim stalled "
+            f"{stall:.3f} s)")
+        assert not any(states[-1].velocity), "the arm did not come to rest"
         problems = [s.message for _, s in g.diagnostics.get("/controller", [])]
         assert any("no answer from the monitor" in m for m in problems), problems[-3:]
         # The guard's zeros, every control cycle (the dead monitor's last ones came before).
