@@ -156,6 +156,13 @@ def test_controller_kill_and_restart_locks_nothing(tmp_path: Path) -> None:
         assert_observed_healthy_motion(g)
 
 
+def stalled(since: float, messages: list) -> float:
+    """S a publisher went silent beyond 50 ms, at most, in `messages` stamped after `since`."""
+    stamps = [since] + [convert.stamp_seconds(m.header.stamp) for m in messages
+                        if convert.stamp_seconds(m.header.stamp) > since]
+    return max(0.0, float(np.max(np.diff(stamps))) - 0.05) if len(stamps) > 1 else 0.0
+
+
 def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Path) -> None:
     """Issue 31 item 12: a dead monitor no longer leaves the arm moving.
 
@@ -187,16 +194,16 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         travel = float(np.max(np.ptp(after, axis=0)))
         zeros = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
                  if not any(c.velocity)]
-        assert zeros and zeros[0] < 0.2, f"the guard's first zeros {zeros[:1]} s after the kill"
-        # The sim integrates the held command over a stall of its own process (a loaded
-        # machine stalled it for 1 s once): that motion is the plant's, not the guard's.
-        stamps = [killed] + [convert.stamp_seconds(m.header.stamp) for m in states]
-        stall = max(0.0, float(np.max(np.diff(stamps))) - 0.05)
+        # A process the loaded machine stalls cannot act meanwhile (1.2 s seen for the
+        # controller, 1 s for the sim, which then integrates the held command over it): the
+        # guard is judged on the time its processes ran.
+        stall = stalled(killed, g.raw_commands) + stalled(killed, states)
+        assert zeros and zeros[0] < 0.2 + stall, (
+            f"the guard's first zeros {zeros[:1]} s after the kill ({stall:.2f} s stalled)")
         assert travel < 0.05 + speed * stall, (
             f"the arm moved {travel:.3f} rad after the kill (at {speed:.2f} rad/s when it "
-            f"died; guard's first zeros {zeros[0]:.3f} s after it; the sim stalled "
-            f"{stall:.3f} s)")
-        assert not any(states[-1].velocity), "the arm did not come to rest"
+            f"died; guard's first zeros {zeros[0]:.3f} s after it; {stall:.3f} s stalled)")
+        g.wait(lambda: np.max(np.abs(g.states[-1].velocity)) < 1e-6, 5.0, "the arm at rest")
         problems = [s.message for _, s in g.diagnostics.get("/controller", [])]
         assert any("no answer from the monitor" in m for m in problems), problems[-3:]
         # The guard's zeros, every control cycle (the dead monitor's last ones came before).
