@@ -248,6 +248,13 @@ def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
     with controller(task_space="position") as (node, plant):
         plant.frozen = True
         monitor = monitor_publisher(plant)
+        # The monitor's command path: it forwards each command, its locked joints zeroed.
+        zeroed = {3}
+        forwarded = plant.node.create_publisher(JointState, "ft/command", qos.RELIABLE)
+        plant.node.create_subscription(JointState, "ft/command_raw", lambda msg: (
+            forwarded.publish(JointState(header=msg.header, name=list(msg.name), velocity=[
+                0.0 if j in zeroed else v for j, v in enumerate(msg.velocity)]))),
+            qos.SENSOR_INPUT)
         monitor.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))
         plant.run(10, twist_sender(plant, twist))
         assert plant.velocity()[3] == 0.0
@@ -257,7 +264,13 @@ def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
         assert plant.velocity()[3] == 0.0  # still locked: the forged set is refused
         assert "2 publishers" in node.problems.active["ft/locked_joints"]
         assert "/forger" in node.problems.active["ft/locked_joints"]
-        # Issue 31 item 11: the monitor's next lock is still taken beside the stranger.
+        # Issue 31 item 11: beside the stranger, a new lock is taken once the monitor's
+        # command path shows it; a forged one, which the monitor does not zero, is not.
+        forger.publish(convert.locked_message({"panda_joint4": Q0[3], "panda_joint6": Q0[5]},
+                                              plant.stamp()))
+        plant.run(10, twist_sender(plant, twist))
+        assert node.locked_joints == ["panda_joint4"]
+        zeroed.add(1)  # the monitor locks panda_joint2
         monitor.publish(convert.locked_message({"panda_joint4": Q0[3], "panda_joint2": Q0[1]},
                                                plant.stamp()))
         plant.run(10, twist_sender(plant, twist))

@@ -135,24 +135,42 @@ def test_the_monitor_guard_fires_only_after_an_echo_went_missing() -> None:
 
     guard = MonitorGuard(timeout=0.15)
     for k in range(100):  # no monitor in this graph: no echo ever, never silent
-        guard.sent((k, 0), 0.01 * k)
+        guard.sent((k, 0), 0.01 * k, [0.1])
         assert guard.silent(0.01 * k) is None
-    guard.received((5, 0))  # an echo of a command sent long ago
-    guard.received((99, 0))  # the latest command's echo: the monitor is there
-    guard.received((1000, 0))  # someone else's message (the guard's own zeros): no echo
+    guard.received((5, 0), [0.1])  # an echo of a command sent long ago
+    guard.received((99, 0), [0.1])  # the latest command's echo: the monitor is there
+    assert not guard.received((1000, 0), [0.1])  # someone else's (the guard's own zeros)
     now = 1.0
     for k in range(100, 110):  # commands answered within a cycle: never silent
-        guard.sent((k, 0), now)
-        guard.received((k, 0))
+        guard.sent((k, 0), now, [0.1])
+        guard.received((k, 0), [0.1])
         now += 0.01
         assert guard.silent(now) is None
-    guard.sent((200, 0), now)  # then the monitor dies
+    guard.sent((200, 0), now, [0.1])  # then the monitor dies
     assert guard.silent(now + 0.14) is None
     assert guard.silent(now + 0.2) == pytest.approx(0.2)
-    guard.sent((201, 0), now + 0.21)  # later commands do not restart the wait
+    guard.sent((201, 0), now + 0.21, [0.1])  # later commands do not restart the wait
     assert guard.silent(now + 0.22) == pytest.approx(0.22)
-    guard.received((201, 0))  # a restarted monitor answers
+    guard.received((201, 0), [0.1])  # a restarted monitor answers
     assert guard.silent(now + 0.3) is None
     guard.timeout = 0.0  # off
-    guard.sent((202, 0), now + 0.3)
+    guard.sent((202, 0), now + 0.3, [0.1])
     assert guard.silent(now + 5.0) is None
+
+
+def test_the_monitors_echoes_show_the_joints_it_holds_locked() -> None:
+    """The monitor zeros its locked joints in what it forwards.
+
+    The controller's check of a contested locked set (ft_msgs_py.publishers).
+    """
+    from ft_msgs_py.monitor_guard import MonitorGuard
+
+    guard = MonitorGuard(timeout=0.1)
+    guard.sent((1, 0), 0.0, [0.1, 0.2, 0.0, -0.3])
+    assert guard.received((1, 0), [0.12, 0.0, 0.0, -0.25])  # joint 1 zeroed (2 was 0 anyway)
+    assert guard.zeroed == {1}
+    guard.sent((2, 0), 0.01, [0.1, 0.2, 0.3, 0.4])
+    assert guard.received((2, 0), [0.0, 0.0, 0.0, 0.0])  # a refused command: no news
+    assert guard.zeroed == {1}
+    assert not guard.received((3, 0), [0.0, 0.5, 0.0, 0.0])  # not an echo: no news
+    assert guard.zeroed == {1}

@@ -152,6 +152,9 @@ class ControllerNode(SuiteNode):
         self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
         # The plant's own topics, for the guard's zeros when the monitor is gone.
         self._guard = MonitorGuard(self.param("monitor_timeout"))
+        #: A locked set heard while a stranger publishes too: its new locks wait for the
+        #: monitor's echoes to show them (`_take_corroborated`).
+        self._contested: set[str] = set()
         self._plant_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._plant_array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                       qos.RELIABLE)
@@ -400,8 +403,11 @@ class ControllerNode(SuiteNode):
         if unknown:
             self.get_logger().warning(f"ft/locked_joints: unknown joints {unknown} ignored",
                                       throttle_duration_sec=5.0)
-        if verdict.take == "additions" and not set(locked) >= set(self.locked_joints):
-            return  # a release while a stranger publishes: not taken (see `publishers`)
+        if verdict.take == "additions":  # taken as the monitor's echoes confirm it
+            self._contested = set(locked)
+            self._take_corroborated()
+            return
+        self._contested = set()
         if set(locked) != set(self.locked_joints):
             self.get_logger().warning(f"locked joints now {sorted(locked) or 'none'}")
         self.core.set_locked([self.robot.joint_names.index(name) for name in locked],
@@ -410,7 +416,27 @@ class ControllerNode(SuiteNode):
     # ------------------------------------------------------------------- cycle
     def _on_plant_command(self, msg: JointState) -> None:
         """What the plant is told (`ft/command`): the monitor's echo of a command, or not."""
-        self._guard.received((msg.header.stamp.sec, msg.header.stamp.nanosec))
+        if self._guard.received((msg.header.stamp.sec, msg.header.stamp.nanosec),
+                                msg.velocity):
+            self._take_corroborated()
+
+    def _take_corroborated(self) -> None:
+        """Of a contested locked set, take the new locks the monitor's echoes show.
+
+        The monitor zeros its locked joints on the command path (`ft_msgs_py.publishers`).
+        """
+        if not self._contested or self.robot is None:
+            return
+        current = set(self.locked_joints)
+        shown = {self.command_joints[j] for j in self._guard.zeroed
+                 if j < len(self.command_joints)}
+        confirmed = (self._contested - current) & shown
+        if confirmed:
+            self.get_logger().warning(f"locked joints now {sorted(current | confirmed)} "
+                                      "(the monitor's commands show them)")
+            self.core.set_locked([self.robot.joint_names.index(name)
+                                  for name in current | confirmed], self.now())
+        self._contested -= confirmed
 
     def _check_monitor(self) -> None:
         """Zeros on the plant's topics (and an ERROR) while the monitor does not answer."""
@@ -481,7 +507,8 @@ class ControllerNode(SuiteNode):
         msg.velocity = qd_chain[self._order].tolist()
         if self._command_taker is None or self._command_pub.get_subscription_count():
             self._command_pub.publish(msg)
-        self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic())
+        self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),
+                         msg.velocity)
         if self._command_taker is not None:
             self._command_taker(msg)
         if result is None or not self._metrics_pub.get_subscription_count():

@@ -8,11 +8,17 @@ the monitor's echo. Once an echo has been seen (a graph without a monitor never
 triggers the guard), commands left unanswered for `timeout` s of steady time mean the
 monitor is gone or stalled: the controller then publishes explicit zeros on the plant's
 command topics itself, until an echo comes back. Times are steady seconds.
+
+The echoes also say which joints the monitor holds locked, in a way no other node can
+forge by merely publishing: it zeros them on the command path (`zeroed`). The controller
+uses that to tell the monitor's locked set from a stranger's while both publish
+(`ft_msgs_py.publishers`).
 """
 
 from __future__ import annotations
 
-from collections import deque
+from collections import OrderedDict
+from collections.abc import Sequence
 
 #: Stamps of sent commands remembered for matching echoes (a few cycles' worth).
 REMEMBERED = 64
@@ -25,20 +31,36 @@ class MonitorGuard:
 
     def __init__(self, timeout: float):
         self.timeout = timeout
-        self._sent: deque[Stamp] = deque(maxlen=REMEMBERED)
+        self._sent: OrderedDict[Stamp, tuple[float, ...]] = OrderedDict()
         self._seen = False  # an echo has come at least once
         self._waiting_since: float | None = None  # first command unanswered since
+        #: Joints (command order) the latest echo zeroed where the command moved them: the
+        #: monitor's locked set, as its command path shows it.
+        self.zeroed: frozenset[int] = frozenset()
 
-    def sent(self, stamp: Stamp, now: float) -> None:
-        """A command went out on `ft/command_raw` with `stamp`."""
-        self._sent.append(stamp)
+    def sent(self, stamp: Stamp, now: float, velocity: Sequence[float]) -> None:
+        """A command (`velocity`, rad/s) went out on `ft/command_raw` with `stamp`."""
+        self._sent[stamp] = tuple(velocity)
+        while len(self._sent) > REMEMBERED:
+            self._sent.popitem(last=False)
         if self._waiting_since is None:
             self._waiting_since = now
 
-    def received(self, stamp: Stamp) -> None:
-        """A message arrived on `ft/command`: an echo if it carries a sent stamp."""
-        if stamp in self._sent:
-            self._seen, self._waiting_since = True, None
+    def received(self, stamp: Stamp, velocity: Sequence[float]) -> bool:
+        """A message arrived on `ft/command`; whether it is an echo (it carries a sent stamp).
+
+        An echo that moves some joint updates `zeroed` (one of all zeros, a refused
+        command, says nothing of locks).
+        """
+        command = self._sent.get(stamp)
+        if command is None:
+            return False
+        self._seen, self._waiting_since = True, None
+        if len(velocity) == len(command) and any(velocity):
+            self.zeroed = frozenset(j for j, (c, e) in enumerate(zip(command, velocity,
+                                                                      strict=True))
+                                    if c != 0 and e == 0)
+        return True
 
     def silent(self, now: float) -> float | None:
         """Seconds without an echo while commands wait, if beyond `timeout`; else None.

@@ -4,11 +4,13 @@ rclpy (Jazzy) tells a subscriber nothing of a message's sender, only the graph d
 the publishers of the topic, by full node name. `judge` decides from them how much of
 a message to take. Reading taken for issue 31 (a stray publisher on `ft/locked_joints`
 made the controller deaf to the monitor): while the configured monitor publishes beside
-a stranger, a message is taken if it only adds locks. Adding a lock is the safe
-direction (a locked joint is commanded 0; the monitor also zeros it on the command
-path), so the monitor's new locks still arrive; a removal (the monitor's reset after a
-repair, or a forged empty set) waits until the stranger is gone. Names can be forged:
-SROS2 closes the rest (docs/security.md).
+a stranger, a message's new locks are taken once the monitor's own command path shows
+them. The monitor zeros a locked joint in each command it forwards, and the controller
+recognises those forwards by their stamps (`ft_msgs_py.monitor_guard`): a stranger that
+merely publishes cannot make them. So the monitor's new locks still arrive, a forged one
+does not; a release (the monitor's reset after a repair, or a forged empty set) waits
+until the stranger is gone. Names can be forged: SROS2 closes the rest
+(docs/security.md).
 """
 
 from __future__ import annotations
@@ -50,7 +52,8 @@ def judge(publishers: list[str], monitor: str | None) -> Verdict:
     shown = f"{len(named)} publishers {named[:10]}"
     if monitor is not None and monitor in named:
         return Verdict("additions", f"{shown}: only the monitor may publish the locked set "
-                                    "(see docs/security.md on SROS2); new locks are taken, "
-                                    "releases wait until it is alone")
+                                    "(see docs/security.md on SROS2); new locks are taken as "
+                                    "the monitor's commands show them, releases wait until "
+                                    "it is alone")
     return Verdict("none", f"{shown}: only the monitor may publish the locked set (see "
                            "docs/security.md on SROS2); ignored")
