@@ -195,6 +195,18 @@ def test_a_goal_without_an_ik_solution_is_reported_and_not_planned_again() -> No
     assert len(submitted) == 1 and rec.note.startswith("goal not reachable"), rec.note
 
 
+def test_a_stall_against_a_limit_says_so_in_the_note() -> None:
+    rec = recovery.Recovery(RecoveryConfig(), lambda *args: Future())  # a plan never back
+    q = START.copy()
+    q[0] = PANDA.upper[0]  # joint 1 at its upper limit, the task pushing it further
+    descent = np.zeros(PANDA.n)
+    descent[0] = 1.0
+    bounds, speeds = (PANDA.lower, PANDA.upper), (-PANDA.velocity_limits, PANDA.velocity_limits)
+    for k in range(150):  # 1 cm/s from 0.3 m: progress by the 2 mm rule, not when pressed
+        rec.step(0.01 * k, q, GOAL, 0.3 - 1e-4 * k, descent, False, (LOCKED,), bounds, speeds)
+    assert rec.planning and "(a joint pressed against a limit)" in rec.note, rec.note
+
+
 def test_a_plan_that_does_not_come_back_in_time_is_given_up_and_tried_again() -> None:
     submitted = []
 

@@ -423,8 +423,9 @@ class Recovery:
             self.note = ("path done, tracking the goal again" if arrived else
                          "path not completed in time, tracking the goal again")
             return None
+        against = pressed(q, descent, bounds, locked)
         if self._job is None and self._plans < self.config.plans_per_goal and (
-                self._watch.update(now, error, reached, pressed(q, descent, bounds, locked))):
+                self._watch.update(now, error, reached, against)):
             try:
                 self._job = (now, self._submit(goal, q.copy(), locked, *bounds))
             except (AssertionError, RuntimeError, OSError) as problem:  # no worker process
@@ -432,8 +433,9 @@ class Recovery:
                 self.note = f"stalled, cannot plan ({problem})"
                 return None
             self._plans += 1
-            self.note = (f"stalled {error:.4f} from the goal: planning a way round with "
-                         f"joints {list(locked)} pinned")
+            self.note = (f"stalled {error:.4f} from the goal"
+                         f"{' (a joint pressed against a limit)' if against else ''}: "
+                         f"planning a way round with joints {list(locked)} pinned")
         return None
 
     def _take(self, submitted: float, job: Future, now: float, locked: tuple[int, ...],
