@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import time
 from itertools import pairwise
 from pathlib import Path
@@ -27,6 +29,7 @@ from rclpy.parameter import Parameter
 from rosutil import in_thread
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
+from std_srvs.srv import Trigger
 
 #: A driver with a command watchdog (Franka FCI, KUKA FRI, UR RTDE).
 WATCHDOG_PLANT = {"command_latency": 0.03, "response_time": 0.03, "command_timeout": 0.1,
@@ -213,6 +216,61 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         g.wait(lambda: "no answer from the monitor" not in
                g.diagnostics["/controller"][-1][1].message, 30.0, "the guard to stop",
                goal_period=1.5)
+
+
+#: A node that floods `ft/declare_failure` for 4 s at 10 kHz (the issue's rate; bursts of
+#: 100 every 10 ms).
+FLOOD = """
+import time, rclpy
+from sensor_msgs.msg import JointState
+from ft_msgs_py import qos
+rclpy.init()
+node = rclpy.create_node("flood")
+publisher = node.create_publisher(JointState, "ft/declare_failure", qos.RELIABLE)
+msg, sent, start = JointState(name=["panda_joint5"]), 0, time.monotonic()
+while time.monotonic() < start + 4.0:
+    for _ in range(100):
+        publisher.publish(msg)
+    sent += 100
+    time.sleep(max(0.0, start + sent / 10000 - time.monotonic()))
+print(sent / (time.monotonic() - start))
+"""
+
+
+def test_a_flood_of_declarations_leaves_the_monitor_answering(tmp_path: Path) -> None:
+    """Issue 31 item 4: the monitor keeps serving under a flood of ft/declare_failure.
+
+    It answered 2 of 8 reset calls and dropped 28 % of the commands (it republished each
+    declaration).
+    """
+    with graph(tmp_path, parameters(tmp_path, WATCHDOG_PLANT)) as g:
+        observing(g)
+        client = g.node.create_client(Trigger, "monitor/reset")
+        assert client.wait_for_service(timeout_sec=10.0)
+        flood = subprocess.Popen([sys.executable, "-c", FLOOD], stdout=subprocess.PIPE,
+                                 env={**os.environ, "ROS_DOMAIN_ID": str(g.domain)}, text=True)
+        try:
+            g.wait(lambda: g.locked_names() == ["panda_joint5"], 10.0, "the flood's lock")
+            raw, forwarded = len(g.raw_commands), len(g.commands)
+            answered = 0
+            for _ in range(8):  # a reset every 0.3 s (the flood declares the joint again)
+                future = client.call_async(Trigger.Request())
+                answered += spin_until_done(g, future, 2.0)
+                g.spin(0.3)
+            raw, forwarded = len(g.raw_commands) - raw, len(g.commands) - forwarded
+        finally:
+            rate = float(flood.communicate(timeout=30)[0] or 0.0)
+        assert answered == 8, f"{answered} of 8 reset calls answered under {rate:.0f} msg/s"
+        assert forwarded >= 0.9 * raw, (
+            f"{forwarded} commands forwarded of {raw} under {rate:.0f} msg/s")
+
+
+def spin_until_done(g: Graph, future, timeout: float) -> bool:
+    """Spin the probe until `future` is done; whether it was within `timeout` s."""
+    end = time.monotonic() + timeout
+    while not future.done() and time.monotonic() < end:
+        g.executor.spin_once(timeout_sec=0.01)
+    return future.done()
 
 
 @pytest.mark.slow

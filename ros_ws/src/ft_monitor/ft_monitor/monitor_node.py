@@ -267,6 +267,10 @@ class MonitorNode(SuiteNode):
     def _on_declare(self, msg: JointState) -> None:
         if self.core is None:
             return
+        if (time.monotonic() - self._reannounced < REANNOUNCE_PERIOD
+                and len(msg.name) <= len(self.core.detector.locked)
+                and set(msg.name) <= self.core.locked.keys()):
+            return  # a repeat, already answered this period: a flood costs nothing more
         try:
             known = convert.names_to_indices(list(msg.name), self.core.robot.joint_names)
         except convert.MessageError as error:
