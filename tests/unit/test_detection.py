@@ -402,6 +402,39 @@ def test_a_stall_at_a_joint_limit_is_not_a_lock() -> None:
     assert detector.locked == {}
 
 
+def _chattering_at_the_limit(t: float) -> np.ndarray:
+    """Joint 4 driven into its upper limit, then commanded to and fro against it.
+
+    The null space near a stretched elbow does this (seed 75 of the boundary campaign):
+    +0.3 rad/s for 0.1 s, which the limit stops, then -0.12 for 0.15 s, which moves it.
+    """
+    if t < 1.0:
+        return np.full(7, 0.3)
+    if t < 3.0:
+        command = np.full(7, 0.3)
+        command[3] = 1.0
+        return command
+    command = np.zeros(7)
+    command[3] = 0.3 if (t - 3.0) % 0.25 < 0.1 else -0.12
+    return command
+
+
+def test_a_joint_chattering_against_its_limit_is_not_a_slow_stall() -> None:
+    """The boundary campaign's one false lock, replayed.
+
+    Over the slow span the model's displacement was positive and the joint's not: the
+    limit took the positive part. Now the limit anywhere in the span refuses it.
+    """
+    data = record(_chattering_at_the_limit, 4.55, PlantConfig(latency=0.02, response_time=0.03))
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    assert replay(data, detector) == []
+    q = [values for kind, _, values in data.events if kind == "measure"][-1]
+    assert q[3] > PANDA.upper[3] - 0.02  # it did reach the limit
+    answer = detector.confirm(3, float(q[3]), 4.55)
+    assert answer.decision == "refused", answer.evidence
+    assert detector.locked == {}
+
+
 def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare() -> None:
     """Only the locked joint commanded: no following joint vouches for the plant.
 

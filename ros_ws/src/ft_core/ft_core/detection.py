@@ -715,7 +715,8 @@ class LockDetector:
         Stalled when, in both halves, |d| is at least `confidence` standard errors of a
         difference of two window means and the joint moved less than `ratio` of d
         (along the span's d), and the whole span's |d| at least twice that; not pushing
-        into a limit, with decisions allowed and commands flowing for the whole span.
+        into a limit at any time of the span, with decisions allowed and commands flowing
+        for the whole span.
         Both halves: a servo that ran ahead and then waits for its reference (a pause
         of 0.1 to 0.2 s on the physics plant) lost nothing over the half that holds its
         lead; a lock loses steadily. The evidence's velocities are the span's (rad/s),
@@ -737,9 +738,16 @@ class LockDetector:
         evidence = self.joints[j]
         sigma = self._mean_difference_error(evidence.standard_error)
         total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
+        # Pushing into a limit at any time of the span, not only now: a limit that stopped
+        # the commanded part of a to-and-fro motion takes it out of the measured motion
+        # (the campaign's one false lock). Window means come within `limit_margin` of where
+        # the joint touched the limit at most 2 x `limit_margin` away.
+        reached = offsets.means[marks[0]:marks[-1] + 1, j]
         latest = float(self._samples.positions[self._samples.end - 1, j])
-        pushing = ((total > 0 and latest >= self.upper[j] - cfg.limit_margin)
-                   or (total < 0 and latest <= self.lower[j] + cfg.limit_margin))
+        pushing = ((total > 0 and max(latest, float(reached.max()))
+                    >= self.upper[j] - 2 * cfg.limit_margin)
+                   or (total < 0 and min(latest, float(reached.min()))
+                       <= self.lower[j] + 2 * cfg.limit_margin))
         lost = (along * predicted >= cfg.confidence * sigma) & (
             along * moved < cfg.ratio * along * predicted)
         if pushing or not lost.all() or abs(total) < 2 * cfg.confidence * sigma:
