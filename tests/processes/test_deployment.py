@@ -50,8 +50,13 @@ def parameters(tmp_path: Path, sim: dict, **common) -> dict[str, dict]:
             "monitor": {"state_directory": str(tmp_path / "state"), **common}}
 
 
-def assert_observed_healthy_motion(g: Graph) -> None:
-    """No lock ever, and evidence that the monitor watched a moving arm."""
+def assert_observed_healthy_motion(g: Graph, saturated: bool = False) -> None:
+    """No lock ever, and evidence that the monitor watched a moving arm.
+
+    And the controller's guard of a dead monitor never fired, unless the machine was
+    `saturated`: there the monitor's process is starved of the CPU for 0.4 to 1.4 s at a
+    time, commands go unanswered, and zeros are the right answer.
+    """
     assert g.ever_locked() == set(), g.log("monitor")[-3000:]
     assert g.travelled() > 5.0, "the arm hardly moved"
     monitor = g.values("/monitor")
@@ -60,7 +65,8 @@ def assert_observed_healthy_motion(g: Graph) -> None:
     assert monitor[-1].get("plant_model") == "identified", monitor[-1]
     guard = [s.message for _, s in g.diagnostics.get("/controller", [])
              if "no answer from the monitor" in s.message]
-    assert guard == [], f"the guard of a dead monitor fired on a live one: {guard[:3]}"
+    assert saturated or guard == [], f"the guard of a dead monitor fired on a live one: " \
+        f"{guard[:3]}"
 
 
 def observing(g: Graph) -> None:
@@ -105,7 +111,7 @@ def test_healthy_motion_under_full_cpu_load(tmp_path: Path) -> None:
         loaded = time.monotonic()
         with busy_cores():
             g.spin(20.0, goal_period=1.5)
-        assert_observed_healthy_motion(g)
+        assert_observed_healthy_motion(g, saturated=True)
         under_load = [{kv.key: kv.value for kv in status.values}
                       for stamp, status in g.diagnostics["/monitor"] if stamp > loaded]
         assert under_load, "no diagnostics from the monitor under load"
