@@ -410,6 +410,17 @@ def test_engine_starts_from_exactly_singular_straight_chains(axes: str, mode: st
         assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)
 
 
+def test_relative_failure_probabilities_up_to_1e308_give_finite_commands() -> None:
+    """Found by the 30-minute fuzz run (issue 31): 7 x 1e308 overflowed a sum."""
+    robot = robots.load("panda")
+    for resolution in ("blend", "max_kfm"):
+        engine = ResolutionEngine(robot, EngineConfig(resolution=resolution,
+                                                      failure_probabilities=[1e308] * 7))
+        for locked in ((), (2,)):
+            result = engine.step(robot.home(), np.array([0.05, 0, 0, 0, 0, 0.1]), locked)
+            assert np.all(np.isfinite(result.qd)) and np.any(result.qd != 0)
+
+
 def test_a_continuous_joint_beyond_a_million_radians_is_absurd() -> None:
     """Issue 31 item 2: no limits to be outside of, yet 1e300 rad squares to inf."""
     planar = robots.load("planar3r")

@@ -390,7 +390,7 @@ class ResolutionEngine:
             soft = self.soft_limits_active(bool(key))
             lower, upper = self.bounds(key)
             p = None if self._probabilities is None else self._probabilities[healthy]
-            if p is not None and p.sum() <= 0:
+            if p is not None and not np.any(p > 0):
                 p = None  # none of the healthy joints is expected to fail: equal weights
             nh = int(healthy.sum())
             next_failure = nh - 1 >= robot.m
