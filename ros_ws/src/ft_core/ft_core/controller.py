@@ -244,10 +244,12 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
-        error = None if task_error is None else float(np.linalg.norm(task_error))
-        if task_error is not None and self.recovery is not None and self.target:
-            qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked, now,
-                               task_error, idle)
+        error = None
+        if task_error is not None:
+            error = float(np.linalg.norm(task_error))
+            if self.recovery is not None and self.target:
+                qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked,
+                                   now, task_error, error, idle)
         if not np.isfinite(qd).all():
             qd = np.zeros(robot.n)
         self.last = result
@@ -299,16 +301,19 @@ class Controller:
         self.suspect = joint
 
     def _recover(self, rec: Recovery, goal: np.ndarray, kinematics: Kinematics,
-                 qd: np.ndarray, locked: list[int], now: float, error: np.ndarray,
-                 reached: bool) -> np.ndarray:
-        """The recovery path's command while one is followed, else `qd` unchanged."""
+                 qd: np.ndarray, locked: list[int], now: float, task_error: np.ndarray,
+                 error: float, reached: bool) -> np.ndarray:
+        """The recovery path's command while one is followed, else `qd` unchanged.
+
+        `task_error`: the pose goal's error e; `error`: its norm.
+        """
         q, engine = kinematics.q, self.engine
-        descent = self.robot.jacobian(kinematics).T @ error
+        descent = self.robot.jacobian(kinematics).T @ task_error
         bounds = engine.bounds(locked)
         velocity = self.robot.velocity_limits * engine.config.velocity_scale
         lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
-        command = rec.step(now, q, goal, float(np.linalg.norm(error)), descent, reached,
-                           tuple(locked), bounds, (lo, hi))
+        command = rec.step(now, q, goal, error, descent, reached, tuple(locked), bounds,
+                           (lo, hi))
         return qd if command is None else command
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,

@@ -23,10 +23,11 @@ import json
 import math
 import os
 import re
-import stat
 import tempfile
 import threading
 from pathlib import Path
+
+from ft_core import files
 
 #: Largest file read back (bytes): a locked set of a few joints is far smaller.
 MAX_BYTES = 65536
@@ -90,19 +91,7 @@ def load(path: Path, robot: str, joint_names: list[str]) -> dict[str, float]:
     if not path.exists():
         return {}
     try:
-        status = path.stat()
-        if not stat.S_ISREG(status.st_mode):
-            raise LockedSetError(f"{path} is not a regular file")
-        if status.st_size > MAX_BYTES:
-            raise LockedSetError(f"{path} is larger than {MAX_BYTES} bytes")
-        with path.open("rb") as file:
-            text = file.read(MAX_BYTES + 1)
-        if len(text) > MAX_BYTES:
-            raise LockedSetError(f"{path} is larger than {MAX_BYTES} bytes")
-        try:
-            data = json.loads(text)
-        except RecursionError:
-            raise LockedSetError(f"{path} is nested too deep to be a locked set") from None
+        data = files.load_json(path, MAX_BYTES)
         if not isinstance(data, dict) or data.get("robot") != robot:
             raise LockedSetError(f"{path} is not a locked set of robot {robot!r}")
         locked = data.get("locked")

@@ -15,7 +15,6 @@ import argparse
 import functools
 import math
 import os
-import stat
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -129,21 +128,8 @@ def workers(default: int) -> dict:
     return {"type": bounded(int, 1, MAX_WORKERS), "default": default}
 
 
-#: Largest input file a tool reads (bytes).
+#: Largest input file a tool reads (bytes; `ft_core.files`).
 MAX_FILE_BYTES = 1_000_000
-
-
-def read_small_file(path: Path) -> str:
-    """The text of a regular file of at most `MAX_FILE_BYTES`, else ValueError.
-
-    A FIFO, a device or a huge file would hang or exhaust the tool.
-    """
-    status = path.stat()
-    if not stat.S_ISREG(status.st_mode):
-        raise ValueError(f"{path} is not a regular file")
-    if status.st_size > MAX_FILE_BYTES:
-        raise ValueError(f"{path} is larger than {MAX_FILE_BYTES} bytes")
-    return path.read_text()
 
 
 def check_folder(path: Path) -> None:

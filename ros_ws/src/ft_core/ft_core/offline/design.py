@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ft_core import files
 from ft_core.measures import failure_weights
 from ft_core.offline import cli
 
@@ -389,10 +390,7 @@ def _load_jacobian(path: Path | None) -> np.ndarray:
 
     if path is None:
         return dh.J_STAR
-    try:
-        data = json.loads(cli.read_small_file(path))
-    except RecursionError:
-        raise ValueError(f"{path} is nested too deep to be a Jacobian") from None
+    data = files.load_json(path, cli.MAX_FILE_BYTES)
     J = np.asarray(data["jacobian"] if isinstance(data, dict) else data, dtype=float)
     if J.ndim != 2 or J.shape[0] != 6 or not 1 <= J.shape[1] <= MAX_JOINTS:
         raise ValueError(f"{path}: need a 6 x n Jacobian (n 1 to {MAX_JOINTS}), got shape "
