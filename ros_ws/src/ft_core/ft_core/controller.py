@@ -183,7 +183,14 @@ class Controller:
         self.target = Target("twist", velocity, stamp)
 
     def set_pose_goal(self, goal: np.ndarray, now: float) -> None:
-        """A pose goal (`targets.goal_from_transform`), received at `now` (s)."""
+        """A pose goal (`targets.goal_from_transform`), received at `now` (s).
+
+        A goal other than the one tracked restarts the task channel's window (its
+        progress test is towards one goal); the same goal again changes nothing there.
+        """
+        held = self.target
+        if held is None or held.kind != "pose" or not np.array_equal(held.value, goal):
+            self.channel.restart()
         self.target = Target("pose", goal, now)
         if self.recovery is not None:
             self.recovery.reset(now)

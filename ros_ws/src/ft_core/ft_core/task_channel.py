@@ -13,15 +13,21 @@ q_k, with the measured one, the sum of `Robot.displacement` between consecutive 
 (x(q_end) - x(q_start) for a position; for a pose task also the rotation's log, which
 the angular rows integrate to over one cycle); the difference r is the unexplained
 motion. When the task error has not shrunk by `progress` over the window while joints
-were commanded, and |r| is at least `min_residual`, each joint i is tested as
-the culprit: had it not moved, the expected motion would lack c_i = sum j_i(q_k) qd_ik
-dt_k, so the residual left is |r - c_i|. The joint that leaves at most `explained`
+were commanded (towards one goal: a new goal restarts the window, `restart`), and
+|r| is at least `min_residual`, each joint i is tested as the culprit: had it not moved,
+the expected motion would lack c_i = sum j_i(q_k) qd_ik dt_k, so the residual left is
+|r - c_i|. The joint that leaves at most `explained`
 of |r|, and less than half of what any other joint leaves, is the suspect; the
 monitor decides (`MonitorNode`: it declares the suspect locked only if its own
 measurements show that joint still while commanded). Units: the task rows of
 `Robot.jacobian`, scaled (`Robot.scale_task`: m, and rad times the task's length scale).
 Reading taken: the paper gives the theorem, not a detector; this is our test of its
-condition (17) on measured data.
+condition (17) on measured data. The theorem is about converging to a fixed x_d, so the
+channel watches a held goal: a goal that changes at every message (a streamed
+trajectory) restarts the window each time and leaves detection to the joint channel.
+Just after a change of goal the plant's lag (latency and response) puts the commanded
+motion ahead of the measured one by up to (L + T) |xd|, an unexplained motion a joint
+may well explain; comparing the errors to two goals would then call it no progress.
 """
 
 from __future__ import annotations
@@ -91,10 +97,7 @@ class TaskChannel:
         """
         robot = self.robot
         if self._last is not None and t <= self._last[0]:
-            self._samples.clear()
-            self._columns[:] = 0.0
-            self._measured[:] = 0.0
-            self._last = None
+            self.restart()
         motion, moved, x = np.zeros((robot.m, robot.n)), np.zeros(robot.m), robot.forward(at)
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
@@ -110,6 +113,14 @@ class TaskChannel:
             self._measured -= self._samples[0][3]
         self.suspect = self._test(locked)
         return self.suspect
+
+    def restart(self) -> None:
+        """Forget the window: a new goal (progress towards the old one means nothing)."""
+        self._samples.clear()
+        self._columns[:] = 0.0
+        self._measured[:] = 0.0
+        self._last = None
+        self.suspect = None
 
     def _test(self, locked: tuple[int, ...]) -> int | None:
         cfg = self.config
