@@ -67,14 +67,15 @@ MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
 
 
 def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None:
-    """Declare parameters with descriptions, types and ranges.
+    """Declare parameters with descriptions, types and ranges; every one has a value.
 
-    A default given as a `Parameter.Type` (the arrays) declares a typed parameter
-    whose value is empty until set: `ros2 param describe` shows its type and an
-    empty list (`[]`, which a parameters file and `ros2 param dump` carry as
-    "not set") loads back. Read values with `value`. An invalid start-up value is
-    logged and replaced by the default, so a typo in a launch file does not stop
-    the node.
+    A default given as a `Parameter.Type` (the arrays) declares a typed parameter whose
+    value is an empty array of that type unless set: `[]` in a parameters file (as `ros2
+    param dump` writes it) loads back as that. Never "not set": rclpy's get_parameters
+    service answers nothing at all to a request that names an uninitialized parameter,
+    so `ros2 param dump` printed `ros__parameters: {}` for the whole node. An invalid
+    start-up value is logged and replaced by the default, so a typo in a launch file
+    does not stop the node.
     """
     for name, (default, description, extra) in parameters.items():
         descriptor = ParameterDescriptor(description=description, **extra)
@@ -84,12 +85,17 @@ def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None
             shown = "an empty list" if isinstance(default, Parameter.Type) else repr(default)
             node.get_logger().error(f"{error}; using the default, {shown}")
             node.declare_parameter(name, default, descriptor, ignore_override=True)
+        if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:
+            # Setting it the way a declaration does (with its descriptor: a read-only
+            # parameter too); rclpy's public declare_parameter takes no typed empty value.
+            node._set_parameters_atomically_common(
+                [Parameter(name, default, [])], {name: node.describe_parameter(name)},
+                allow_not_set_type=True)
 
 
 def value(node: Node, name: str):
-    """A parameter's value; a typed array that is not set reads as []."""
-    parameter = node.get_parameter_or(name)
-    return [] if parameter.type_ == Parameter.Type.NOT_SET else parameter.value
+    """A parameter's value."""
+    return node.get_parameter(name).value
 
 
 def check_sizes(changes: dict) -> None:
