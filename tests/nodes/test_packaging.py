@@ -1,0 +1,102 @@
+"""What a ROS 2 install needs of the packages: dependencies, the Docker files (issue 32).
+
+Every module a package imports is declared in its package.xml (as the rosdep key that
+installs it), every key rosdep cannot resolve from rosdistro is in docker/rosdep.yaml,
+and the Dockerfile installs through rosdep from those files. No Docker engine runs
+here (docker/README.md): the files are checked, not built.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+import xml.etree.ElementTree as ElementTree
+from pathlib import Path
+
+import pytest
+import yaml
+from paths import REPO
+
+SOURCES = REPO / "ros_ws" / "src"
+PACKAGES = sorted(p.parent.name for p in SOURCES.glob("*/package.xml"))
+#: Python module -> the rosdep key that installs it (a ROS package's key is its name).
+KEYS = {"numpy": "python3-numpy", "scipy": "python3-scipy", "matplotlib": "python3-matplotlib",
+        "yaml": "python3-yaml", "numba": "python3-numba", "tqdm": "python3-tqdm",
+        "pinocchio": "pinocchio", "mujoco": "python3-mujoco-pip",
+        "rosbags": "python3-rosbags-pip", "ruckig": "python3-ruckig-pip"}
+#: pip keys in rosdistro's rosdep/python.yaml (checked against ros/rosdistro of 2026-08).
+UPSTREAM_PIP_KEYS = {"python3-mujoco-pip", "python3-rosbags-pip"}
+
+
+def imported(package: str) -> set[str]:
+    """Top-level modules the package's code imports, other than the standard library's."""
+    found = set()
+    for path in (SOURCES / package).rglob("*.py"):
+        if path.name == "setup.py":  # build tool (ament_python), not the code
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                found |= {alias.name.split(".")[0] for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                found.add(node.module.split(".")[0])
+    return {name for name in found if name not in sys.stdlib_module_names and name != package}
+
+
+def declared(package: str) -> set[str]:
+    root = ElementTree.parse(SOURCES / package / "package.xml").getroot()
+    return {e.text.strip() for e in root if e.tag in ("depend", "exec_depend") and e.text}
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_import_is_a_declared_dependency(package: str) -> None:
+    modules = imported(package)
+    assert "numpy" in modules  # the scan sees the code
+    keys = declared(package)
+    for module in sorted(modules):
+        key = KEYS.get(module, module)
+        assert module in KEYS or module in PACKAGES or module.endswith(
+            ("_msgs", "_interfaces", "_srvs")) or module in {
+            "rclpy", "launch", "launch_ros", "ament_index_python"}, (
+            f"{package} imports {module}: add its rosdep key to KEYS and to package.xml")
+        assert key in keys, f"{package} imports {module} but its package.xml lacks {key}"
+
+
+def test_every_rosdep_key_resolves_and_the_image_installs_through_rosdep() -> None:
+    local = yaml.safe_load((REPO / "docker" / "rosdep.yaml").read_text())
+    keys = set().union(*(declared(p) for p in PACKAGES))
+    pip = {k for k in keys if k.endswith("-pip")}
+    assert pip, "no pip key found: the scan is broken"
+    assert pip <= UPSTREAM_PIP_KEYS | set(local), pip - UPSTREAM_PIP_KEYS - set(local)
+    for key, rule in local.items():
+        assert rule["ubuntu"]["pip"]["packages"], key
+    dockerfile = (REPO / "docker" / "Dockerfile").read_text()
+    lines = dockerfile.splitlines()
+    assert next(line for line in lines if line.startswith("FROM")) == "FROM ros:jazzy"
+    assert "COPY docker/rosdep.yaml /etc/ros/rosdep/" in dockerfile
+    assert "/etc/ros/rosdep/sources.list.d/" in dockerfile
+    assert "rosdep install --from-paths src --ignore-src" in dockerfile
+    assert dockerfile.index("rosdep install") < dockerfile.index("colcon build")
+    assert "install/setup.sh" in dockerfile
+    assert lines[-1] == 'CMD ["ros2", "run", "ft_sim", "demo"]'
+
+
+def test_the_build_context_leaves_out_the_local_environment() -> None:
+    ignored = {line.strip() for line in (REPO / ".dockerignore").read_text().splitlines()
+               if line.strip() and not line.startswith("#")}
+    assert {".venv", ".git", "ros_ws/build", "ros_ws/install", "ros_ws/log"} <= ignored
+    dockerfile = (REPO / "docker" / "Dockerfile").read_text()
+    copied = [line.split()[1] for line in dockerfile.splitlines() if line.startswith("COPY")]
+    assert copied == ["docker/rosdep.yaml", "ros_ws/src"]
+    assert not any(Path(c).parts[0] in ignored for c in copied)
+
+
+def test_compose_runs_what_the_workspace_provides() -> None:
+    compose = yaml.safe_load((REPO / "docker" / "compose.yaml").read_text())
+    services = compose["services"]
+    assert set(services) == {"sim", "controller", "monitor"}
+    installed = {(p.parent.name, p.name) for p in (REPO / "ros_ws" / "install").glob("*/lib/*/*")}
+    for service in services.values():
+        words = service["command"].split()
+        assert words[:2] == ["ros2", "run"]
+        assert (words[2], words[3]) in installed, words[:4]
+        assert service["environment"]["ROS_DOMAIN_ID"] == "42"
