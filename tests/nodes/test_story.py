@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from ft_core import robots
 from ft_sim import campaign, demo
 from ft_sim.scenario import ScenarioConfig, run
@@ -29,6 +30,8 @@ def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> No
     assert (tmp_path / "demo.png").stat().st_size > 10_000
     assert (tmp_path / "arm.png").stat().st_size > 10_000
     topics = recorded(tmp_path / "bag")
+    metadata = yaml.safe_load((tmp_path / "bag" / "metadata.yaml").read_text())
+    assert metadata["rosbag2_bagfile_information"]["ros_distro"] == "jazzy"
     assert set(topics) == {"/joint_states", "/ft/target_pose", "/ft/command_raw", "/ft/command",
                            "/ft/locked_joints", "/ft/inject_failure", "/ft/metrics",
                            "/diagnostics"}

@@ -4,7 +4,9 @@ A recorder subscribes to the suite's topics with the raw (serialised CDR) messag
 and writes them unchanged with the `rosbags` library, which also writes the
 `metadata.yaml` that `ros2 bag info` and `ros2 bag play` read. Messages are stamped
 with the simulated time the run owns (the recording time of `ros2 bag record
---use-sim-time`). Message definitions come from rosbags' Jazzy type store.
+--use-sim-time`). Message definitions come from rosbags' Jazzy type store, and
+`metadata.yaml` names that distro (rosbags writes its own name there; the copy of the
+metadata inside the MCAP file keeps it).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_msgs_py import names, qos
 from geometry_msgs.msg import PoseStamped
@@ -22,6 +25,9 @@ from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+#: The ROS 2 distro of the message definitions (rosbags' type store) and of the metadata.
+DISTRO = "jazzy"
+STORE = Stores.ROS2_JAZZY
 #: (topic, type, QoS of the subscription) of everything a run publishes.
 TOPICS = (
     (names.JOINT_STATES, JointState, qos.SENSOR_INPUT),
@@ -51,10 +57,10 @@ class Recorder:
         if path.exists():
             shutil.rmtree(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        self._now = now
+        self._now, self._path = now, path
         self._writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
-        store = get_typestore(Stores.ROS2_JAZZY)
+        store = get_typestore(STORE)
         for topic, message_type, profile in TOPICS:
             resolved = node.resolve_topic_name(topic)
             connection = self._writer.add_connection(resolved, type_name(message_type),
@@ -65,5 +71,11 @@ class Recorder:
                 profile, raw=True)
 
     def close(self) -> None:
-        """Finish the file (its index and metadata)."""
+        """Finish the file (its index and metadata), the metadata naming `DISTRO`."""
         self._writer.close()
+        metadata = self._path / "metadata.yaml"
+        content = yaml.safe_load(metadata.read_text())
+        content["rosbag2_bagfile_information"]["ros_distro"] = DISTRO
+        written = metadata.with_suffix(".yaml.tmp")
+        written.write_text(yaml.safe_dump(content, sort_keys=False))
+        written.replace(metadata)
