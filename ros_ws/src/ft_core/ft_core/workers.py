@@ -8,18 +8,22 @@ a busy machine its heavy work waits for the loops, not the loops for it (a contr
 cycle beside a planning worker on 2 cores). A worker inherits the scheduling of the
 thread that starts it: a loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) starts it
 `lowered`, so the heavy work never runs at the loop's priority, not even its start-up
-imports.
+imports. Ctrl-C in a terminal signals the whole process group, workers included: a
+worker of `SPAWN` (every pool of the suite's) then ends at once and quietly, exit status
+130, and its parent says what was interrupted, instead of each worker printing a
+KeyboardInterrupt traceback (also one still importing its modules when Ctrl-C came).
 """
 
 from __future__ import annotations
 
-import multiprocessing
 import os
+import signal
 import threading
 import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
+from multiprocessing.context import SpawnContext, SpawnProcess
 
 #: How often (s) a worker checks that its parent still runs.
 PERIOD = 0.5
@@ -38,6 +42,39 @@ def exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
+class QuietProcess(SpawnProcess):
+    """A spawned process that SIGINT ends at once and quietly (exit status 130).
+
+    It starts with SIGINT ignored (an ignored signal stays so across exec, and Python
+    then installs no KeyboardInterrupt handler), so that a Ctrl-C while it imports its
+    modules does nothing; `run` then makes SIGINT end it.
+    """
+
+    def start(self) -> None:
+        """Start it, SIGINT ignored meanwhile (in the main thread: only it may say so)."""
+        if threading.current_thread() is not threading.main_thread():
+            super().start()
+            return
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            super().start()
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+    def run(self) -> None:
+        """SIGINT from now on ends this process quietly, then the target runs."""
+        signal.signal(signal.SIGINT, lambda *_: os._exit(130))
+        super().run()
+
+
+class _QuietSpawn(SpawnContext):
+    Process = QuietProcess
+
+
+#: The start method of every worker pool of the suite: spawned `QuietProcess`es.
+SPAWN = _QuietSpawn()
+
+
 def _start_worker(parent: int) -> None:
     """Pool initializer: `NICENESS` below the parent, ending with it (`exit_with_parent`)."""
     os.nice(NICENESS)
@@ -50,7 +87,7 @@ def pool() -> ProcessPoolExecutor:
     Spawned, not forked: a fork of a process running rclpy or numba threads may
     inherit a lock held by a thread that does not exist in the child.
     """
-    return ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+    return ProcessPoolExecutor(max_workers=1, mp_context=SPAWN,
                                initializer=_start_worker, initargs=(os.getpid(),))
 
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import multiprocessing
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -40,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from ft_core import robots, selfmotion
 from ft_core.offline import cli
+from ft_core.workers import SPAWN
 from scipy import stats
 from tqdm import tqdm
 
@@ -410,7 +410,7 @@ def execute(todo: list[Task], out: Path, workers: int, record: bool) -> int:
     # Not multiprocessing.Pool: its workers are daemons, and a daemon cannot start the
     # process in which the controller traces the critical points' boxes. Spawned, not
     # forked: a fork of a process with DDS threads (a test session's) can deadlock.
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(workers, mp_context=SPAWN) as pool:
         futures = {pool.submit(one_run, task, kept(out, task).with_suffix("")
                                if record else None): task for task in todo}
         with tqdm(total=len(todo), unit="run", disable=None, file=sys.stderr) as bar:
@@ -484,7 +484,13 @@ def main(argv: list[str] | None = None) -> int:
           f"workers; critical points {design['critical']} ...", flush=True)
     if every:
         kept(args.out, every[0]).parent.mkdir(parents=True, exist_ok=True)
-    crashed = execute(todo, args.out, args.workers, args.record)
+    try:
+        crashed = execute(todo, args.out, args.workers, args.record)
+    except KeyboardInterrupt:
+        done = sum(kept(args.out, task).exists() for task in every)
+        print(f"\nft-campaign: interrupted; {done} of {len(every)} runs kept in {args.out} "
+              "(the same command resumes)", file=sys.stderr)
+        return 130
     results = [json.loads(kept(args.out, task).read_text()) for task in every
                if kept(args.out, task).exists()]
     text = table(results) + "\n" + points_table(results) if results else "no finished runs\n"

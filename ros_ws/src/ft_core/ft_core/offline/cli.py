@@ -151,7 +151,8 @@ def check_folder(path: Path) -> None:
 def clear_file_errors(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate a tool's `main`: a file it cannot read or write is one line, exit status 1.
 
-    (A read-only folder, an output path naming a folder or a file in the way.)
+    (A read-only folder, an output path naming a folder or a file in the way.) And
+    Ctrl-C is one line too, exit status 130 (its workers end quietly: `workers.SPAWN`).
     """
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
@@ -161,6 +162,9 @@ def clear_file_errors(prog: str) -> Callable[[Callable[..., int]], Callable[...,
             except OSError as error:
                 print(f"{prog}: {error}", file=sys.stderr)
                 return 1
+            except KeyboardInterrupt:
+                print(f"\n{prog}: interrupted", file=sys.stderr)
+                return 130
 
         return run
 

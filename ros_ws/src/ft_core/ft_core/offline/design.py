@@ -28,6 +28,7 @@ import numpy as np
 from ft_core import files
 from ft_core.measures import failure_weights
 from ft_core.offline import cli
+from ft_core.workers import SPAWN
 
 
 def optimal_null_vector(probabilities: Iterable[float]) -> np.ndarray:
@@ -218,7 +219,6 @@ def _verify_chunk(args: tuple[np.ndarray, list[int]]) -> int:
 
 def _verify_all(J: np.ndarray, family: Any, workers: int) -> int:
     """Recompute every design's DH table (about 7 s on one core): tqdm and a spawn pool."""
-    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     from tqdm import tqdm
@@ -232,7 +232,7 @@ def _verify_all(J: np.ndarray, family: Any, workers: int) -> int:
                 done += _verify_chunk((J, chunk))
                 bar.update(len(chunk))
         else:
-            context = multiprocessing.get_context("spawn")
+            context = SPAWN
             with ProcessPoolExecutor(workers, mp_context=context) as pool:
                 for count in pool.map(_verify_chunk, [(J, c) for c in chunks]):
                     done += count

@@ -27,13 +27,14 @@ Readings taken:
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+
+from ft_core.workers import SPAWN
 
 COMPONENTS = ("equal", "joint 1", "joint 2", "joint 3")
 _TIE = 1e-4  # component values this close to the maximum count as optimal
@@ -184,7 +185,7 @@ def score_grid(grid: np.ndarray, radii: int = 100, samples: int = 360, workers: 
             if progress:
                 progress(len(chunk))
         return results
-    context = multiprocessing.get_context("spawn")
+    context = SPAWN
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         for part in pool.map(_score_chunk, [(c, radii, samples) for c in chunks]):
             results += part

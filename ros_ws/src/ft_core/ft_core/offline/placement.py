@@ -62,7 +62,6 @@ import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, fields
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +69,7 @@ import pinocchio as pin
 
 from ft_core import limits, measures, robots, selfmotion
 from ft_core.offline import cli
+from ft_core.workers import SPAWN
 
 #: Longest straight move (m) of the tool per continuation step when seeding.
 CONTINUATION_STEP = 0.05
@@ -274,7 +274,7 @@ def evaluate_targets(model: tuple[str, str | None, str | None, str | None],
             # points with large manifolds are slow) and the bar moving.
             size = max(1, min(16, len(tasks) // (8 * jobs)))
             chunks = [tasks[k:k + size] for k in range(0, len(tasks), size)]
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"),
+            with ProcessPoolExecutor(max_workers=jobs, mp_context=SPAWN,
                                      initializer=_init_worker,
                                      initargs=(model, settings)) as pool:
                 futures = [pool.submit(_run_chunk, chunk) for chunk in chunks]

@@ -32,7 +32,6 @@ import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +39,7 @@ import numpy as np
 from ft_core import robots, selfmotion
 from ft_core.offline import cli, reliability
 from ft_core.offline.reliability import TaskPoint, Trajectory
+from ft_core.workers import SPAWN
 
 #: Most manifold samples kept per task point for the search (every k-th sample).
 CANDIDATES = 400
@@ -205,7 +205,7 @@ def trace_points(args: argparse.Namespace, flat: list[float], size: int, start: 
 
     chain = (args.base_link or None, args.tip_link or None)
     chunks = [flat[i:i + size] for i in range(0, len(flat), size)]
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=SPAWN) as pool:
         futures = [pool.submit(_trace, args.robot, chain, args.task, c, start.tolist())
                    for c in chunks]
         results = [f.result() for f in tqdm(futures, desc="tracing", unit="point",
