@@ -186,3 +186,24 @@ def test_a_hostile_state_file_is_refused_at_start_without_a_crash_or_a_hang(
     assert not worker.is_alive(), f"restoring hung: {outcomes}"
     assert outcomes[0] is not None and "nested too deep" in outcomes[0]
     assert outcomes[1] is not None and "not a regular file" in outcomes[1]
+
+
+def test_joints_not_commanded_for_a_while_are_named_unseen() -> None:
+    """Issue 32: a lock injected on an idle joint is never reported; the monitor says why.
+
+    Joints 1-6 move, joint 7 is never commanded: after 5 s it is unseen, the others are
+    not; once it is commanded it is seen again; a locked joint is never listed.
+    """
+    lp = Loop(None)
+    command = np.r_[np.full(6, 0.2), 0.0]
+    for k in range(round(6.0 / DT)):
+        lp.step(command * (1 if (k // 250) % 2 else -1))  # to and fro, 1 s each way
+        if k == round(4.0 / DT):
+            assert lp.monitor.unseen(lp.t) == []  # 4 s: not yet
+    assert lp.monitor.unseen(lp.t) == ["panda_joint7"]
+    assert lp.monitor.unseen(lp.t, after=10.0) == []
+    for _ in range(round(0.5 / DT)):
+        lp.step(np.full(7, 0.2))
+    assert lp.monitor.unseen(lp.t) == []
+    lp.monitor.declare([0], lp.t)
+    assert lp.monitor.unseen(lp.t + 10.0) == [f"panda_joint{j}" for j in range(2, 8)]

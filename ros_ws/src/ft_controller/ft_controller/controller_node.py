@@ -185,9 +185,7 @@ class ControllerNode(SuiteNode):
 
     # ------------------------------------------------------------------- model
     def _load_model(self) -> None:
-        if not (self.param("robot_description") or self.param("robot_model")):
-            self.problems.report("model", "waiting for the robot_description topic")
-        parameters.request_model(self, self._set_model)
+        parameters.request_model(self, self._set_model)  # says so (INFO) if it waits
 
     def _set_model(self, spec: str, source: str) -> None:
         try:
@@ -566,6 +564,8 @@ class ControllerNode(SuiteNode):
             values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)
         if self.problems.active:
             level, message = diagnostics.ERROR, self.problems.summary()
+        elif core is None:
+            level, message = diagnostics.WARN, "waiting for the robot model"
         elif last is None:
             level, message = diagnostics.WARN, "waiting for joint states"
         elif last.status == Status.INFEASIBLE:

@@ -50,6 +50,8 @@ from ft_core.robots import Robot
 Report = Callable[..., None]
 #: s `close` waits for the locked set's last write.
 CLOSE_TIMEOUT = 2.0
+#: s without being observable after which a joint counts as unseen (`Monitor.unseen`).
+UNSEEN_AFTER = 5.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +128,9 @@ class Monitor:
         #: (generation, change, the set it leaves) written by the writer, not yet handed over
         self._held: list[tuple[int, Change, dict[str, float]]] = []
         self._announced: dict[str, float] = {}
+        #: steady or ROS time (s) each joint was last observable (commanded fast enough for
+        #: the detector to judge it); None before the first joint state
+        self._observed_at: np.ndarray | None = None
         self.configure(detection, config)
 
     def configure(self, detection: DetectorConfig, config: MonitorConfig) -> None:
@@ -241,8 +246,25 @@ class Monitor:
         # A swing of an unlocked joint leaves the set as it is: reported without a write
         # (a swing that takes a lock back, or the brake, changes it).
         change.changed |= set(self.detector.locked) != before
+        if self._observed_at is None or now < self._observed_at.max():
+            self._observed_at = np.full(self.robot.n, now)  # the first state, or time reset
+        if self.detector.not_observing is None:  # else the evidence is the last update's
+            self._observed_at[[e.observable for e in joints]] = now
         self._hold(change, now)
         return self.settled()
+
+    def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
+        """Unlocked joints not observable for `after` s or more at `now` (s): their names.
+
+        A lock shows only while its joint is commanded at least `min_command` (the
+        detector's rule); a lock of one of these, injected or real, cannot be seen until
+        it is commanded again (the controller's observability motion does that).
+        """
+        if self._observed_at is None:
+            return []
+        locked = self.detector.locked
+        return [name for j, name in enumerate(self.robot.joint_names)
+                if j not in locked and now - self._observed_at[j] >= after]
 
     def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
         """Decide on a lock of `joint` suspected elsewhere, on the detector's own evidence."""

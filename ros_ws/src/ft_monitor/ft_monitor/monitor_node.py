@@ -44,7 +44,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import locked_set, robots
 from ft_core.detection import DetectorConfig
-from ft_core.monitor import Change, Monitor, MonitorConfig
+from ft_core.monitor import UNSEEN_AFTER, Change, Monitor, MonitorConfig
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
@@ -117,6 +117,7 @@ class MonitorNode(SuiteNode):
         self._command_msg = JointState()
         self._array_msg = Float64MultiArray()
         self._last_command = -math.inf
+        self._unseen: list[str] = []  #: joints last reported unseen (`Monitor.unseen`)
         self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                 qos.RELIABLE)
@@ -408,6 +409,7 @@ class MonitorNode(SuiteNode):
         values["free_swinging_joints"] = swinging
         if core is not None:
             values.update(core.plant_values())
+            values["unseen_joints"] = self._report_unseen(core.unseen(now))
             for name, j in zip(self.command_joints, self._order, strict=True):
                 joint = core.joint_report(j)
                 level = _LEVELS[joint.state]
@@ -435,6 +437,16 @@ class MonitorNode(SuiteNode):
             level, message = diagnostics.OK, "no locked joint"
         statuses.insert(0, self.status(level, message, values))
         self._diagnostics_pub.publish(diagnostics.array(statuses, self.get_clock().now().to_msg()))
+
+    def _report_unseen(self, unseen: list[str]) -> list[str]:
+        """Say (INFO) when joints become unseen, so a lock nobody reports has a reason."""
+        if unseen and unseen != self._unseen:
+            self.get_logger().info(
+                f"a lock of {unseen} cannot be seen now: not commanded for "
+                f"{UNSEEN_AFTER:.0f} s or more (a lock shows only while its joint is commanded; "
+                "the controller's observability.enabled excites idle joints)")
+        self._unseen = unseen
+        return unseen
 
 
 #: Diagnostic level of each joint state of `Monitor.joint_report`.

@@ -1,6 +1,7 @@
-"""Ctrl-C as a terminal sends it: SIGINT to the whole process group (issue 32).
+"""What a user sees in a terminal: start-up logs and Ctrl-C (issue 32).
 
-Worker processes get it as well as their parent. Each must end quietly: no
+Waiting for a model is no fault: INFO, not ERROR. Ctrl-C sends SIGINT to the whole
+process group, worker processes as well as their parent. Each must end quietly: no
 KeyboardInterrupt traceback from a worker, the parent saying what it stopped.
 """
 
@@ -13,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from rosutil import fresh_domain
 
 BIN = Path(sys.executable).parent
@@ -65,3 +67,43 @@ def test_ctrl_c_stops_a_campaign_and_says_what_is_kept(tmp_path: Path) -> None:
     assert code == 130, text
     assert "ft-campaign: interrupted; " in text and "(the same command resumes)" in text, text
     assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
+
+
+@pytest.mark.parametrize("executable", ["ft-controller", "ft-monitor", "ft-sim"])
+def test_a_node_waiting_for_its_model_says_so_at_info(executable: str, tmp_path: Path) -> None:
+    log = tmp_path / "node.log"
+    code = interrupted([str(BIN / executable), "--ros-args", "-p",
+                        f"state_directory:={tmp_path / 'state'}"],
+                       "waiting for the 'robot_description' topic", log)
+    text = log.read_text()
+    assert code == 0, text
+    (line,) = [line for line in text.splitlines() if "robot_description" in line]
+    assert line.startswith("[INFO]"), text
+    assert "[ERROR]" not in text and "Traceback" not in text, text
+
+
+def test_the_monitor_says_which_locks_it_cannot_see_on_an_idle_arm(tmp_path: Path) -> None:
+    """A lock injected on an arm that stands still is not reported: the log says why."""
+    env = {**os.environ, "ROS_DOMAIN_ID": str(fresh_domain()),
+           "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    log = tmp_path / "monitor.log"
+    common = ["--ros-args", "-p", "robot_model:=panda"]
+    with open(log, "w") as out:
+        processes = [subprocess.Popen([str(BIN / "ft-sim"), *common], env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
+                     subprocess.Popen([str(BIN / "ft-monitor"), *common, "-p",
+                                       f"state_directory:={tmp_path / 'state'}"], env=env,
+                                      stdout=out, stderr=subprocess.STDOUT)]
+    try:
+        end = time.monotonic() + 60.0
+        while "cannot be seen now" not in log.read_text():
+            assert time.monotonic() < end, f"nothing said within 60 s: {log.read_text()}"
+            assert all(p.poll() is None for p in processes), log.read_text()
+            time.sleep(0.2)
+    finally:
+        for process in processes:
+            process.send_signal(signal.SIGINT)
+            process.wait(timeout=30)
+    (line,) = [line for line in log.read_text().splitlines() if "cannot be seen now" in line]
+    assert line.startswith("[INFO]"), line
+    assert str([f"panda_joint{j}" for j in range(1, 8)]) in line, line
