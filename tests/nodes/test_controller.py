@@ -534,6 +534,12 @@ def test_with_sim_time_and_no_clock_the_watchdog_still_commands_zeros() -> None:
         plant.publish_state()  # a state, but never a /clock: the control timer cannot fire
         assert spin_until(plant.executor, lambda: len(plant.commands) >= 3, 5.0)
         assert all(np.all(np.array(c.velocity) == 0.0) for c in plant.commands)
+        # Never a cycle yet: waiting for /clock (INFO once, issue 32), not a fault.
+        assert not node._cycled and "control loop" not in node.problems.active
+        plant.run(5)  # /clock: cycles run; then the clock stops, which is a fault
+        assert node._cycled
+        assert spin_until(plant.executor,
+                          lambda: "control loop" in node.problems.active, 5.0)
         assert "no control cycle" in node.problems.active["control loop"]
 
 

@@ -100,3 +100,36 @@ def test_compose_runs_what_the_workspace_provides() -> None:
         assert words[:2] == ["ros2", "run"]
         assert (words[2], words[3]) in installed, words[:4]
         assert service["environment"]["ROS_DOMAIN_ID"] == "42"
+
+
+def declared_arguments(path: Path) -> dict[str, str]:
+    """{name: description} of every DeclareLaunchArgument a launch file makes.
+
+    Read from the file (`launch` is not on PyPI): calls written out, and the
+    `ARGUMENTS` table (name -> (default, description)) that demo.launch.py declares.
+    """
+    tree = ast.parse(path.read_text(), str(path))
+    found = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "DeclareLaunchArgument" \
+                and isinstance(node.args[0], ast.Constant):
+            keywords = {k.arg: k.value for k in node.keywords}
+            found[node.args[0].value] = ast.literal_eval(keywords["description"])
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "ARGUMENTS":
+            found |= {name: description
+                      for name, (_, description) in ast.literal_eval(node.value).items()}
+    return found
+
+
+def test_launch_files_take_the_arguments_a_ros_user_expects() -> None:
+    """Issue 32: robot, namespace, use_sim_time, params_file and plant, each described."""
+    demo = declared_arguments(SOURCES / "ft_sim" / "launch" / "demo.launch.py")
+    assert {"robot", "namespace", "use_sim_time", "params_file", "plant",
+            "state_directory"} <= set(demo)
+    controller = declared_arguments(SOURCES / "ft_controller" / "launch" /
+                                    "controller.launch.py")
+    assert {"params", "namespace"} <= set(controller)
+    assert all(len(text) > 10 for text in (demo | controller).values())
+    shipped = yaml.safe_load((SOURCES / "ft_controller" / "config" / "controller.yaml")
+                             .read_text())
+    assert list(shipped) == ["/**"]  # applies under any namespace

@@ -180,6 +180,7 @@ class ControllerNode(SuiteNode):
         # The watchdog runs on steady time: with use_sim_time and no /clock the control
         # timer never fires, and the plant must still get explicit zeros.
         self._last_cycle = time.monotonic()
+        self._cycled = False  # no control cycle yet: with use_sim_time, no /clock yet
         self.create_timer(WATCHDOG_PERIOD, self._check_watchdog,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -461,13 +462,17 @@ class ControllerNode(SuiteNode):
         if silent <= max(self.param("state_timeout"), 2.0 / self.param("control_rate")):
             self.problems.report("control loop", None)
             return
-        self.problems.report("control loop", f"no control cycle for {silent:.2f} s (is /clock "
-                             "published with use_sim_time?): commanding zeros")
+        if not self._cycled:  # waiting, no fault: said once at INFO
+            self.get_logger().info("waiting for the first control cycle (with use_sim_time: "
+                                   "for /clock): commanding zeros", once=True)
+        else:
+            self.problems.report("control loop", f"no control cycle for {silent:.2f} s (is /clock "
+                                 "published with use_sim_time?): commanding zeros")
         if self.robot is not None:
             self._publish(np.zeros(self.robot.n))
 
     def _cycle(self) -> None:
-        self._last_cycle = time.monotonic()
+        self._last_cycle, self._cycled = time.monotonic(), True
         self.accounting.start()
         try:
             self._control()

@@ -1,6 +1,8 @@
 r"""The closed loop as separate processes: sim (owning the clock), controller and monitor.
 
     ros2 launch ft_sim demo.launch.py
+    ros2 launch ft_sim demo.launch.py robot:=panda_inertial plant:=physics namespace:=arm1
+    ros2 launch ft_sim demo.launch.py --show-args
     ros2 topic pub --once /ft/target_pose geometry_msgs/PoseStamped \\
       "{pose: {position: {x: 0.45, y: -0.15, z: 0.35}, orientation: {w: 1.0}}}"
     ros2 topic pub --once /ft/inject_failure sensor_msgs/JointState "{name: [panda_joint2]}"
@@ -10,6 +12,13 @@ runs the scripted story with its report and figure in one process.) The sim beha
 like a real driver: 20 ms command latency, a 30 ms velocity response time and a
 command watchdog (`tests/processes/test_deployment.py` runs this graph as separate processes).
 
+Arguments (`--show-args`): `robot` (a built-in name or a URDF path), `namespace` (the
+three nodes and their topics under it: two arms side by side), `use_sim_time` (the sim
+publishes /clock and the controller and monitor follow it; false: the wall clock),
+`params_file` (a YAML parameters file applied to all three after the defaults below: key
+it `/**:` so that it applies under any namespace), `plant` (`kinematic`, or `physics`:
+MuJoCo, for a robot with inertias such as `panda_inertial`) and `state_directory`.
+
 A sim session starts with no locked joint: the monitor keeps its locked set in a new
 temporary directory each launch, never in the real arm's (`state_directory:=<dir>` to
 keep it across launches).
@@ -18,28 +27,52 @@ keep it across launches).
 import tempfile
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-MODEL = {"robot_model": "panda", "task_space": "position"}
+#: name -> (default, description) of every argument.
+ARGUMENTS = {
+    "robot": ("panda", "built-in robot name or URDF path"),
+    "namespace": ("", "namespace of the three nodes and their topics"),
+    "use_sim_time": ("true", "the sim publishes /clock, the others follow it"),
+    "params_file": ("", "YAML parameters for all three nodes, after the defaults (key it /**:)"),
+    "plant": ("kinematic", "the sim's plant: kinematic, or physics (MuJoCo; a robot with "
+              "inertias)"),
+    "state_directory": (None, "the monitor's state directory (default: a new one)"),
+}
+
+
+def nodes(context) -> list[Node]:
+    """The three nodes, from the arguments' values."""
+    value = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
+    sim_time = value["use_sim_time"].lower() == "true"
+    model = {"robot_model": value["robot"], "task_space": "position"}
+    files = [value["params_file"]] if value["params_file"] else []
+    common = {"namespace": value["namespace"], "output": "screen"}
+    return [
+        Node(package="ft_sim", executable="sim_node", name="sim", **common,
+             parameters=[{**model, "publish_clock": sim_time, "rate": 250.0,
+                          "plant": value["plant"], "position_noise": 0.001,
+                          "command_latency": 0.02, "response_time": 0.03,
+                          "command_timeout": 0.1}, *files]),
+        Node(package="ft_controller", executable="controller_node", name="controller",
+             **common,
+             parameters=[{**model, "use_sim_time": sim_time, "resolution": "blend",
+                          "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}, *files]),
+        Node(package="ft_monitor", executable="monitor_node", name="monitor", **common,
+             respawn=True, respawn_delay=1.0,
+             parameters=[{**model, "use_sim_time": sim_time,
+                          "state_directory": value["state_directory"]}, *files]),
+    ]
 
 
 def generate_launch_description():
-    """Sim, controller and monitor."""
+    """Sim, controller and monitor, with the arguments of `ARGUMENTS`."""
+    defaults = {"state_directory": tempfile.mkdtemp(prefix="ft_sim_session_")}
     return LaunchDescription([
-        DeclareLaunchArgument("state_directory",
-                              default_value=tempfile.mkdtemp(prefix="ft_sim_session_"),
-                              description="the monitor's state directory (default: new)"),
-        Node(package="ft_sim", executable="sim_node", name="sim",
-             parameters=[{**MODEL, "publish_clock": True, "rate": 250.0,
-                          "position_noise": 0.001, "command_latency": 0.02,
-                          "response_time": 0.03, "command_timeout": 0.1}]),
-        Node(package="ft_controller", executable="controller_node", name="controller",
-             parameters=[{**MODEL, "use_sim_time": True, "resolution": "blend",
-                          "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}]),
-        Node(package="ft_monitor", executable="monitor_node", name="monitor",
-             respawn=True, respawn_delay=1.0,
-             parameters=[{**MODEL, "use_sim_time": True,
-                          "state_directory": LaunchConfiguration("state_directory")}]),
+        *[DeclareLaunchArgument(name, default_value=defaults.get(name, default),
+                                description=description)
+          for name, (default, description) in ARGUMENTS.items()],
+        OpaqueFunction(function=nodes),
     ])
