@@ -32,8 +32,8 @@ def imported(package: str) -> set[str]:
     """Top-level modules the package's code imports, other than the standard library's."""
     found = set()
     for path in (SOURCES / package).rglob("*.py"):
-        if path.name == "setup.py":  # build tool (ament_python), not the code
-            continue
+        if path.name == "setup.py" or "test" in path.relative_to(SOURCES / package).parts:
+            continue  # the build tool (ament_python) and `colcon test`'s files: not the code
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             if isinstance(node, ast.Import):
                 found |= {alias.name.split(".")[0] for alias in node.names}
@@ -133,3 +133,15 @@ def test_launch_files_take_the_arguments_a_ros_user_expects() -> None:
     shipped = yaml.safe_load((SOURCES / "ft_controller" / "config" / "controller.yaml")
                              .read_text())
     assert list(shipped) == ["/**"]  # applies under any namespace
+
+
+def test_colcon_test_runs_each_packages_part_of_the_suite() -> None:
+    """Issue 32: `colcon test` finds a test in each package, which runs the suite's part."""
+    from package_suites import SUITES
+
+    assert sorted(SUITES) == PACKAGES
+    for package, arguments in SUITES.items():
+        test = SOURCES / package / "test" / f"test_{package}.py"
+        assert f'run_for("{package}")' in test.read_text(), test
+        for path in (a for a in arguments if not a.startswith("-")):
+            assert (REPO / path).exists(), path

@@ -15,6 +15,7 @@ setup(
                                                "config/diagnostic_aggregator.yaml"]),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs test/ with pytest
     zip_safe=False,
     maintainer="ft-arms maintainers",
     maintainer_email="maintainers@ft-arms.org",
