@@ -140,3 +140,32 @@ def test_chosen_pose_points_round_trip_and_a_thin_intersection_says_what_to_try(
     assert code == 4 and not output.exists()
     assert "cannot be reached inside the intersection: try fewer or closer points" in (
         capsys.readouterr().err)
+
+
+FIXTURES = sorted(p.name for p in (Path(robots.__file__).parent / "urdf").glob("*.urdf"))
+
+
+@pytest.mark.parametrize("task", ["position", "pose"])
+@pytest.mark.parametrize("fixture", FIXTURES)
+def test_every_urdf_fixture_with_robot_and_task_alone(fixture: str, task: str, tmp_path: Path,
+                                                      capsys) -> None:
+    """Issue 32: `ft-bounds --robot <urdf> --task T` on every URDF of the repository.
+
+    Soft limits where the task is redundant; where it is not (as many joints as task
+    coordinates or fewer: the PUMA 560's pose task, the planar 3R's position task) exit
+    status 4 with the reason, and a 3-joint arm cannot follow a pose task at all (1).
+    """
+    urdf = Path(robots.__file__).parent / "urdf" / fixture
+    robot = robots.load(str(urdf), task_space=task) if not (
+        fixture == "planar3r.urdf" and task == "pose") else None
+    code, output = run(tmp_path, "--robot", str(urdf), "--task", task)
+    err = capsys.readouterr().err
+    if robot is None:
+        assert code == 1 and "cannot follow it" in err, err
+    elif robot.n <= robot.m:
+        assert code == 4 and "no redundancy" in err, err
+        assert not output.exists()
+    else:
+        assert code == 0, err
+        params = yaml.safe_load(output.read_text())["/**"]["ros__parameters"]
+        assert len(params["soft_limits"]["lower"]) == robot.n

@@ -112,6 +112,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ft-bounds: {error}", file=sys.stderr)
         return 1
     print(f"{robot.name}: {robot.n} joints {list(robot.joint_names)}, {robot.task_space} task")
+    if robot.n <= robot.m:
+        print(f"ft-bounds: {robot.name} has {robot.n} joints for a {robot.task_space} task of "
+              f"{robot.m} coordinates: no redundancy, so a task point has no self-motion and "
+              "its box is one configuration (Lewis & Maciejewski 1997 need n > m); try a "
+              "task of fewer coordinates (--task position or planar)", file=sys.stderr)
+        return 4
     if args.points is None:
         size = selfmotion.point_size(robot)
         chosen = ";".join(",".join(f"{v:.4f}" for v in flat[i:i + size])
