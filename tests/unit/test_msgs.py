@@ -158,6 +158,26 @@ def test_the_monitor_guard_fires_only_after_an_echo_went_missing() -> None:
     assert guard.silent(now + 5.0) is None
 
 
+def test_the_controllers_own_stall_is_not_the_monitors_silence() -> None:
+    """A controller stopped for 0.3 s finds its echoes queued behind the guard's check.
+
+    The gap between two checks longer than the timeout restarts the wait; a monitor that
+    stays silent after it is still caught one timeout later.
+    """
+    from ft_msgs_py.monitor_guard import MonitorGuard
+
+    guard = MonitorGuard(timeout=0.05)
+    guard.sent((1, 0), 0.0, [0.1])
+    guard.received((1, 0), [0.1])
+    guard.sent((2, 0), 0.004, [0.1])
+    assert guard.silent(0.004) is None
+    assert guard.silent(0.304) is None  # back from a 0.3 s stop: the echo may be queued
+    assert guard.silent(0.34) is None
+    assert guard.silent(0.36) == pytest.approx(0.056)  # still nothing: the monitor is gone
+    guard.received((2, 0), [0.1])
+    assert guard.silent(0.37) is None
+
+
 def test_the_monitors_echoes_show_the_joints_it_holds_locked() -> None:
     """The monitor zeros its locked joints in what it forwards.
 

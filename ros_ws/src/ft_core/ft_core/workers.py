@@ -10,7 +10,8 @@ thread that starts it: a loop on SCHED_FIFO (`ft_msgs_py.thread_priority`) start
 `lowered`, so the heavy work never runs at the loop's priority, not even its start-up
 imports. Ctrl-C in a terminal signals the whole process group, workers included: a
 worker of `SPAWN` (every pool of the suite's) then ends at once and quietly, exit status
-130, and its parent says what was interrupted, instead of each worker printing a
+130 (a node's worker, `pool`, ignores it: the node stops it), and its parent says what was
+interrupted, instead of each worker printing a
 KeyboardInterrupt traceback (also one still importing its modules when Ctrl-C came).
 """
 
@@ -76,7 +77,13 @@ SPAWN = _QuietSpawn()
 
 
 def _start_worker(parent: int) -> None:
-    """Pool initializer: `NICENESS` below the parent, ending with it (`exit_with_parent`)."""
+    """Pool initializer: `NICENESS` below the parent, ending with it (`exit_with_parent`).
+
+    A node's worker ignores SIGINT: the node stops it, and a worker gone under the pool
+    at a Ctrl-C made Python 3.11's pool race its own exit handler ("Exception ignored
+    ... Bad file descriptor" from concurrent.futures at the node's exit).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.nice(NICENESS)
     exit_with_parent(parent)
 

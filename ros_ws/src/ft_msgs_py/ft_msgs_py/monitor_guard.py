@@ -7,7 +7,12 @@ remembers the stamps of the commands it sent; an `ft/command` carrying one of th
 the monitor's echo. Once an echo has been seen (a graph without a monitor never
 triggers the guard), commands left unanswered for `timeout` s of steady time mean the
 monitor is gone or stalled: the controller then publishes explicit zeros on the plant's
-command topics itself, until an echo comes back. Times are steady seconds.
+command topics itself, until an echo comes back. Times are steady seconds. The
+controller asks (`silent`) every cycle; a longer gap between two questions than
+`timeout` is the controller's own stall (stopped, starved of the CPU), not the
+monitor's: echoes that arrived meanwhile may still wait in its queue behind the question,
+so the wait starts again (a deployment test paused the controller for 0.3 s and the
+guard fired on a live monitor).
 
 The echoes also say which joints the monitor holds locked, in a way no other node can
 forge by merely publishing: it zeros them on the command path (`zeroed`). The controller
@@ -34,6 +39,7 @@ class MonitorGuard:
         self._sent: OrderedDict[Stamp, tuple[float, ...]] = OrderedDict()
         self._seen = False  # an echo has come at least once
         self._waiting_since: float | None = None  # first command unanswered since
+        self._asked: float | None = None  # when `silent` was last called
         #: Joints (command order) the latest echo zeroed where the command moved them: the
         #: monitor's locked set, as its command path shows it.
         self.zeroed: frozenset[int] = frozenset()
@@ -66,7 +72,13 @@ class MonitorGuard:
         """Seconds without an echo while commands wait, if beyond `timeout`; else None.
 
         None also before the first echo (no monitor known) and with `timeout` 0 (off).
+        After a gap of more than `timeout` since the last call (the caller stalled) the
+        wait starts again at `now`.
         """
+        stalled = self._asked is not None and now - self._asked > self.timeout
+        self._asked = now
+        if stalled and self._waiting_since is not None:
+            self._waiting_since = now
         if not (self._seen and self.timeout > 0) or self._waiting_since is None:
             return None
         waited = now - self._waiting_since
