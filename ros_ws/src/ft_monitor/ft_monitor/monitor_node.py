@@ -439,8 +439,11 @@ class MonitorNode(SuiteNode):
         self._diagnostics_pub.publish(diagnostics.array(statuses, self.get_clock().now().to_msg()))
 
     def _report_unseen(self, unseen: list[str]) -> list[str]:
-        """Say (INFO) when joints become unseen, so a lock nobody reports has a reason."""
-        if unseen and unseen != self._unseen:
+        """Say (INFO) when joints become unseen, so a lock nobody reports has a reason.
+
+        Once per joint that joins the unseen ones (not again as others leave them).
+        """
+        if set(unseen) - set(self._unseen):
             self.get_logger().info(
                 f"a lock of {unseen} cannot be seen now: not commanded for "
                 f"{UNSEEN_AFTER:.0f} s or more (a lock shows only while its joint is commanded; "
