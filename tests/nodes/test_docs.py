@@ -171,6 +171,19 @@ def test_relative_links_resolve(page):
     assert not broken, f"{page.relative_to(REPO)}: broken links\n" + "\n".join(broken)
 
 
+#: A repository path written in code spans, such as `tests/unit/test_docs.py`.
+_REPO_PATH = re.compile(r"`((?:tests|docs|ros_ws|bench|tools|docker)/[^`\s:#]+)")
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_repository_paths_in_code_spans_exist(page):
+    """A file named in backticks exists (a renamed test file left its old name behind)."""
+    named = _REPO_PATH.findall(page.read_text())
+    assert named or page.name != "README.md"
+    missing = sorted({path for path in named if not (REPO / path).exists()})
+    assert not missing, f"{page.relative_to(REPO)} names files that do not exist: {missing}"
+
+
 def test_readme_links_every_docs_page():
     linked = {(README.parent / link.partition("#")[0]).resolve() for link in _links(README)}
     unlinked = [p.name for p in DOCS.glob("*.md") if p.resolve() not in linked]

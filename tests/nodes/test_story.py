@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from ft_core import robots
+from ft_core import robots, selfmotion
 from ft_sim import campaign, demo
 from ft_sim.scenario import ScenarioConfig, run
 from models import chain_urdf
@@ -191,6 +191,63 @@ def test_the_boundary_set_has_smaller_boxes_than_the_task_set() -> None:
     assert widths["boundary"].min() < 0.35 and widths["task"].min() > 0.5, widths
 
 
+FIXTURES = sorted((Path(robots.__file__).parent / "urdf").glob("*.urdf"))
+
+
+@pytest.mark.parametrize("task", ["position", "pose", "planar"])
+@pytest.mark.parametrize("urdf", FIXTURES, ids=lambda path: path.stem)
+def test_a_campaign_designs_itself_on_every_urdf_fixture(urdf: Path, task: str,
+                                                          capsys) -> None:
+    """Issue 32: `ft-campaign --robot <urdf> --task T` on every URDF of the repository.
+
+    Where the task leaves joints to spare: three critical points of the task's size with
+    their common box, far waypoints inside it, and the critical points reachable by
+    inverse kinematics with any joint pinned at the bent configuration. Where it leaves
+    none (the PUMA 560's pose task, the planar 3R's position task), or the arm cannot
+    follow it (the planar 3R's pose task): exit status 2 and the reason, before any run.
+    (Whole campaigns: the pose task on the iiwa 14 and the planar task on the planar 3R
+    below.)
+    """
+    try:
+        robot = robots.load(str(urdf), task_space=task)
+    except robots.RobotModelError:
+        robot = None
+    if robot is None or robot.n <= robot.m:
+        with pytest.raises(SystemExit) as exit_status:
+            campaign.main(["--robot", str(urdf), "--task", task, "--runs", "1"])
+        assert exit_status.value.code == 2
+        assert "no redundancy" in capsys.readouterr().err or robot is None
+        return
+    design = campaign.design_of(str(urdf), "", "", {}, task=task)
+    size = 7 if task == "pose" else robot.m
+    critical = tuple(tuple(p) for p in design["critical"])
+    assert design["task"] == task and [len(p) for p in critical] == [size] * 3
+    lower, upper = (np.array(side) for side in design["box"])
+    assert np.all(lower <= upper) and np.all(upper - lower > 0)
+    far = campaign.waypoints(robot, (lower, upper), critical, seed=0)
+    assert len(far) == campaign.WAYPOINTS and {len(p) for p in far} == {size}
+    q = selfmotion.bent_configuration(robot)
+    assert campaign.reachable(robot, critical, q, 0) != []
+
+
+@pytest.mark.slow
+def test_a_campaign_on_the_planar_arm(tmp_path: Path, capsys) -> None:
+    """Issue 32: `ft-campaign --robot <planar3r.urdf> --task planar`, nothing else.
+
+    One run with and one without soft limits: the lock found on the right joint, every
+    critical point reached again, no false lock and no non-finite value.
+    """
+    urdf = Path(robots.__file__).parent / "urdf" / "planar3r.urdf"
+    status = campaign.main(["--robot", str(urdf), "--task", "planar", "--runs", "1",
+                            "--modes", "blend", "--workers", "2", "--out", str(tmp_path)])
+    assert "2 runs (0 kept from before)" in capsys.readouterr().out
+    results = json.loads((tmp_path / "campaign.json").read_text())
+    assert status == 0 and len(results) == 2
+    for result in results:
+        assert result["correct_detection"] and result["false_locks"] == [], result
+        assert result["success"], result
+
+
 def test_launch_files_compile() -> None:
     launch_files = sorted((REPO / "ros_ws" / "src").glob("*/launch/*.launch.py"))
     assert len(launch_files) == 2
@@ -203,14 +260,12 @@ def test_launch_files_compile() -> None:
 
 @pytest.mark.slow
 def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, capsys) -> None:
-    """Issue 15 (in part): ft-campaign on a URDF with a realistic plant, resumable."""
-    from models import chain_urdf
-
-    urdf = tmp_path / "arm7.urdf"
-    urdf.write_text(chain_urdf("zyzyzyz", name="arm7"))
+    """Issues 15 and 32: ft-campaign on the iiwa 14's URDF with a pose task and a realistic
+    plant: the right joint detected, every critical point reached again; resumable."""
+    urdf = Path(robots.__file__).parent / "urdf" / "iiwa14.urdf"
     arguments = ["--runs", "1", "--modes", "blend", "--workers", "2", "--robot", str(urdf),
-                 "--latency", "0.02", "--response-time", "0.02", "--hold-last-command",
-                 "--record", "--out", str(tmp_path)]
+                 "--task", "pose", "--latency", "0.02", "--response-time", "0.02",
+                 "--hold-last-command", "--record", "--out", str(tmp_path)]
     assert campaign.main(arguments) == 0
     assert "2 runs (0 kept from before)" in capsys.readouterr().out
     kept = sorted((tmp_path / "runs").glob("*/*.json"))
@@ -219,6 +274,9 @@ def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, 
         injected = recorded(path.with_suffix(""))["/ft/inject_failure"]
         assert len(injected) == 1 and json.loads(path.read_text())["locked"] in (
             injected[0][1].name)
+    for result in json.loads((tmp_path / "campaign.json").read_text()):
+        assert result["correct_detection"] and result["false_locks"] == [], result
+        assert result["success"], result
     text = (tmp_path / "campaign.md").read_text()
     assert "runs with a false lock" in text and "| blend | 1 |" in text
     assert campaign.main(arguments) == 0  # nothing left to run

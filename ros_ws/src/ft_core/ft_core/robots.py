@@ -544,7 +544,10 @@ class Robot:
 
     def forward(self, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task coordinates at q: (2,) x-y for planar, (3,) position (m), pose a 4x4 transform."""
-        pose = self.transform(q)
+        return self.task_coordinates(self.transform(q))
+
+    def task_coordinates(self, pose: np.ndarray) -> np.ndarray:
+        """A tool transform (4x4, base frame) as `forward` gives it for this task space."""
         if self.task_space == "pose":
             return pose
         return pose[self._rows, 3].copy()

@@ -3,7 +3,7 @@
 Does keeping the joints inside the critical points' bounding boxes while healthy
 keep every critical point reachable after a lock (Lewis & Maciejewski 1997 sec. III-V)? Each run
 is a `scenario` on the arm (the Panda by default, or `--robot` with its chain
-options; position task): it wanders for a long time between three critical points
+options; `--task` position by default, or pose): it wanders for a long time between three critical points
 and `WAYPOINTS` far, non-critical waypoints, so that an arm without soft limits can
 drift; a random joint locks at a random time in `LOCK_WINDOW`; then the arm tours the
 critical points. Success: every critical point reached again (within 5 mm, 5 s
@@ -86,18 +86,20 @@ class Task:
 
 
 def critical_points(robot: robots.Robot, kind: str = "task") -> tuple[tuple[float, ...], ...]:
-    """Three critical points (m) of set `kind` (`POINT_SETS`).
+    """Three critical points of set `kind` (`POINT_SETS`), each flat (`selfmotion.point_size`).
 
-    "task": the built-in's task points, or around a bent configuration; "boundary":
-    `boundary_points`.
+    "task": the built-in's task points for a position task, or around a bent
+    configuration; "boundary": `boundary_points`. m, and a pose's quaternion x, y, z, w.
     """
     if kind == "boundary":
         chosen = boundary_points(robot)
-    elif robot.name in TASK_POINTS:
+    elif robot.name in TASK_POINTS and robot.task_space == "position":
         return TASK_POINTS[robot.name]
     else:
         chosen = selfmotion.points_around(robot, selfmotion.bent_configuration(robot))
-    return tuple(tuple(float(v) for v in p[:3]) for p in chosen)
+    size = selfmotion.point_size(robot)
+    flat = selfmotion.flat_from_targets(robot, chosen)
+    return tuple(tuple(flat[i:i + size]) for i in range(0, len(flat), size))
 
 
 def boundary_points(robot: robots.Robot, steps: int = 20) -> list[np.ndarray]:
@@ -106,7 +108,8 @@ def boundary_points(robot: robots.Robot, steps: int = 20) -> list[np.ndarray]:
     On the ray from the shoulder (the second joint's origin) through the tool point of
     `selfmotion.bent_configuration`, the farthest point inverse kinematics reaches is found
     by bisection (`steps` halvings, so bounded); the middle point is `BOUNDARY` of the way
-    there, and the other two are `selfmotion.points_around` its configuration. Near the
+    there, and the other two are `selfmotion.points_around` its configuration (a pose
+    task keeps the bent configuration's orientation along the ray). Near the
     boundary the self-motion manifolds shrink, and so do their bounding boxes: the case
     Lewis & Maciejewski 1997 (sec. III) say the soft limits matter in. On the Panda the
     common box spans 0.3 to 0.5 of the range of joints 1, 2 and 4 (the task set: 0.6 to
@@ -116,43 +119,51 @@ def boundary_points(robot: robots.Robot, steps: int = 20) -> list[np.ndarray]:
     out of reach (a chain without room to move).
     """
     q0 = selfmotion.bent_configuration(robot)
-    shoulder = robot.skeleton(q0)[1]
-    ray = robot.forward(q0)[:3] - shoulder
+    shoulder, tool = robot.skeleton(q0)[1], robot.transform(q0)
+    ray = tool[:3, 3] - shoulder
+
+    def along(length: float) -> np.ndarray:  # the task target `length` rays from the shoulder
+        pose = tool.copy()
+        pose[:3, 3] = shoulder + length * ray
+        return robot.task_coordinates(pose)
+
     # In lengths of the ray: 1 is the bent tool point itself; `Robot.reach` (the sum of
     # the links) is beyond any point the arm reaches.
     near, far = 1.0, max(1.0, 2 * robot.reach / max(float(np.linalg.norm(ray)), 1e-9))
-    selfmotion.find_seed(robot, shoulder + ray, q0)
+    selfmotion.find_seed(robot, along(1.0), q0)
     for _ in range(steps):
         middle = 0.5 * (near + far)
         try:
-            selfmotion.find_seed(robot, shoulder + middle * ray, q0, attempts=10)
+            selfmotion.find_seed(robot, along(middle), q0, attempts=10)
         except selfmotion.UnreachableError:
             far = middle
         else:
             near = middle
-    q = selfmotion.find_seed(robot, shoulder + BOUNDARY * near * ray, q0)
+    q = selfmotion.find_seed(robot, along(BOUNDARY * near), q0)
     return selfmotion.points_around(robot, q)
 
 
 def waypoints(robot: robots.Robot, box: tuple[np.ndarray, np.ndarray],
               critical: tuple[tuple[float, ...], ...], seed: int,
               count: int = WAYPOINTS) -> list[tuple[float, ...]]:
-    """`count` far waypoints for run `seed` (m), reachable inside the soft-limit box.
+    """`count` far waypoints for run `seed`, reachable inside the soft-limit box.
 
     Configurations drawn uniformly inside the box (and the joint limits); their tool
-    points, kept when at least `FAR` x the median distance of the drawn points from the
-    base away from every critical point (the farthest ones if too few are that far).
+    points (flat as `critical_points`), kept when their position is at least `FAR` x the
+    median distance of the drawn positions from the base away from every critical point
+    (the farthest ones if too few are that far).
     """
     rng = np.random.default_rng([seed, 1])
     lower = np.maximum(box[0], robot.lower)
     upper = np.minimum(box[1], robot.upper)
     lower, upper = np.where(np.isfinite(lower), lower, -np.pi), np.where(
         np.isfinite(upper), upper, np.pi)
-    drawn = np.array([robot.forward(q)[:3] for q in rng.uniform(lower, upper,
-                                                                (20 * count, robot.n))])
-    distance = np.min(np.linalg.norm(drawn[:, None, :] - np.array(critical)[None], axis=2),
-                      axis=1)
-    far = np.flatnonzero(distance >= FAR * np.median(np.linalg.norm(drawn, axis=1)))
+    tools = [robot.forward(q) for q in rng.uniform(lower, upper, (20 * count, robot.n))]
+    drawn = np.array(selfmotion.flat_from_targets(robot, tools)).reshape(len(tools), -1)
+    positions = drawn[:, :min(robot.m, 3)]
+    centres = np.array(critical)[:, :positions.shape[1]]
+    distance = np.min(np.linalg.norm(positions[:, None, :] - centres[None], axis=2), axis=1)
+    far = np.flatnonzero(distance >= FAR * np.median(np.linalg.norm(positions, axis=1)))
     if far.size < count:
         far = np.argsort(-distance)[:count]
     return [tuple(float(v) for v in drawn[i]) for i in far[:count]]
@@ -185,14 +196,14 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
     """Run one scenario (and record it to `bag`); return its summary (JSON-ready)."""
     design = task.design
     robot = robots.load(design["robot"], design["base_link"] or None,
-                        design["tip_link"] or None, task_space="position")
+                        design["tip_link"] or None, task_space=design["task"])
     critical = tuple(tuple(p) for p in design["critical"])
     box = tuple(np.array(side) for side in design["box"])
     joint, lock_time = draw(task.seed, robot.joint_names)
     points, marks = tour(critical, waypoints(robot, box, critical, task.seed))
     config = ScenarioConfig(
         robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
-        points=points, critical=marks, resolution=task.mode, soft_limits=task.soft,
+        task_space=design["task"], points=points, critical=marks, resolution=task.mode, soft_limits=task.soft,
         lock_joint=joint, lock_time=lock_time,
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
@@ -218,7 +229,7 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
 
 def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: np.ndarray,
               joint: int) -> list[int]:
-    """The critical points (indices) the arm can reach at all with `joint` locked where q has it.
+    """The critical points (indices, flat) the arm can reach at all with `joint` locked at q's.
 
     Inverse kinematics with that joint pinned, from q and 30 seeded random starts
     (`selfmotion.find_seed`): what the bounding boxes guarantee (Lewis & Maciejewski 1997 sec. III),
@@ -226,27 +237,29 @@ def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: n
     """
     lower, upper = robot.lower.copy(), robot.upper.copy()
     lower[joint] = upper[joint] = q[joint]
-    return [k for k, found in enumerate(selfmotion.reachability(
-        robot, [np.array(p) for p in critical], lower, upper, q)) if found is not None]
+    targets = selfmotion.targets_from_flat(robot, [v for p in critical for v in p])
+    return [k for k, found in enumerate(selfmotion.reachability(robot, targets, lower, upper, q))
+            if found is not None]
 
 
 def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
-              recovery: bool = True, points: str = "task") -> dict:
-    """What every run of a campaign shares: arm, plant, recovery, critical points, box.
+              recovery: bool = True, points: str = "task", task: str = "position") -> dict:
+    """What every run of a campaign shares: arm, task, plant, recovery, critical points, box.
 
     `points`: the critical-point set (`POINT_SETS`). Raises selfmotion.UnreachableError
     when the critical points have no common box, robots.RobotModelError when the chain
-    has no joint to spare for a position task (after a lock it could not go on).
+    cannot follow the task or has no joint to spare for it (after a lock it could not go
+    on, and there is no self-motion to bound).
     """
-    robot = robots.load(robot_spec, base_link or None, tip_link or None,
-                        task_space="position")
+    robot = robots.load(robot_spec, base_link or None, tip_link or None, task_space=task)
     if robot.n <= robot.m:
-        raise robots.RobotModelError(f"{robot.name} has {robot.n} joint(s): a campaign needs "
-                                     f"more than the position task's {robot.m}")
+        raise robots.RobotModelError(f"{robot.name} has {robot.n} joint(s): no redundancy for "
+                                     f"a campaign, which needs more than the {task} task's "
+                                     f"{robot.m}")
     critical = critical_points(robot, points)
     box, _ = selfmotion.soft_limits(robot, [v for p in critical for v in p],
                                     selfmotion.bent_configuration(robot))
-    return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link,
+    return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link, "task": task,
             "plant": plant, "points": points, "critical": [list(p) for p in critical],
             "box": [[float(v) for v in side] for side in box],
             "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW),
@@ -444,6 +457,8 @@ def parser() -> argparse.ArgumentParser:
                         help="the sim's plant (physics: MuJoCo, docs/sim.md)")
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
+    parser.add_argument("--task", default="position", choices=["position", "pose", "planar"],
+                        help="task space (default %(default)s; planar for a planar arm)")
     parser.add_argument("--latency", type=cli.bounded(float, 0.0, 1.0), default=0.0,
                         help="plant latency (s, 0 to 1)")
     parser.add_argument("--response-time", type=cli.bounded(float, 0.0, 1.0), default=0.0,
@@ -471,7 +486,7 @@ def main(argv: list[str] | None = None) -> int:
              "response_time": args.response_time, "hold_last_command": args.hold_last_command}
     try:
         design = design_of(args.robot, args.base_link, args.tip_link, plant,
-                           not args.no_recovery, args.points)
+                           not args.no_recovery, args.points, args.task)
     except robots.RobotModelError as error:
         arguments.error(f"--robot: {error}")
     except selfmotion.UnreachableError as error:
