@@ -260,8 +260,11 @@ def test_launch_files_compile() -> None:
 
 @pytest.mark.slow
 def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, capsys) -> None:
-    """Issues 15 and 32: ft-campaign on the iiwa 14's URDF with a pose task and a realistic
-    plant: the right joint detected, every critical point reached again; resumable."""
+    """Issues 15 and 32: ft-campaign on another arm, resumable.
+
+    The iiwa 14's URDF with a pose task and a realistic plant: the right joint detected,
+    every critical point reached again.
+    """
     urdf = Path(robots.__file__).parent / "urdf" / "iiwa14.urdf"
     arguments = ["--runs", "1", "--modes", "blend", "--workers", "2", "--robot", str(urdf),
                  "--task", "pose", "--latency", "0.02", "--response-time", "0.02",

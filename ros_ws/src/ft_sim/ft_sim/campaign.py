@@ -1,17 +1,17 @@
 """`ft-campaign` (used by `make bench`): Lewis & Maciejewski 1997 sec. V's experiment at scale.
 
-Does keeping the joints inside the critical points' bounding boxes while healthy
-keep every critical point reachable after a lock (Lewis & Maciejewski 1997 sec. III-V)? Each run
-is a `scenario` on the arm (the Panda by default, or `--robot` with its chain
-options; `--task` position by default, or pose): it wanders for a long time between three critical points
-and `WAYPOINTS` far, non-critical waypoints, so that an arm without soft limits can
-drift; a random joint locks at a random time in `LOCK_WINDOW`; then the arm tours the
-critical points. Success: every critical point reached again (within 5 mm, 5 s
-each). The waypoints are drawn inside the soft-limit box (so the arm with soft
-limits can reach them too) and far from the critical points; a run with and one
-without soft limits share the seed, hence the waypoints and the lock (a paired
-design). A lock declared before the failure is a false lock. The sim's plant options
-(`--latency`, `--response-time`, `--hold-last-command`) make it realistic.
+Does keeping the joints inside the critical points' bounding boxes while healthy keep
+every critical point reachable after a lock (Lewis & Maciejewski 1997 sec. III-V)? Each
+run is a `scenario` on the arm (the Panda by default, or `--robot` with its chain
+options; `--task` position by default, pose, or planar): it wanders for a long time
+between three critical points and `WAYPOINTS` far, non-critical waypoints, so that an
+arm without soft limits can drift; a random joint locks at a random time in
+`LOCK_WINDOW`; then the arm tours the critical points. Success: every critical point
+reached again (within 5 mm, 5 s each). The waypoints are drawn inside the soft-limit box
+(so the arm with soft limits can reach them too) and far from the critical points; a run
+with and one without soft limits share the seed, hence the waypoints and the lock (a
+paired design). A lock declared before the failure is a false lock. The sim's plant
+options (`--latency`, `--response-time`, `--hold-last-command`) make it realistic.
 
 Conditions: each resolution mode (`--modes`) with and without the soft limits.
 The table gives each success rate with its 95 % Wilson interval, and per mode the
@@ -203,8 +203,8 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
     points, marks = tour(critical, waypoints(robot, box, critical, task.seed))
     config = ScenarioConfig(
         robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
-        task_space=design["task"], points=points, critical=marks, resolution=task.mode, soft_limits=task.soft,
-        lock_joint=joint, lock_time=lock_time,
+        task_space=design["task"], points=points, critical=marks, resolution=task.mode,
+        soft_limits=task.soft, lock_joint=joint, lock_time=lock_time,
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
