@@ -7,11 +7,12 @@ options; `--task` position by default, pose, or planar): it wanders for a long t
 between three critical points and `WAYPOINTS` far, non-critical waypoints, so that an
 arm without soft limits can drift; a random joint locks at a random time in
 `LOCK_WINDOW`; then the arm tours the critical points. Success: every critical point
-reached again (within 5 mm, 5 s each). The waypoints are drawn inside the soft-limit box
-(so the arm with soft limits can reach them too) and far from the critical points; a run
-with and one without soft limits share the seed, hence the waypoints and the lock (a
-paired design). A lock declared before the failure is a false lock. The sim's plant
-options (`--latency`, `--response-time`, `--hold-last-command`) make it realistic.
+reached again (within 5 mm, `TOUR_TIMEOUT` s each). The waypoints are drawn inside the
+soft-limit box (so the arm with soft limits can reach them too) and far from the
+critical points; a run with and one without soft limits share the seed, hence the
+waypoints and the lock (a paired design). A lock declared before the failure is a false
+lock. The sim's plant options (`--latency`, `--response-time`, `--hold-last-command`)
+make it realistic.
 
 Conditions: each resolution mode (`--modes`) with and without the soft limits.
 The table gives each success rate with its 95 % Wilson interval, and per mode the
