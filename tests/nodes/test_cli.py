@@ -126,7 +126,7 @@ REFUSED = [
     (demo.main, ["--duration", "1e308"], 2, "outside"),
     (demo.main, ["--out", "{file}"], 1, "is a file"),
     (demo.main, ["--robot", "{one}"], 2, "cannot follow"),
-    (campaign.main, ["--robot", "{one}", "--runs", "1"], 2, "a campaign needs more"),
+    (campaign.main, ["--robot", "{one}", "--runs", "1"], 2, "no redundancy for a campaign"),
     (campaign.main, ["--runs", "-1"], 2, "outside"),
 ]
 

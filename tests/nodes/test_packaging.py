@@ -23,7 +23,8 @@ PACKAGES = sorted(p.parent.name for p in SOURCES.glob("*/package.xml"))
 KEYS = {"numpy": "python3-numpy", "scipy": "python3-scipy", "matplotlib": "python3-matplotlib",
         "yaml": "python3-yaml", "numba": "python3-numba", "tqdm": "python3-tqdm",
         "pinocchio": "pinocchio", "mujoco": "python3-mujoco-pip",
-        "rosbags": "python3-rosbags-pip", "ruckig": "python3-ruckig-pip"}
+        "rosbags": "python3-rosbags-pip", "ruckig": "python3-ruckig-pip",
+        "foxglove": "python3-foxglove-sdk-pip"}
 #: pip keys in rosdistro's rosdep/python.yaml (checked against ros/rosdistro of 2026-08).
 UPSTREAM_PIP_KEYS = {"python3-mujoco-pip", "python3-rosbags-pip"}
 
@@ -133,6 +134,24 @@ def test_launch_files_take_the_arguments_a_ros_user_expects() -> None:
     shipped = yaml.safe_load((SOURCES / "ft_controller" / "config" / "controller.yaml")
                              .read_text())
     assert list(shipped) == ["/**"]  # applies under any namespace
+
+
+def test_the_rviz_view_ships_with_the_launch_file_and_shows_both_nodes_markers() -> None:
+    """Issue 32: an RViz config, installed, whose displays are the markers the nodes publish.
+
+    Topics relative (RViz runs in the stack's namespace), the default arm's base link as
+    the fixed frame, and `rviz:=true` of demo.launch.py starts it.
+    """
+    from ft_sim.live import MARKER_TOPICS
+
+    installed = REPO / "ros_ws" / "install" / "ft_sim" / "share" / "ft_sim" / "config"
+    view = yaml.safe_load((installed / "ft_arms.rviz").read_text())
+    manager = view["Visualization Manager"]
+    shown = {d["Topic"]["Value"] for d in manager["Displays"]
+             if d["Class"] == "rviz_default_plugins/MarkerArray" and d["Enabled"]}
+    assert shown == {topic for topic, _, _ in MARKER_TOPICS}
+    assert manager["Global Options"]["Fixed Frame"] == "panda_link0"
+    assert "rviz" in declared_arguments(SOURCES / "ft_sim" / "launch" / "demo.launch.py")
 
 
 def test_colcon_test_runs_each_packages_part_of_the_suite() -> None:

@@ -10,6 +10,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", ["launch/demo.launch.py"]),
+        ("share/" + package_name + "/config", ["config/ft_arms.rviz"]),
     ],
     install_requires=["setuptools"],
     extras_require={"test": ["pytest"]},  # colcon test runs test/ with pytest

@@ -35,6 +35,7 @@ from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
 from ft_msgs_py import (
     convert,
     diagnostics,
+    markers,
     metrics,
     names,
     parameters,
@@ -51,6 +52,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header
+from visualization_msgs.msg import MarkerArray
 
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
@@ -165,6 +167,7 @@ class ControllerNode(SuiteNode):
                                                   qos.RELIABLE)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
+        self._markers_pub = self.create_publisher(MarkerArray, names.MARKERS, qos.RELIABLE)
         self._state_subscription = self.create_subscription(
             JointState, names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
         #: Takes each command as a call (`hand_commands_to`; ft-stack), or None.
@@ -177,6 +180,7 @@ class ControllerNode(SuiteNode):
         self._load_model()
         self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
+        self.create_timer(markers.PERIOD, self._publish_markers)
         # The watchdog runs on steady time: with use_sim_time and no /clock the control
         # timer never fires, and the plant must still get explicit zeros.
         self._last_cycle = time.monotonic()
@@ -326,6 +330,26 @@ class ControllerNode(SuiteNode):
         if self.core is not None:
             self.core.close()
         super().destroy_node()
+
+    def _publish_markers(self) -> None:
+        """The live view (`ft_msgs_py.markers`): goal, critical points, announced locks.
+
+        Only while someone subscribes; off the control cycle (a timer of its own).
+        """
+        core, robot = self.core, self.robot
+        if core is None or self._q is None or not self._markers_pub.get_subscription_count():
+            return
+        target = core.target
+        goal = [robot.target_position(target.value)] if target and target.kind == "pose" else []
+        critical = [robot.target_position(point) for point in
+                    selfmotion.targets_from_flat(robot, self.param("critical_points") or [])]
+        locked = robot.skeleton(self._q)[list(core.locked)]
+        self._markers_pub.publish(markers.array(robot.base_link, self.get_clock().now().to_msg(),
+                                                lambda header: [
+            markers.spheres(header, "goal", goal, markers.GOAL),
+            markers.spheres(header, "critical_points", critical, markers.CRITICAL),
+            markers.spheres(header, "locked_joints", locked, markers.ANNOUNCED,
+                            markers.HALO_DIAMETER)]))
 
     # ------------------------------------------------------- one-process wiring
     def hand_commands_to(self, take: Callable[[JointState], None]) -> None:

@@ -546,6 +546,16 @@ class Robot:
         """Task coordinates at q: (2,) x-y for planar, (3,) position (m), pose a 4x4 transform."""
         return self.task_coordinates(self.transform(q))
 
+    def target_position(self, target: np.ndarray) -> np.ndarray:
+        """The position (3,; m, base frame) of a task target in `forward`'s form.
+
+        A pose's translation, a position itself, a planar point at z = 0.
+        """
+        target = np.asarray(target, dtype=float)
+        if target.shape == (4, 4):
+            return target[:3, 3].copy()
+        return np.array([*target[:3], *np.zeros(3 - min(target.size, 3))])
+
     def task_coordinates(self, pose: np.ndarray) -> np.ndarray:
         """A tool transform (4x4, base frame) as `forward` gives it for this task space."""
         if self.task_space == "pose":

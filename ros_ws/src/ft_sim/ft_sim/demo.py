@@ -8,7 +8,10 @@ the remaining joints (`--plant physics`: on the MuJoCo plant, `ft_core.physics`)
 prints a report and writes it to the output folder with
 two figures, the time plots (`demo.png`) and the arm in 3D before the lock, at the
 lock and after recovery with its tool path and task points (`arm.png`); with
-`--record`, every topic as a rosbag2 in MCAP (`bag/`):
+`--record`, every topic as a rosbag2 in MCAP (`bag/`). With `--live`, the run is
+served to Foxglove as it happens (`ft_sim.live`), in real time, with the layout to
+watch it written first (`foxglove_layout.json`); the demo waits up to `VIEWER_WAIT` s
+for a viewer to connect. The report:
 
 - detection latency: from the injection to `ft/locked_joints`;
 - tool-velocity error |J (qd_actual - qd_commanded)| before the lock, while it is
@@ -33,11 +36,13 @@ import numpy as np
 from ft_core import robots
 from ft_core.offline import cli
 
-from ft_sim import arm_view
+from ft_sim import arm_view, live
 from ft_sim.scenario import PHYSICS_ROBOT, Record, Scenario, ScenarioConfig
 
 #: s of simulated time a demo may last (a run is stepped in memory: bounded).
 MAX_DURATION = 3600.0
+#: s of wall clock `--live` waits for Foxglove to connect before the run starts anyway.
+VIEWER_WAIT = 60.0
 
 
 def summarise(config: ScenarioConfig, record: Record) -> dict:
@@ -202,7 +207,24 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     parser.add_argument("--record", action="store_true", help="also write every topic as a "
                         "rosbag2 (MCAP) to <out>/bag, for Foxglove, PlotJuggler or ros2 bag")
+    parser.add_argument("--live", nargs="?", const=live.DEFAULT_PORT, default=None,
+                        type=cli.bounded(int, 0, 65535), metavar="PORT",
+                        help="serve the run to Foxglove as it happens, in real time, on "
+                        f"ws://localhost:PORT (default {live.DEFAULT_PORT}; 0: a free one); "
+                        "the layout is written to <out>/foxglove_layout.json")
     return parser
+
+
+def watch(scenario: Scenario, out: Path) -> None:
+    """Write the Foxglove layout, say how to connect, and wait a while for a viewer."""
+    out.mkdir(parents=True, exist_ok=True)
+    layout = out / "foxglove_layout.json"
+    layout.write_text(live.layout(scenario.robot.base_link, list(scenario.robot.joint_names)))
+    print(f"live view: in Foxglove, Open connection > Foxglove WebSocket > "
+          f"{scenario.live.url}, then import the layout {layout}; waiting up to "
+          f"{VIEWER_WAIT:g} s for it ...", flush=True)
+    if not scenario.live.wait_for_viewer(VIEWER_WAIT):
+        print("no viewer connected: running anyway", flush=True)
 
 
 @cli.clear_file_errors("ft-demo")
@@ -230,7 +252,9 @@ def main(argv: list[str] | None = None) -> int:
         task_space=args.task, resolution=args.resolution, plant=args.plant, lock_joint=joint,
         lock_time=args.lock_time, duration=args.duration, seed=args.seed,
         soft_limits=not args.no_soft_limits, reachable_tour=True),
-        bag=args.out / "bag" if args.record else None)
+        bag=args.out / "bag" if args.record else None, live_port=args.live)
+    if scenario.live is not None:
+        watch(scenario, args.out)
     print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "
           f"{args.lock_time:g} s, then it visits every task point again; task points "
           f"{[[round(v, 3) for v in p] for p in scenario.config.points]} ...", flush=True)

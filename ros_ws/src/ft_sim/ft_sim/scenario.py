@@ -36,6 +36,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from ft_sim.bag import Recorder
+from ft_sim.live import LiveServer
 from ft_sim.sim_node import SimNode
 
 #: Critical points of the built-in 7-DOF arms for a position task (m, base frame): a
@@ -163,11 +164,14 @@ class Record:
 class Scenario:
     """Builds the nodes in their own context (and DDS domain) and runs them.
 
-    With `bag`, every topic of the run is also written there as a rosbag2 (MCAP).
+    With `bag`, every topic of the run is also written there as a rosbag2 (MCAP). With
+    `live_port`, every topic and the nodes' markers are served to Foxglove on that port
+    (`live.LiveServer`; 0: any free one), and simulated time is paced to the wall clock
+    (no faster than real time), so that a viewer sees the run as it happens.
     """
 
     def __init__(self, config: ScenarioConfig, domain_id: int | None = None,
-                 bag: Path | None = None):
+                 bag: Path | None = None, live_port: int | None = None):
         self.robot = robots.load(config.robot, config.base_link or None,
                                  config.tip_link or None, task_space=config.task_space)
         start = (np.array(config.start, dtype=float) if config.start
@@ -228,6 +232,8 @@ class Scenario:
                                         qos.LATCHED)
         self.recorder = None if bag is None else Recorder(
             self.driver, bag, lambda: round(self.sim.t * 1e9))
+        self.live = None if live_port is None else LiveServer(self.driver, live_port)
+        self._pace: tuple[float, float] | None = None  # (wall s, simulated s) pacing starts
         for node in (self.sim, self.controller, self.monitor, self.driver):
             self.executor.add_node(node)
         self.record = Record(list(self.robot.joint_names))
@@ -355,9 +361,19 @@ class Scenario:
                 or (monitor is not None and monitor.writing)):
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
+        if self.live is not None:
+            self._keep_pace()
         if core is not None and (not self.record.recovery
                                  or self.record.recovery[-1][1] != core.recovery_note):
             self.record.recovery.append((self.sim.t, core.recovery_note))
+
+    def _keep_pace(self) -> None:
+        """Sleep while simulated time is ahead of the wall clock since the first step."""
+        if self._pace is None:
+            self._pace = (time.monotonic(), self.sim.t)
+        ahead = (self.sim.t - self._pace[1]) - (time.monotonic() - self._pace[0])
+        if ahead > 0:
+            time.sleep(ahead)
 
     def start(self) -> float:
         """Wait for the model and the soft limits (if any); the simulated start time (s)."""
@@ -441,6 +457,8 @@ class Scenario:
         self.executor.shutdown()
         if self.recorder is not None:
             self.recorder.close()
+        if self.live is not None:
+            self.live.close()
         for node in (self.sim, self.controller, self.monitor, self.driver):
             node.destroy_node()
         rclpy.shutdown(context=self.context)

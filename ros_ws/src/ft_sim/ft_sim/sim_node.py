@@ -45,7 +45,7 @@ import numpy as np
 from ft_core import robots, swing
 from ft_core.physics import PhysicsPlant
 from ft_core.plant import CommandPath, Plant, PlantConfig
-from ft_msgs_py import convert, names, parameters, qos, spin
+from ft_msgs_py import convert, markers, names, parameters, qos, spin
 from ft_msgs_py.node import SuiteNode
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import Executor
@@ -53,6 +53,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 #: The plant's parameters default to `PlantConfig`'s own values.
 _PLANT = PlantConfig()
@@ -101,6 +102,10 @@ class SimNode(SuiteNode):
         self.period = 1.0 / self.param("rate")
         self._start = 0.0 if self._own_clock else self.now()
         self._state_pub = self.create_publisher(JointState, names.JOINT_STATES, qos.RELIABLE)
+        self._markers_pub = self.create_publisher(MarkerArray, names.MARKERS, qos.RELIABLE)
+        self._trail = markers.Trail()
+        self._steps_per_view = max(1, round(self.param("rate") * markers.PERIOD))
+        self._steps = 0
         self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
                            if self._own_clock else None)
         self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
@@ -305,6 +310,26 @@ class SimNode(SuiteNode):
         measured = plant.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
         self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured,
                                                     plant.qd))
+        self._steps += 1
+        if self._steps % self._steps_per_view == 0:
+            self._publish_markers(stamp)
+
+    def _publish_markers(self, stamp) -> None:
+        """The live view (`ft_msgs_py.markers`): the arm, its failures, the tool's path.
+
+        The path grows every `markers.PERIOD` s of plant time; the markers go out only
+        while someone subscribes.
+        """
+        robot, plant = self.robot, self.plant
+        skeleton = robot.skeleton(plant.q)
+        self._trail.add(skeleton[-1])
+        if not self._markers_pub.get_subscription_count():
+            return
+        colours = {**{j: markers.SWINGING for j in plant.swinging},
+                   **{j: markers.LOCKED for j in plant.locked}}
+        self._markers_pub.publish(markers.array(robot.base_link, stamp, lambda header: [
+            *markers.arm(header, "arm", skeleton, colours),
+            markers.line(header, "tool_path", self._trail.positions)]))
 
 
 def main(args: list[str] | None = None) -> None:

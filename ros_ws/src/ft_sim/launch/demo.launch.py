@@ -2,6 +2,7 @@ r"""The closed loop as separate processes: sim (owning the clock), controller an
 
     ros2 launch ft_sim demo.launch.py
     ros2 launch ft_sim demo.launch.py robot:=panda_inertial plant:=physics namespace:=arm1
+    ros2 launch ft_sim demo.launch.py rviz:=true
     ros2 launch ft_sim demo.launch.py --show-args
     ros2 topic pub --once /ft/target_pose geometry_msgs/PoseStamped \\
       "{pose: {position: {x: 0.45, y: -0.15, z: 0.35}, orientation: {w: 1.0}}}"
@@ -17,7 +18,10 @@ three nodes and their topics under it: two arms side by side), `use_sim_time` (t
 publishes /clock and the controller and monitor follow it; false: the wall clock),
 `params_file` (a YAML parameters file applied to all three after the defaults below: key
 it `/**:` so that it applies under any namespace), `plant` (`kinematic`, or `physics`:
-MuJoCo, for a robot with inertias such as `panda_inertial`) and `state_directory`.
+MuJoCo, for a robot with inertias such as `panda_inertial`), `state_directory` and `rviz`
+(also start RViz 2 with the shipped view, `config/ft_arms.rviz`, fixed on the model's base
+link: the nodes' `~/markers`, docs/sim.md "Live view"; needs the `rviz2` package, which
+the suite does not depend on).
 
 A sim session starts with no locked joint: the monitor keeps its locked set in a new
 temporary directory each launch, never in the real arm's (`state_directory:=<dir>` to
@@ -40,17 +44,20 @@ ARGUMENTS = {
     "plant": ("kinematic", "the sim's plant: kinematic, or physics (MuJoCo; a robot with "
               "inertias)"),
     "state_directory": (None, "the monitor's state directory (default: a new one)"),
+    "rviz": ("false", "also start rviz2 with the shipped view of the nodes' markers"),
 }
 
 
 def nodes(context) -> list[Node]:
-    """The three nodes, from the arguments' values."""
+    """The three nodes (and RViz with `rviz:=true`), from the arguments' values."""
     value = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
     sim_time = value["use_sim_time"].lower() == "true"
     model = {"robot_model": value["robot"], "task_space": "position"}
     files = [value["params_file"]] if value["params_file"] else []
     common = {"namespace": value["namespace"], "output": "screen"}
+    viewer = [rviz(value["robot"], sim_time, common)] if value["rviz"].lower() == "true" else []
     return [
+        *viewer,
         Node(package="ft_sim", executable="sim_node", name="sim", **common,
              parameters=[{**model, "publish_clock": sim_time, "rate": 250.0,
                           "plant": value["plant"], "position_noise": 0.001,
@@ -65,6 +72,19 @@ def nodes(context) -> list[Node]:
              parameters=[{**model, "use_sim_time": sim_time,
                           "state_directory": value["state_directory"]}, *files]),
     ]
+
+
+def rviz(robot: str, sim_time: bool, common: dict) -> Node:
+    """RViz 2 with the shipped view, fixed on `robot`'s base link (the markers' frame)."""
+    from pathlib import Path
+
+    from ament_index_python.packages import get_package_share_directory
+    from ft_core import robots
+
+    view = Path(get_package_share_directory("ft_sim")) / "config" / "ft_arms.rviz"
+    return Node(package="rviz2", executable="rviz2", name="rviz", **common,
+                arguments=["-d", str(view), "-f", robots.load(robot).base_link],
+                parameters=[{"use_sim_time": sim_time}])
 
 
 def generate_launch_description():
