@@ -17,7 +17,6 @@ import zlib
 
 import pytest
 from _pytest.fixtures import FixtureRequest
-from hypothesis import settings
 
 
 def _domain_block() -> tuple[int, int]:
@@ -42,10 +41,9 @@ os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ["ROS_HOME"] = tempfile.mkdtemp(prefix="ft_tests_ros_home_")
 atexit.register(shutil.rmtree, os.environ["ROS_HOME"], ignore_errors=True)
 
-# Property-based tests draw the same examples on every run: failures reproduce.
-settings.register_profile("deterministic", derandomize=True, print_blob=True)
-settings.load_profile("deterministic")
-
+# Property-based tests draw the same examples on every run (failures reproduce), unless a
+# long fuzz run asks for more from fresh seeds (`fuzzing.SCALE`): its profile, loaded.
+import fuzzing  # noqa: E402,F401
 
 #: The tiers, one folder each (markers registered in pyproject.toml).
 TIERS = ("unit", "nodes", "processes")

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from ft_core.offline import bounds, design, placement, planning
 from ft_sim import campaign, demo
+from fuzzing import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from models import chain_urdf
@@ -60,7 +61,7 @@ def test_every_number_a_tool_takes_is_bounded() -> None:
     assert len(BOUNDED) >= 20  # the check looks at the real parsers
 
 
-@settings(max_examples=400, deadline=None, derandomize=True)
+@settings(max_examples=examples(400), deadline=None)
 @given(st.sampled_from(BOUNDED),
        st.one_of(st.sampled_from(BOUNDARY), st.floats().map(repr),
                  st.integers(-2**70, 2**70).map(str)))

@@ -22,6 +22,7 @@ from ft_controller.controller_node import ControllerNode
 from ft_core import robots
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert
+from fuzzing import examples
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -133,7 +134,8 @@ def good_twist(node) -> TwistStamped:
     return msg
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(60), deadline=None,
+          suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_controller_survives_hostile_input(controller, data) -> None:
     node = controller
@@ -168,7 +170,8 @@ def test_controller_survives_hostile_input(controller, data) -> None:
         assert np.any(np.array(commands[-1].velocity) != 0.0), node.problems.summary()
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(60), deadline=None,
+          suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_monitor_survives_hostile_input(monitor, data) -> None:
     node = monitor
@@ -206,7 +209,8 @@ def sim():
         node.destroy_node()
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(40), deadline=None,
+          suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_sim_survives_hostile_input(sim, data) -> None:
     node = sim
@@ -232,7 +236,8 @@ parameter_values = st.one_of(
 
 
 @pytest.mark.parametrize("which", ["controller", "monitor", "sim"])
-@settings(max_examples=50, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(50), deadline=None,
+          suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_parameter_services_refuse_hostile_values_without_crashing(request, which,
                                                                    data) -> None:
