@@ -146,7 +146,7 @@ def test_a_campaign_run(soft: bool, plant: str) -> None:
     design = campaign.design_of(str(PANDA_URDF), "", "", {
         "plant": plant, "command_latency": 0.02, "response_time": 0.02,
         "hold_last_command": True})
-    result = campaign.one_run(campaign.Task(3, "blend", soft, fresh_domain(), design))
+    result = campaign.one_run(campaign.Task(3, "blend", soft, design, fresh_domain()))
     assert result["false_locks"] == []
     assert result["correct_detection"] and result["non_finite"] == 0
     assert len(result["waypoint_visits"]) >= 2  # it wandered before the lock

@@ -18,12 +18,14 @@ Conditions: each resolution mode (`--modes`) with and without the soft limits.
 The table gives each success rate with its 95 % Wilson interval, and per mode the
 runs whose outcome the soft limits changed with the exact McNemar test on them.
 
-Runs go to a process pool (`--workers`), one DDS domain per run counted from
-ROS_DOMAIN_ID + 1, with a progress bar on a terminal. Each finished run is kept in
+Runs go to worker processes (`--workers`) or a Dask cluster (`--cluster`; `batch`), each
+in a DDS domain of its own on its machine (`domains.lease`, from ROS_DOMAIN_ID + 1 on),
+with a progress bar on a terminal. Each finished run is kept, here, in
 `<out>/runs/<options>/` (a folder per arm, plant and task design) and not run again:
 a campaign resumes where it stopped. `--record` also keeps each run's topics as a
 rosbag2 (MCAP) in a folder of the run's name beside its result. Writes
-`<out>/campaign.md` (tables), `campaign.json` (every run) and `campaign.png`.
+`<out>/campaign.md` (tables and the throughput), `campaign.json` (every run) and
+`campaign.png`.
 """
 
 from __future__ import annotations
@@ -32,18 +34,20 @@ import argparse
 import hashlib
 import json
 import os
+import shutil
 import sys
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from ft_core import robots, selfmotion
-from ft_core.offline import cli
-from ft_core.workers import SPAWN
+from ft_core.offline import batch, cli
 from scipy import stats
 from tqdm import tqdm
 
+from ft_sim import domains
 from ft_sim.demo import summarise
 from ft_sim.scenario import PHYSICS_ROBOT, TASK_POINTS, ScenarioConfig, run
 
@@ -62,23 +66,31 @@ BOUNDARY = 0.9
 #: Most seeds per condition.
 MAX_RUNS = 100_000
 GOAL_TOLERANCE = 5e-3  #: m
+#: DDS domains a run may lease from `--first-domain` on (`domains.lease`).
+DOMAIN_COUNT = 100
+#: The key of a result that carries the run's recording ({file name: bytes}).
+RECORDING = "_recording"
 GOAL_TIMEOUT = 5.0  #: s per visit
 TOUR_TIMEOUT = ScenarioConfig.tour_timeout  #: s per visit of the tour after the lock
 
 
 @dataclass(frozen=True)
 class Task:
-    """One run to do: the seed (the draws), the condition, its DDS domain, the design.
+    """One run to do: the seed (the draws), the condition, the design, how to run it.
 
     `design` holds everything the runs of one campaign share (arm, plant options,
-    critical points, soft-limit box); it names the folder the run is kept in.
+    critical points, soft-limit box); it names the folder the run is kept in. The run
+    leases a DDS domain from `first_domain` on, on the machine it runs on
+    (`domains.lease`); with `record`, its topics come back with its result
+    (`RECORDING`), to be written where the campaign runs.
     """
 
     seed: int
     mode: str
     soft: bool
-    domain: int
     design: dict = field(hash=False)
+    first_domain: int = 30
+    record: bool = False
 
     @property
     def name(self) -> str:
@@ -193,8 +205,12 @@ def draw(seed: int, joints: tuple[str, ...]) -> tuple[str, float]:
     return joints[int(rng.integers(len(joints)))], float(rng.uniform(*LOCK_WINDOW))
 
 
-def one_run(task: Task, bag: Path | None = None) -> dict:
-    """Run one scenario (and record it to `bag`); return its summary (JSON-ready)."""
+def one_run(task: Task) -> dict:
+    """Run one scenario; its summary (JSON-ready), with its recording if `task.record`.
+
+    The recording is a rosbag2 folder's files ({name: bytes}) under `RECORDING`: a run
+    on a cluster's worker writes nothing on that machine's disk.
+    """
     design = task.design
     robot = robots.load(design["robot"], design["base_link"] or None,
                         design["tip_link"] or None, task_space=design["task"])
@@ -209,7 +225,12 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
-    record = run(config, domain_id=task.domain, bag=bag)
+    with domains.lease(task.first_domain, DOMAIN_COUNT) as domain, \
+            tempfile.TemporaryDirectory(prefix="ft_campaign_run_") as scratch:
+        bag = Path(scratch) / "bag" if task.record else None
+        record = run(config, domain_id=domain, bag=bag)
+        recording = {path.name: path.read_bytes() for path in sorted(bag.iterdir())} \
+            if bag is not None else None
     summary = summarise(config, record)
     j = robot.joint_names.index(joint)
     value = summary["locked_value"]
@@ -225,6 +246,8 @@ def one_run(task: Task, bag: Path | None = None) -> dict:
                    reached_points=[marks.index(i) for i in summary["reached_after"]
                                    if i in marks],
                    last_joint=robot.joint_names[-1])
+    if recording is not None:
+        summary[RECORDING] = recording
     return summary
 
 
@@ -267,12 +290,11 @@ def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
             "recovery": recovery, "tour_timeout": TOUR_TIMEOUT}
 
 
-def tasks(runs: int, modes: tuple[str, ...], first_domain: int, design: dict) -> list[Task]:
+def tasks(runs: int, modes: tuple[str, ...], first_domain: int, design: dict,
+          record: bool = False) -> list[Task]:
     """Every run: each seed under each mode, without and with soft limits."""
-    todo = [(seed, mode, soft) for seed in range(runs) for mode in modes
-            for soft in (False, True)]
-    return [Task(seed, mode, soft, (first_domain + i % 60) % 230, design)
-            for i, (seed, mode, soft) in enumerate(todo)]
+    return [Task(seed, mode, soft, design, first_domain, record) for seed in range(runs)
+            for mode in modes for soft in (False, True)]
 
 
 def kept(out: Path, task: Task) -> Path:
@@ -418,26 +440,29 @@ def figure(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def execute(todo: list[Task], out: Path, workers: int, record: bool) -> int:
-    """Run `todo` in a pool, keeping each result as it finishes; the number that crashed."""
+def execute(todo: list[Task], out: Path, where: batch.Where) -> int:
+    """Run `todo` (`batch.run`), keeping each result as it finishes; how many crashed.
+
+    Each result is written here, by the client, with its recording (a folder of the
+    run's name beside it), whether the run was local or on a cluster's worker.
+    """
     crashed = 0
-    # Not multiprocessing.Pool: its workers are daemons, and a daemon cannot start the
-    # process in which the controller traces the critical points' boxes. Spawned, not
-    # forked: a fork of a process with DDS threads (a test session's) can deadlock.
-    with ProcessPoolExecutor(workers, mp_context=SPAWN) as pool:
-        futures = {pool.submit(one_run, task, kept(out, task).with_suffix("")
-                               if record else None): task for task in todo}
-        with tqdm(total=len(todo), unit="run", disable=None, file=sys.stderr) as bar:
-            for future in as_completed(futures):
-                task = futures[future]
-                try:
-                    result = future.result()
-                except Exception as error:  # reported, not kept: a rerun retries it
-                    crashed += 1
-                    tqdm.write(f"run {task.name} crashed: {error!r}", file=sys.stderr)
-                else:
-                    kept(out, task).write_text(json.dumps(result) + "\n")
-                bar.update()
+    for outcome in batch.run(one_run, todo, where, what="run"):
+        task = todo[outcome.index]
+        if outcome.error is not None:  # reported, not kept: a rerun retries it
+            crashed += 1
+            tqdm.write(f"run {task.name} crashed: {outcome.error!r}", file=sys.stderr)
+            continue
+        result, path = dict(outcome.result), kept(out, task)
+        recording = result.pop(RECORDING, None)
+        if recording is not None:
+            folder = path.with_suffix("")
+            if folder.exists():
+                shutil.rmtree(folder)
+            folder.mkdir(parents=True)
+            for name, content in recording.items():
+                (folder / name).write_bytes(content)
+        path.write_text(json.dumps(result) + "\n")
     return crashed
 
 
@@ -448,7 +473,7 @@ def parser() -> argparse.ArgumentParser:
                         help=f"seeds per condition (1 to {MAX_RUNS})")
     parser.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES),
                         help="resolution modes, each with and without soft limits")
-    parser.add_argument("--workers", **cli.workers(os.cpu_count() or 1))
+    batch.add_arguments(parser)
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--record", action="store_true",
                         help="keep every run's topics as a rosbag2 (MCAP) beside its result")
@@ -494,14 +519,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ft-campaign: the critical points chosen for this arm have no common "
               f"soft-limit box ({error}); try another --tip-link", file=sys.stderr)
         return 1
-    every = tasks(args.runs, tuple(args.modes), args.first_domain, design)
+    every = tasks(args.runs, tuple(args.modes), args.first_domain, design, args.record)
     todo = [task for task in every if not kept(args.out, task).exists()]
-    print(f"{len(every)} runs ({len(every) - len(todo)} kept from before) on {args.workers} "
-          f"workers; critical points {design['critical']} ...", flush=True)
+    where = batch.Where.from_arguments(args)
+    print(f"{len(every)} runs ({len(every) - len(todo)} kept from before) "
+          f"{where.describe()}; critical points {design['critical']} ...", flush=True)
     if every:
         kept(args.out, every[0]).parent.mkdir(parents=True, exist_ok=True)
     try:
-        crashed = execute(todo, args.out, args.workers, args.record)
+        started = time.monotonic()
+        crashed = execute(todo, args.out, where)
+        elapsed = time.monotonic() - started
     except KeyboardInterrupt:
         done = sum(kept(args.out, task).exists() for task in every)
         print(f"\nft-campaign: interrupted; {done} of {len(every)} runs kept in {args.out} "
@@ -510,6 +538,9 @@ def main(argv: list[str] | None = None) -> int:
     results = [json.loads(kept(args.out, task).read_text()) for task in every
                if kept(args.out, task).exists()]
     text = table(results) + "\n" + points_table(results) if results else "no finished runs\n"
+    if todo:
+        text += (f"\n{len(todo) - crashed} runs in {elapsed:.0f} s {where.describe()}: "
+                 f"{3600 * (len(todo) - crashed) / max(elapsed, 1e-9):.0f} runs per hour\n")
     (args.out / "campaign.md").write_text(text)
     (args.out / "campaign.json").write_text(json.dumps(results, indent=1) + "\n")
     if results:
