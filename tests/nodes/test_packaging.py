@@ -24,7 +24,8 @@ KEYS = {"numpy": "python3-numpy", "scipy": "python3-scipy", "matplotlib": "pytho
         "yaml": "python3-yaml", "numba": "python3-numba", "tqdm": "python3-tqdm",
         "pinocchio": "pinocchio", "mujoco": "python3-mujoco-pip",
         "rosbags": "python3-rosbags-pip", "ruckig": "python3-ruckig-pip",
-        "foxglove": "python3-foxglove-sdk-pip"}
+        "foxglove": "python3-foxglove-sdk-pip", "distributed": "python3-distributed-pip",
+        "dask": "python3-distributed-pip"}
 #: pip keys in rosdistro's rosdep/python.yaml (checked against ros/rosdistro of 2026-08).
 UPSTREAM_PIP_KEYS = {"python3-mujoco-pip", "python3-rosbags-pip"}
 

@@ -196,7 +196,7 @@ def test_eq_3_30_optimum_for_the_chapters_design() -> None:
 def test_eq_3_30_family_has_l3_equal_0_4() -> None:
     # Reduced grid (step 0.05, coarse manifolds) in this process; `ft-design multicase`
     # runs the chapter's step 0.02.
-    scores = multicase.score_grid(multicase.link_grid(0.05), radii=40, samples=120, workers=1)
+    scores = multicase.score_grid(multicase.link_grid(0.05), radii=40, samples=120)
     family = multicase.optimal_family(scores, 2e-3)
     assert {round(s.lengths[2], 6) for s in family} == {0.4}
     assert len(family) >= 5

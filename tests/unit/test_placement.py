@@ -28,7 +28,7 @@ def planar() -> robots.Robot:
 
 def run(tmp_path: Path, *args: str) -> tuple[int, Path]:
     prefix = tmp_path / "map"
-    return placement.main([*args, "--output", str(prefix), "--jobs", "1"]), prefix
+    return placement.main([*args, "--output", str(prefix), "--workers", "1"]), prefix
 
 
 def load(prefix: Path) -> dict:
@@ -124,7 +124,7 @@ def test_line_map_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture) -> N
 def test_plane_map_in_two_processes_matches_one(tmp_path: Path) -> None:
     args = ["--robot", "planar3r", "--x=-1:1:3", "--y", "0:1:2", *FAST, "--no-plot"]
     prefix = tmp_path / "pool"
-    assert placement.main([*args, "--output", str(prefix), "--jobs", "2"]) == 0
+    assert placement.main([*args, "--output", str(prefix), "--workers", "2"]) == 0
     status, single = run(tmp_path, *args)
     assert status == 0
     pooled, alone = load(prefix), load(single)

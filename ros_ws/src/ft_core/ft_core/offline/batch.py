@@ -1,6 +1,6 @@
 """One execution layer for every batch tool: a local process pool, or a Dask cluster.
 
-`ft-campaign`, `ft-map`, `ft-design`, `ft-plan` and `ft-bounds --multicase` run many
+`ft-campaign`, `ft-map`, `ft-plan` and `ft-design` (`dh --verify`, `multicase`) run many
 independent jobs. Each takes the same two options (`add_arguments`): `--workers N`
 processes on this machine (the default: every core, nothing to set up), or
 `--cluster ADDRESS`, the scheduler of a Dask distributed cluster (`tcp://host:8786`),
@@ -56,6 +56,10 @@ class Where:
         return cls(args.workers, args.cluster or None)
 
 
+#: One worker, this process: jobs run one after the other, no pool.
+HERE = Where()
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`--workers` and `--cluster`, the same in every batch tool."""
     parser.add_argument("--workers", **cli.workers(os.cpu_count() or 1),
@@ -75,17 +79,19 @@ class Outcome:
 
 
 def run(function: Callable[[Any], Any], jobs: Sequence[Any], where: Where, what: str = "job",
-        ) -> Iterator[Outcome]:
+        children: bool = False) -> Iterator[Outcome]:
     """`function(job)` for every job, each outcome as it finishes (in any order).
 
     `function` must be a module-level function (pickled by reference) and each job
     picklable. One worker locally runs the jobs in this process (no pool to start).
-    `what` names a job on the progress bar.
+    `what` names a job on the progress bar. `children`: a job starts processes of its
+    own, which a cluster's workers can only when they are not daemonic (OSError
+    otherwise, saying how to start them).
     """
     with tqdm(total=len(jobs), unit=what, disable=None, file=sys.stderr) as bar:
         failed = 0
         if where.cluster:
-            outcomes = _on_cluster(function, jobs, where.cluster)
+            outcomes = _on_cluster(function, jobs, where.cluster, children)
         elif where.workers == 1 or len(jobs) <= 1:
             outcomes = _here(function, jobs)
         else:
@@ -142,8 +148,13 @@ def _interrupt_children() -> None:
                 pass
 
 
+def _daemonic() -> bool:
+    """Whether this process is a daemon (run on each of a cluster's workers)."""
+    return multiprocessing.current_process().daemon
+
+
 def _on_cluster(function: Callable[[Any], Any], jobs: Sequence[Any], address: str,
-                ) -> Iterator[Outcome]:
+                children: bool) -> Iterator[Outcome]:
     from distributed import Client
     from distributed import as_completed as completed
 
@@ -152,6 +163,10 @@ def _on_cluster(function: Callable[[Any], Any], jobs: Sequence[Any], address: st
     except OSError as error:  # no scheduler there
         raise OSError(f"no Dask scheduler answers at {address}: {error}") from error
     with client:
+        if children and any(client.run(_daemonic).values()):
+            raise OSError(f"the workers of the cluster at {address} are daemonic processes, "
+                          "which cannot start the processes a job needs: start them with "
+                          "DASK_DISTRIBUTED__WORKER__DAEMON=False (docs/campaign.md)")
         tqdm.write(f"on the Dask cluster at {address}: "
                    f"{len(client.scheduler_info()['workers'])} workers, dashboard "
                    f"{client.dashboard_link}", file=sys.stderr)

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -27,8 +26,7 @@ import numpy as np
 
 from ft_core import files
 from ft_core.measures import failure_weights
-from ft_core.offline import cli
-from ft_core.workers import SPAWN
+from ft_core.offline import batch, cli
 
 
 def optimal_null_vector(probabilities: Iterable[float]) -> np.ndarray:
@@ -181,7 +179,7 @@ def _check_task_dimension(m: int, n: int) -> None:
 # ---------------------------------------------------------------- command line
 
 
-def _dh_report(J: np.ndarray, verify: bool, workers: int) -> dict[str, Any]:
+def _dh_report(J: np.ndarray, verify: bool, where: batch.Where) -> dict[str, Any]:
     from ft_core.offline import dh
 
     family = dh.organise_permutations(J)
@@ -205,7 +203,7 @@ def _dh_report(J: np.ndarray, verify: bool, workers: int) -> dict[str, Any]:
         "identity_design": dh.dh_from_jacobian(J).as_rows(),
     }
     if verify:
-        report["verified_designs"] = _verify_all(J, family, workers)
+        report["verified_designs"] = _verify_all(J, family, where)
     report["_family"] = family
     return report
 
@@ -217,27 +215,10 @@ def _verify_chunk(args: tuple[np.ndarray, list[int]]) -> int:
     return dh.verify_family(J, dh.organise_permutations(J), designs)
 
 
-def _verify_all(J: np.ndarray, family: Any, workers: int) -> int:
-    """Recompute every design's DH table (about 7 s on one core): tqdm and a spawn pool."""
-    from concurrent.futures import ProcessPoolExecutor
-
-    from tqdm import tqdm
-
+def _verify_all(J: np.ndarray, family: Any, where: batch.Where) -> int:
+    """Recompute every design's DH table (about 7 s on one core), in chunks (`batch`)."""
     chunks = [c.tolist() for c in np.array_split(np.arange(len(family.permutations)), 40)]
-    done = 0
-    with tqdm(total=len(family.permutations), desc="verify designs", unit="design",
-              file=sys.stderr) as bar:
-        if workers == 1:
-            for chunk in chunks:
-                done += _verify_chunk((J, chunk))
-                bar.update(len(chunk))
-        else:
-            context = SPAWN
-            with ProcessPoolExecutor(workers, mp_context=context) as pool:
-                for count in pool.map(_verify_chunk, [(J, c) for c in chunks]):
-                    done += count
-                    bar.update(count)
-    return done
+    return sum(batch.results(_verify_chunk, [(J, c) for c in chunks], where, what="chunk"))
 
 
 def _plot_dh(report: dict[str, Any], path: Path) -> None:
@@ -338,13 +319,11 @@ def _plot_redundant(report: dict[str, Any], path: Path) -> None:
 
 
 def _multicase_report(args: argparse.Namespace) -> dict[str, Any]:
-    from tqdm import tqdm
-
     from ft_core.offline import multicase
 
     grid = multicase.link_grid(args.step)
-    with tqdm(total=len(grid), desc="eq 3.30 designs", unit="design", file=sys.stderr) as bar:
-        scores = multicase.score_grid(grid, args.radii, args.samples, args.workers, bar.update)
+    scores = multicase.score_grid(grid, args.radii, args.samples,
+                                  batch.Where.from_arguments(args))
     family = multicase.optimal_family(scores, args.family_tolerance)
     balanced = multicase.balanced_design(family)
     best = max(scores, key=lambda s: s.objective)
@@ -423,8 +402,7 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--output", "-o", type=Path, required=True, help="JSON file to write")
     common.add_argument("--figure", type=Path, help="PNG figure to write (optional)")
     workers = argparse.ArgumentParser(add_help=False)
-    workers.add_argument("--workers", **cli.workers(os.cpu_count() or 1),
-                         help="processes for long computations (default: all cores)")
+    batch.add_arguments(workers)
 
     dh_cmd = commands.add_parser("dh", parents=[common, workers],
                                  help="DH parameters of the 7! column orders (sec. 2.3)")
@@ -475,7 +453,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "dh":
             report, plot = _dh_report(_load_jacobian(args.jacobian), args.verify,
-                                      args.workers), _plot_dh
+                                      batch.Where.from_arguments(args)), _plot_dh
         elif args.command == "r7":
             if args.start == "3.24" and args.probabilities is None:
                 from ft_core.offline.design7r import W_324

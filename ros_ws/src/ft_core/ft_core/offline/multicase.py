@@ -27,14 +27,12 @@ Readings taken:
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.workers import SPAWN
+from ft_core.offline import batch
 
 COMPONENTS = ("equal", "joint 1", "joint 2", "joint 3")
 _TIE = 1e-4  # component values this close to the maximum count as optimal
@@ -164,34 +162,19 @@ def _score_chunk(args: tuple[np.ndarray, int, int]) -> list[DesignScore]:
     return [score(row, radii, samples) for row in chunk]
 
 
-def score_grid(grid: np.ndarray, radii: int = 100, samples: int = 360, workers: int | None = None,
-               progress: Callable[[int], None] | None = None) -> list[DesignScore]:
-    """Score every row of `grid` (k, 3); in a spawn process pool when workers > 1.
+def score_grid(grid: np.ndarray, radii: int = 100, samples: int = 360,
+               where: batch.Where = batch.HERE) -> list[DesignScore]:
+    """Score every row of `grid` (k, 3), in chunks, where `where` says (`batch`).
 
     Args:
         grid: link lengths, e.g. `link_grid()`.
         radii: task-point distances per design (see `score`).
         samples: points per self-motion manifold (see `score`).
-        workers: processes (None: all cores; 1: in this process).
-        progress: called with the number of designs finished since the last call.
+        where: worker processes or a cluster (default: this process).
     """
-    workers = (os.cpu_count() or 1) if workers is None else max(1, int(workers))
-    chunks = np.array_split(np.asarray(grid, float), max(1, min(len(grid), 8 * workers)))
-    chunks = [c for c in chunks if len(c)]
-    results: list[DesignScore] = []
-    if workers == 1:
-        for chunk in chunks:
-            results += _score_chunk((chunk, radii, samples))
-            if progress:
-                progress(len(chunk))
-        return results
-    context = SPAWN
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        for part in pool.map(_score_chunk, [(c, radii, samples) for c in chunks]):
-            results += part
-            if progress:
-                progress(len(part))
-    return results
+    chunks = np.array_split(np.asarray(grid, float), max(1, min(len(grid), 8 * where.workers)))
+    jobs = [(c, radii, samples) for c in chunks if len(c)]
+    return [s for part in batch.results(_score_chunk, jobs, where, what="chunk") for s in part]
 
 
 def optimal_family(scores: Sequence[DesignScore], tolerance: float = 1e-3) -> list[DesignScore]:

@@ -30,8 +30,9 @@ plane or a volume: each of `--x`, `--y` (and `--z`) is a value or a range
    configurations and records the largest volume of all of them (`best_volume`):
    Lewis & Maciejewski 1997 traces one component per point, and which one depends on the seed.
 
-Grid points are shared among `--jobs` worker processes (default: every core),
-started with the "spawn" method; each builds its own robot from the model arguments.
+Grid points are shared, in chunks, among `--workers` processes (default: every core) or
+the workers of a Dask cluster (`--cluster`; `ft_core.offline.batch`); each builds its own
+robot from the model arguments.
 
 `--suggest "dx,dy(,dz);..."` takes critical points as offsets from a reference point
 (a rigid set, translated but not rotated): the grid then holds placements of the
@@ -57,10 +58,8 @@ import argparse
 import csv
 import json
 import math
-import os
 import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -68,8 +67,7 @@ import numpy as np
 import pinocchio as pin
 
 from ft_core import limits, measures, robots, selfmotion
-from ft_core.offline import cli
-from ft_core.workers import SPAWN
+from ft_core.offline import batch, cli
 
 #: Longest straight move (m) of the tool per continuation step when seeding.
 CONTINUATION_STEP = 0.05
@@ -219,26 +217,28 @@ def evaluate_point(robot: robots.Robot, target: np.ndarray, q_start: np.ndarray,
 _WORKER: dict = {}
 
 
-def _init_worker(model: tuple[str, str | None, str | None, str | None], settings: dict) -> None:
-    """Build the robot in this process (robots do not pickle) and keep the settings."""
-    _WORKER["robot"] = robots.load(model[0], model[1], model[2], task_space=model[3])
-    _WORKER.update(settings)
+def _run_chunk(job: tuple[tuple, dict, list[tuple[int, np.ndarray]]],
+               ) -> list[tuple[int, PointResult]]:
+    """Evaluate (index, target) pairs of `job` = (model, settings, pairs).
 
-
-def _run_chunk(chunk: list[tuple[int, np.ndarray]]) -> list[tuple[int, PointResult]]:
-    """Evaluate (index, target) pairs with the worker's robot and settings."""
+    The robot is built once per process and model (robots do not pickle).
+    """
+    model, settings, chunk = job
+    if _WORKER.get("model") != model:
+        _WORKER.update(model=model,
+                       robot=robots.load(model[0], model[1], model[2], task_space=model[3]))
     robot = _WORKER["robot"]
-    return [(index, evaluate_point(robot, target, _WORKER["q_start"], _WORKER["joints"],
-                                   _WORKER["step"], _WORKER["restarts"], index))
+    return [(index, evaluate_point(robot, target, settings["q_start"], settings["joints"],
+                                   settings["step"], settings["restarts"], index))
             for index, target in chunk]
 
 
 def evaluate_targets(model: tuple[str, str | None, str | None, str | None],
                      targets: Sequence[np.ndarray], q_start: np.ndarray,
                      joints: Sequence[int] | None = None, step: float = selfmotion.STEP,
-                     restarts: int = 0, jobs: int = 1, progress: bool = False,
+                     restarts: int = 0, where: batch.Where = batch.HERE,
                      ) -> list[PointResult]:
-    """`evaluate_point` for every target, in `jobs` spawned processes (1: in this one).
+    """`evaluate_point` for every target, where `where` says (`batch`).
 
     Args:
         model: (spec, base_link, tip_link, task_space) for `robots.load` in each worker.
@@ -247,44 +247,23 @@ def evaluate_targets(model: tuple[str, str | None, str | None, str | None],
         joints: joints of the volume, as `evaluate_point`.
         step: tracing step (rad).
         restarts: further components per point, as `evaluate_point`.
-        jobs: worker processes; 1 evaluates here without a pool.
-        progress: show a tqdm bar on stderr (when it is a terminal).
+        where: worker processes or a cluster; one worker evaluates here without a pool.
 
     Returns:
         The results in the order of `targets`.
     """
-    from tqdm import tqdm
-
     settings = {"q_start": np.asarray(q_start, dtype=float),
                 "joints": None if joints is None else list(joints), "step": step,
                 "restarts": restarts}
-    tasks = list(enumerate(targets))
-    results: list[PointResult | None] = [None] * len(tasks)
-    bar = tqdm(total=len(tasks), unit="pt", file=sys.stderr,
-               disable=None if progress else True, desc="ft-map")
-    try:
-        if jobs <= 1 or len(tasks) <= 1:
-            _init_worker(model, settings)
-            for task in tasks:
-                for index, result in _run_chunk([task]):
-                    results[index] = result
-                bar.update(1)
-        else:
-            # Small chunks keep the load balanced (points near the boundary are quick,
-            # points with large manifolds are slow) and the bar moving.
-            size = max(1, min(16, len(tasks) // (8 * jobs)))
-            chunks = [tasks[k:k + size] for k in range(0, len(tasks), size)]
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=SPAWN,
-                                     initializer=_init_worker,
-                                     initargs=(model, settings)) as pool:
-                futures = [pool.submit(_run_chunk, chunk) for chunk in chunks]
-                for future in as_completed(futures):
-                    done = future.result()
-                    for index, result in done:
-                        results[index] = result
-                    bar.update(len(done))
-    finally:
-        bar.close()
+    pairs = list(enumerate(targets))
+    # Small chunks keep the load balanced (points near the boundary are quick, points
+    # with large manifolds are slow) and the bar moving.
+    size = max(1, min(16, len(pairs) // (8 * max(where.workers, 1))))
+    jobs = [(model, settings, pairs[k:k + size]) for k in range(0, len(pairs), size)]
+    results: list[PointResult | None] = [None] * len(pairs)
+    for done in batch.results(_run_chunk, jobs, where, what="chunk"):
+        for index, result in done:
+            results[index] = result
     return results  # type: ignore[return-value]
 
 
@@ -541,8 +520,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="placements checked for reachability inside the intersection "
                         "and printed (default %(default)s)")
     parser.add_argument("--step", **cli.tracing_step())
-    parser.add_argument("--jobs", "-j", type=cli.bounded(int, 0, cli.MAX_WORKERS), default=0,
-                        help="worker processes (default 0: one per core; 1: no pool)")
+    batch.add_arguments(parser)
     parser.add_argument("--output", "-o", type=Path, default=Path("ft_map"),
                         help="output prefix (PREFIX.npz, .csv, .png), default %(default)s")
     parser.add_argument("--no-plot", action="store_true", help="do not draw the figure")
@@ -610,16 +588,15 @@ def main(argv: list[str] | None = None) -> int:
     placements = grid.points()
     positions = (placements[:, None, :] + offsets[None]).reshape(-1, placements.shape[1])
     targets = [task_target(robot, p, orientation) for p in positions]
-    jobs = args.jobs or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                         else os.cpu_count() or 1)
+    where = batch.Where.from_arguments(args)
     volume_joints = "all joints" if joints is None else "joints " + ",".join(
         str(j + 1) for j in joints)
     print(f"{robot.name}: {robot.n} joints, {robot.task_space} task; grid {grid.shape} "
-          f"x {len(offsets)} point(s) = {len(targets)} task points on {jobs} process(es); "
+          f"x {len(offsets)} point(s) = {len(targets)} task points {where.describe()}; "
           f"volume over {volume_joints}")
     results = evaluate_targets((args.robot, args.base_link or None, args.tip_link or None,
                                 robot.task_space), targets, start, joints, args.step,
-                               args.restarts, jobs, progress=True)
+                               args.restarts, where)
     data = collect(results, len(placements), len(offsets))
     score = scores(robot, data, joints)
     # Per placement, the worst point's largest kfm on its component (Lewis & Maciejewski 1997 eq 5).

@@ -27,19 +27,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ft_core import robots, selfmotion
-from ft_core.offline import cli, reliability
+from ft_core.offline import batch, cli, reliability
 from ft_core.offline.reliability import TaskPoint, Trajectory
-from ft_core.workers import SPAWN
 
 #: Most manifold samples kept per task point for the search (every k-th sample).
 CANDIDATES = 400
@@ -188,9 +185,13 @@ def straight(points: Sequence[TaskPoint], start: np.ndarray, speed: float) -> Tr
                                list(range(1, len(points) + 1)), speed)
 
 
-def _trace(spec: str, chain: tuple[str | None, str | None], task: str | None,
-           target: list[float], start: list[float]) -> tuple[list[np.ndarray], list, list]:
-    """Trace one point's manifold from the configuration nearest `start` (worker process)."""
+def _trace(job: tuple[str, tuple[str | None, str | None], str | None, list[float],
+                      list[float]]) -> tuple[list[np.ndarray], list, list]:
+    """Trace one point's manifold from the configuration nearest the start (a worker's job).
+
+    `job` = (model spec, chain, task space, the point flat, the start configuration).
+    """
+    spec, chain, task, target, start = job
     robot = robots.load(spec, *chain, task_space=task)
     goal = selfmotion.targets_from_flat(robot, target)[0]
     manifold = selfmotion.trace(robot, goal, selfmotion.find_seed(robot, goal, np.array(start)))
@@ -199,18 +200,13 @@ def _trace(spec: str, chain: tuple[str | None, str | None], task: str | None,
 
 
 def trace_points(args: argparse.Namespace, flat: list[float], size: int, start: np.ndarray,
-                 workers: int) -> list[TaskPoint]:
-    """Each point's traced manifold, in parallel processes, with a progress bar."""
-    from tqdm import tqdm
-
+                 where: batch.Where) -> list[TaskPoint]:
+    """Each point's traced manifold, where `where` says (`batch`), with a progress bar."""
     chain = (args.base_link or None, args.tip_link or None)
-    chunks = [flat[i:i + size] for i in range(0, len(flat), size)]
-    with ProcessPoolExecutor(max_workers=workers, mp_context=SPAWN) as pool:
-        futures = [pool.submit(_trace, args.robot, chain, args.task, c, start.tolist())
-                   for c in chunks]
-        results = [f.result() for f in tqdm(futures, desc="tracing", unit="point",
-                                            disable=None)]
-    return [TaskPoint(tuple(paths), np.array(lo), np.array(hi)) for paths, lo, hi in results]
+    jobs = [(args.robot, chain, args.task, flat[i:i + size], start.tolist())
+            for i in range(0, len(flat), size)]
+    return [TaskPoint(tuple(paths), np.array(lo), np.array(hi))
+            for paths, lo, hi in batch.results(_trace, jobs, where, what="point")]
 
 
 def draw(points: Sequence[TaskPoint], plans: dict[str, Trajectory], path: Path,
@@ -257,7 +253,7 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--monte-carlo", type=cli.bounded(int, 0, MAX_SAMPLES), default=100000,
                         help=f"simulated failures for the check (0: none; at most "
                         f"{MAX_SAMPLES:g}), default %(default)s")
-    parser.add_argument("--workers", **cli.workers(os.cpu_count() or 1))
+    batch.add_arguments(parser)
     parser.add_argument("--out", type=Path, default=Path("plan_out"), help="output folder")
     return parser
 
@@ -278,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     cli.check_folder(args.out)  # a file in the way fails now, not at the end
     try:
-        points = trace_points(args, flat, size, start, args.workers)
+        points = trace_points(args, flat, size, start, batch.Where.from_arguments(args))
     except selfmotion.UnreachableError as error:
         print(f"ft-plan: {error}", file=sys.stderr)
         return 3
