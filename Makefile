@@ -87,6 +87,7 @@ bench: $(STAMP)
 	rm -rf bench_out/runs  # the campaign resumes from kept runs: start afresh
 	$(BIN)/ft-campaign --runs 20 --latency 0.02 --response-time 0.03 --hold-last-command \
 		--out bench_out
+	$(BIN)/python bench/campaign_scaling.py --out bench_out
 	$(BIN)/python bench/nodes.py --out bench_out
 	$(BIN)/python bench/layouts.py --out bench_out
 

@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from ft_core.offline import bounds, design, placement, planning
+from ft_core.offline import batch, bounds, design, placement, planning
 from ft_sim import campaign, demo
 from fuzzing import examples
 from hypothesis import given, settings
@@ -46,6 +46,18 @@ def _actions(tool: str) -> list[argparse.Action]:
         if isinstance(action, argparse._SubParsersAction):
             parser = action.choices[base[0]]
     return [a for a in parser._actions if a.option_strings]
+
+
+def test_every_batch_tool_takes_the_same_execution_options() -> None:
+    """Issue 33: `--workers` and `--cluster` (`ft_core.offline.batch`), nothing else."""
+    batch_tools = ["ft-plan", "ft-map", "ft-design dh", "ft-design multicase", "ft-campaign"]
+    for tool in PARSERS:
+        options = {o for a in _actions(tool) for o in a.option_strings}
+        assert ({"--workers", "--cluster"} <= options) == (tool in batch_tools), tool
+        assert not {"--jobs", "-j"} & options, tool
+    make, base = PARSERS["ft-campaign"]
+    args = make().parse_args([*base, "--cluster", "tcp://10.0.0.2:8786", "--workers", "3"])
+    assert batch.Where.from_arguments(args) == batch.Where(3, "tcp://10.0.0.2:8786")
 
 
 BOUNDED = [(tool, action.option_strings[-1]) for tool in PARSERS for action in _actions(tool)

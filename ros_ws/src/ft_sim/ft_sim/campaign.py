@@ -225,6 +225,9 @@ def one_run(task: Task) -> dict:
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
+    # Discovery on this machine only, whatever the environment says: runs on other
+    # machines of a cluster may use the same domain id.
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     with domains.lease(task.first_domain, DOMAIN_COUNT) as domain, \
             tempfile.TemporaryDirectory(prefix="ft_campaign_run_") as scratch:
         bag = Path(scratch) / "bag" if task.record else None

@@ -1,0 +1,92 @@
+"""`make bench`: campaign runs per hour on 1 and 2 local workers and on a Dask cluster (issue 33).
+
+The same small campaign (`--runs` seeds of blend, with and without soft limits, the
+realistic plant of docs/campaign.md) three times, each into a fresh folder: `--workers 1`,
+`--workers 2`, and `--cluster` on a Dask cluster started as docs/campaign.md says (a
+`dask scheduler` and a `dask worker` process with two worker processes of one thread,
+not daemonic), here on this machine. Each is the installed `ft-campaign` as a process
+of its own; the wall time is from its start to its end (start-up included), the
+throughput runs per hour. The speed-up of 2 workers over 1 is the figure the issue's
+target asks for (linear: 2). Writes `<out>/campaign_scaling.md` and `.json`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from engine_cycle import machine, report
+
+BIN = Path(sys.executable).parent
+#: The realistic plant of the campaign in docs/campaign.md.
+PLANT = ["--latency", "0.02", "--response-time", "0.03", "--hold-last-command"]
+
+
+def campaign(out: Path, runs: int, *where: str) -> float:
+    """Wall time (s) of one `ft-campaign` into `out`; raises if it fails."""
+    started = time.monotonic()
+    subprocess.run([str(BIN / "ft-campaign"), "--runs", str(runs), "--modes", "blend", *PLANT,
+                    "--out", str(out), *where], check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    return time.monotonic() - started
+
+
+def on_cluster(out: Path, runs: int, scratch: Path) -> float:
+    """`campaign` on a local Dask cluster of two worker processes, as a user starts one."""
+    address_file = scratch / "scheduler.json"
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+    scheduler = subprocess.Popen([str(BIN / "dask"), "scheduler", "--port", "0",
+                                  "--no-dashboard", "--scheduler-file", str(address_file)],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60.0
+        while not address_file.exists():
+            if time.monotonic() > deadline:
+                raise TimeoutError("the Dask scheduler did not start within 60 s")
+            time.sleep(0.2)
+        time.sleep(0.5)  # the file is complete
+        address = json.loads(address_file.read_text())["address"]
+        worker = subprocess.Popen([str(BIN / "dask"), "worker", address, "--nworkers", "2",
+                                   "--nthreads", "1", "--no-dashboard"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        time.sleep(5.0)  # the workers join
+        return campaign(out, runs, "--cluster", address)
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                process.terminate()
+                process.wait(timeout=30)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=4, help="seeds (2 runs each)")
+    parser.add_argument("--out", type=Path, default=Path("bench_out"))
+    args = parser.parse_args()
+    runs = 2 * args.runs
+    with tempfile.TemporaryDirectory(prefix="ft_campaign_scaling_") as scratch:
+        root = Path(scratch)
+        seconds = {"1 worker": campaign(root / "one", args.runs, "--workers", "1"),
+                   "2 workers": campaign(root / "two", args.runs, "--workers", "2"),
+                   "Dask cluster, 2 workers": on_cluster(root / "cluster", args.runs, root)}
+    per_hour = {name: 3600 * runs / s for name, s in seconds.items()}
+    lines = [f"{runs} campaign runs (blend, with and without soft limits, realistic plant), "
+             f"{machine()['cores']} cores", "",
+             "| where | wall time (s) | runs per hour | speed-up over 1 worker |",
+             "|---|---:|---:|---:|"]
+    lines += [f"| {name} | {seconds[name]:.1f} | {per_hour[name]:.0f} | "
+              f"{per_hour[name] / per_hour['1 worker']:.2f} |" for name in seconds]
+    report(args.out, "campaign_scaling", lines,
+           {"machine": machine(), "runs": runs, "seconds": seconds, "per_hour": per_hour})
+
+
+if __name__ == "__main__":
+    main()
