@@ -67,6 +67,7 @@ def on_cluster(out: Path, runs: int, scratch: Path) -> float:
 
 
 def main() -> None:
+    """Measure the three ways and write the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=4, help="seeds (2 runs each)")
     parser.add_argument("--out", type=Path, default=Path("bench_out"))

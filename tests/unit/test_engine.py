@@ -469,3 +469,23 @@ def test_huge_inputs_are_refused_or_bounded_and_never_hang(mode: str) -> None:
         assert np.all(np.isfinite(result.qd))
         assert np.all(np.abs(result.qd) <= robot.velocity_limits + 1e-9)
         assert math.isfinite(result.kfm) and math.isfinite(result.jump_index)
+
+
+def test_a_new_engine_has_loaded_the_compiled_code_of_every_path() -> None:
+    """The code a cycle with too few healthy joints runs is loaded at construction.
+
+    In a fresh interpreter, so that nothing else loaded it: a pose task's first cycle
+    after a second lock (5 healthy joints for 6 coordinates: `_infeasible`) used to
+    load numba's cached code then, 12 ms on an idle machine and 87 ms on a busy one (a
+    fuzz run caught it), inside the control cycle.
+    """
+    import subprocess
+    import sys
+
+    code = ("from ft_core import engine, limits, pseudoinverse, robots\n"
+            "engine.ResolutionEngine(robots.load('panda'))\n"
+            "print(*[len(f.signatures) for f in (limits.velocity_bounds, "
+            "limits.largest_scale, pseudoinverse.squared_damping)])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert all(int(count) >= 1 for count in out.split()) and len(out.split()) == 3, out

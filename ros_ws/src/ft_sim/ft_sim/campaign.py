@@ -221,7 +221,8 @@ def one_run(task: Task) -> dict:
     config = ScenarioConfig(
         robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
         task_space=design["task"], points=points, critical=marks, resolution=task.mode,
-        soft_limits=task.soft, lock_joint=joint, lock_time=lock_time,
+        soft_limits=task.soft, soft_box=tuple(tuple(side) for side in design["box"]),
+        lock_joint=joint, lock_time=lock_time,
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])

@@ -78,6 +78,10 @@ class ScenarioConfig:
             `selfmotion.bent_configuration` (a built-in's home).
         critical: indices of the critical points (default: all).
         soft_limits: give the controller the critical points (bounding-box soft limits).
+        soft_box: their box (rad, lower and upper, chain order) when it is known already:
+            the controller then takes it as its `soft_limits.lower`/`upper` instead of
+            tracing the points' self-motion manifolds at the start (a campaign traces
+            them once per design: `campaign.design_of`).
         lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s
             after the task starts).
         duration: longest run (simulated s after the task starts); rate: sim, controller
@@ -108,6 +112,7 @@ class ScenarioConfig:
     points: tuple[tuple[float, ...], ...] = ()
     critical: tuple[int, ...] | None = None
     soft_limits: bool = True
+    soft_box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     lock_joint: str = "panda_joint2"
     lock_time: float = 5.0
     duration: float = 60.0
@@ -210,7 +215,7 @@ class Scenario:
         self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
             state_timeout=60.0, monitor_timeout=60.0, **{"recovery.enabled": config.recovery},
-            **({"critical_points": flat} if config.soft_limits and flat else {})))
+            **self._soft_limits(flat)))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
@@ -380,8 +385,10 @@ class Scenario:
         if not spin.spin_until(self.executor, lambda: self.controller.robot is not None
                                and self.monitor.robot is not None, 10.0):
             raise TimeoutError("the controller and the monitor did not load the model in 10 s")
-        if self.config.soft_limits and self.critical:
+        if self.config.soft_limits and self.critical and self.config.soft_box is None:
             self._wait_for_soft_limits()
+        elif self.config.soft_limits and self.critical:
+            self.record.soft_limits = f"{len(self.critical)} critical points (box given)"
         self.record.started_at = self.sim.t
         return self.sim.t
 
@@ -432,6 +439,17 @@ class Scenario:
             since = self.sim.t
             self.send_goal(goal)
         return rec
+
+    def _soft_limits(self, flat: list[float]) -> dict:
+        """The controller's soft-limit parameters: the box if known, else the points."""
+        config = self.config
+        if not config.soft_limits or not flat:
+            return {}
+        if config.soft_box is not None:
+            lower, upper = config.soft_box
+            return {"soft_limits.lower": [float(v) for v in lower],
+                    "soft_limits.upper": [float(v) for v in upper]}
+        return {"critical_points": flat}
 
     def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
         """Step the still arm until the controller has computed its soft limits (or failed).
