@@ -26,14 +26,19 @@ from rosutil import fresh_domain
 
 
 @pytest.fixture
-def cluster() -> Iterator[LocalCluster]:
-    with dask.config.set({"distributed.worker.daemon": False}):
-        local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                             dashboard_address=None)
+def cluster(monkeypatch: pytest.MonkeyPatch) -> Iterator[LocalCluster]:
+    # As docs/campaign.md starts workers: through the environment, which a worker that
+    # its nanny restarts (after a crash) inherits too.
+    monkeypatch.setenv("DASK_DISTRIBUTED__WORKER__DAEMON", "False")
+    dask.config.refresh()
+    local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                         dashboard_address=None)
     try:
         yield local
     finally:
         local.close()
+        monkeypatch.delenv("DASK_DISTRIBUTED__WORKER__DAEMON")
+        dask.config.refresh()
 
 
 def _map(prefix: Path, *where: str) -> dict:
@@ -79,8 +84,8 @@ def test_a_campaign_on_a_cluster_loses_nothing_when_a_worker_dies(
     """Two runs on two workers; one worker is killed (SIGKILL) while both run.
 
     Dask runs the lost run again on a worker (the killed one's nanny starts a new one);
-    the campaign keeps both runs, each once, written by the client, with its recording,
-    and nothing was written on the workers' side of the campaign folder.
+    the campaign keeps both runs, each once, written by the client, with its recording.
+    Each run's result is the one a local campaign with the same seeds gives.
     """
     with Client(cluster.scheduler_address) as client:
         pids = client.run(os.getpid)
@@ -112,6 +117,10 @@ def test_a_campaign_on_a_cluster_loses_nothing_when_a_worker_dies(
     for path in (tmp_path / "runs").glob("*/*.json"):
         assert (path.with_suffix("") / "metadata.yaml").exists()  # the recording, here
     assert "2 runs in " in (tmp_path / "campaign.md").read_text()
+    local = tmp_path / "local"
+    assert campaign.main(["--runs", "1", "--modes", "blend", "--record", "--workers", "2",
+                          "--first-domain", str(fresh_domain()), "--out", str(local)]) == 0
+    assert json.loads((local / "campaign.json").read_text()) == results
 
 
 def _ros_threads(pid: int) -> bool:

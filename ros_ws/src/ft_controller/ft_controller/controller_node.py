@@ -146,6 +146,8 @@ class ControllerNode(SuiteNode):
         self._command_msg = JointState()
         self._metrics_msg = Float64MultiArray()
         self._q: np.ndarray | None = None
+        #: The last command published (rad/s, chain order), for in-process harnesses.
+        self.last_command: np.ndarray | None = None
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
         self._rate_window = (0, self.now())
@@ -296,6 +298,11 @@ class ControllerNode(SuiteNode):
                             self._controller_config({}))
         if "critical_points" in changed:
             self.core.set_critical_points(self.param("critical_points") or [])
+
+    @property
+    def last_metrics(self) -> dict[str, float]:
+        """The last `ft/metrics` published, by label (empty before any)."""
+        return metrics.values(self._metrics_msg) if self._labels else {}
 
     @property
     def suspected_lock(self) -> str | None:
@@ -532,6 +539,7 @@ class ControllerNode(SuiteNode):
         msg = self._command_msg
         msg.header.stamp = self.get_clock().now().to_msg() if stamp is None else stamp
         msg.velocity = qd_chain[self._order].tolist()
+        self.last_command = qd_chain
         if self._command_taker is None or self._command_pub.get_subscription_count():
             self._command_pub.publish(msg)
         self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),

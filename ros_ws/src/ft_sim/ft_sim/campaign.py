@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import multiprocessing
 import os
 import shutil
 import sys
@@ -226,6 +227,9 @@ def one_run(task: Task) -> dict:
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
+    if multiprocessing.current_process().daemon:  # the controller's planner cannot start
+        raise RuntimeError("a campaign run cannot run in a daemonic process (a Dask worker "
+                           "started without DASK_DISTRIBUTED__WORKER__DAEMON=False)")
     # Discovery on this machine only, whatever the environment says: runs on other
     # machines of a cluster may use the same domain id.
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

@@ -28,7 +28,7 @@ import rclpy
 from ft_controller.controller_node import ControllerNode
 from ft_core import recovery, robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
-from ft_msgs_py import convert, metrics, names, qos, spin
+from ft_msgs_py import convert, names, qos, spin
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -227,8 +227,6 @@ class Scenario:
                                                         qos.RELIABLE)
         self._swing_pub = self.driver.create_publisher(JointState, names.INJECT_FREE_SWING,
                                                        qos.RELIABLE)
-        self._raw: JointState | None = None
-        self._metrics: dict[str, float] = {}
         self.driver.create_subscription(JointState, names.COMMAND_RAW, self._on_raw,
                                         qos.SENSOR_INPUT)
         self.driver.create_subscription(Float64MultiArray, names.METRICS, self._on_metrics,
@@ -245,14 +243,12 @@ class Scenario:
 
     # ----------------------------------------------------------------- inputs
     def _on_raw(self, msg: JointState) -> None:
-        self._raw = msg
         if not np.all(np.isfinite(msg.velocity)):
             self.record.non_finite += 1
 
     def _on_metrics(self, msg: Float64MultiArray) -> None:
         if not np.all(np.isfinite(msg.data)):
             self.record.non_finite += 1
-        self._metrics = metrics.values(msg)
 
     def _on_locked(self, msg: JointState) -> None:
         if msg.name and self.record.injected_at is None:
@@ -264,9 +260,14 @@ class Scenario:
     # ------------------------------------------------------------------- loop
     @property
     def command(self) -> np.ndarray:
-        """The controller's latest command (rad/s, chain order; zeros before the first)."""
-        return (np.array(self._raw.velocity) if self._raw is not None
-                else np.zeros(self.robot.n))
+        """The controller's latest command (rad/s, chain order; zeros before the first).
+
+        Read from the node, not from `ft/command_raw`: a message between nodes is taken
+        in the step it was sent or in the next, as it happens, and a record of it would
+        differ from run to run.
+        """
+        last = self.controller.last_command
+        return last.copy() if last is not None else np.zeros(self.robot.n)
 
     def send_goal(self, index: int) -> None:
         """Publish task point `index` as the pose goal."""
@@ -366,11 +367,33 @@ class Scenario:
                 or (monitor is not None and monitor.writing)):
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
+        if monitor is not None:
+            self._deliver_locked_set(monitor)
         if self.live is not None:
             self._keep_pace()
         if core is not None and (not self.record.recovery
                                  or self.record.recovery[-1][1] != core.recovery_note):
             self.record.recovery.append((self.sim.t, core.recovery_note))
+
+    def _deliver_locked_set(self, monitor) -> None:
+        """Spin until the controller holds the locked set the monitor has found.
+
+        The monitor announces a lock once it is on disk: at its next joint state, or from a
+        timer on steady time, whichever comes first in wall time. Waiting here for the
+        write and for the controller to take it makes a lock found in one step reach the
+        controller's next cycle, wherever and however fast the run goes (campaign runs
+        are reproducible, run for run, on any machine and on a cluster).
+
+        Raises:
+            TimeoutError: not within `PLAN_WAIT` s of wall clock.
+        """
+        def delivered() -> bool:
+            return (not monitor.writing
+                    and set(self.controller.locked_joints) == set(monitor.locked))
+
+        if not spin.spin_until(self.executor, delivered, PLAN_WAIT):
+            raise TimeoutError(f"the controller did not take the locked set "
+                               f"{sorted(monitor.locked)} within {PLAN_WAIT:g} s")
 
     def _keep_pace(self) -> None:
         """Sleep while simulated time is ahead of the wall clock since the first step."""
@@ -418,7 +441,7 @@ class Scenario:
             rec.q.append(q)
             rec.qd_actual.append(self.sim.qd.copy())
             rec.qd_command.append(command)
-            rec.kfm.append(self._metrics.get("kfm", math.nan))
+            rec.kfm.append(self.controller.last_metrics.get("kfm", math.nan))
             rec.tool_velocity_error.append(float(np.linalg.norm(
                 robot.jacobian(before)[:3] @ (self.sim.qd - command))))
             rec.goal.append(goal)
