@@ -565,3 +565,39 @@ def test_the_shipped_parameters_file_names_only_declared_parameters() -> None:
     assert set(values) <= set(PARAMETERS)
     # The launch file gives the monitor the same file: what it shares, it declares too.
     assert {"thread_priority", "robot_model", "task_space"} <= set(MONITOR_PARAMETERS)
+
+
+def test_optimize_start_moves_the_idle_arm_with_the_tool_held_still() -> None:
+    """Issue 34 item 2: `~/optimize_start` (Zhao & Li sec. III-D step i) on the Panda.
+
+    Called on the idle arm, the service says it plans; the path is followed; the tool
+    moves less than 2 mm; the reduced-condition cost drops. A target in force refuses
+    it, with the reason.
+    """
+    from ft_core import start_configuration
+
+    robot = robots.load("panda", task_space="position")
+    with controller(resolution="blend", task_space="position") as (node, plant):
+        plant.run(5)
+        client = plant.node.create_client(Trigger, "controller/optimize_start")
+        assert spin_until(plant.executor, client.service_is_ready, 10.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(plant.executor, future.done, 10.0)
+        answer = future.result()
+        assert answer.success and answer.message == "planning the start configuration"
+        # The plan runs in the controller's worker process, in wall time.
+        assert spin_until(plant.executor, lambda: not node.core.start_phase.planning, 60.0)
+        tool, cost = robot.forward(plant.q), start_configuration.dexterity_cost(robot, plant.q)
+        for _ in range(60):  # at most 60 s of simulated time
+            plant.run(100)
+            if not node.core.start_phase.active:
+                break
+        assert node.core.start_phase.note == "at the start configuration", \
+            node.core.start_phase.note
+        assert np.linalg.norm(robot.forward(plant.q) - tool) < 2e-3
+        assert start_configuration.dexterity_cost(robot, plant.q) < 0.9 * cost
+        twist_sender(plant)(plant)
+        plant.run(2)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(plant.executor, future.done, 10.0)
+        assert not future.result().success and "target is in force" in future.result().message

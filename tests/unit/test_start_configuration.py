@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
-from ft_core import selfmotion, start_configuration
+from ft_core import robots, selfmotion, start_configuration
+from ft_core.controller import Controller, ControllerConfig
+from ft_core.engine import EngineConfig
 from models import planar_arm
 
 #: Zhao & Li sec. IV: the planar 3R of three 0.5 m links, the tool at X = [0.35, 0] m.
@@ -47,3 +51,62 @@ def test_the_cost_is_the_square_sum_of_the_reduced_condition_numbers() -> None:
     assert start_configuration.dexterity_cost(ROBOT, stretched) == np.inf
     with pytest.raises(ValueError, match="must be positive"):
         start_configuration.optimal_start(ROBOT, q, step=0.0)
+
+
+def _controller() -> Controller:
+    robot = robots.load("planar3r")
+    return Controller(robot, EngineConfig(dt=0.004), ControllerConfig(),
+                      ("planar3r", (None, None, None, None)))
+
+
+def test_the_idle_controller_moves_to_the_start_configuration_with_the_tool_still() -> None:
+    """The controller's pre-task phase on the planar 3R: planned, followed, done.
+
+    The plant integrates the commands; the tool stays within 1 mm of where it was, and
+    the arm ends at the planned configuration, whose cost is the descent's.
+    """
+    controller = _controller()
+    robot = controller.robot
+    try:
+        q = selfmotion.find_seed(robot, np.array([0.35, 0.0]), np.array([0.3, 1.0, 1.0]))
+        tool, planned = robot.forward(q), start_configuration.optimal_start(robot, q)
+        assert planned.cost < planned.start_cost / 2
+        assert controller.optimize_start(q, 0.0) is None
+        assert controller.optimize_start(q, 0.0) == "already under way: planning the start " \
+            "configuration"
+        deadline = time.monotonic() + 60.0  # the plan, in the worker, in wall time
+        while controller.start_phase.planning and time.monotonic() < deadline:
+            time.sleep(0.01)
+        now, drift = 0.0, 0.0
+        for _ in range(round(60.0 / 0.004)):  # bounded: 60 s of simulated time
+            if not controller.start_phase.active:
+                break
+            qd = controller.step(q, 0.0, now).qd
+            q, now = q + 0.004 * qd, now + 0.004
+            drift = max(drift, float(np.linalg.norm(robot.forward(q) - tool)))
+        assert controller.start_phase.note == "at the start configuration", \
+            controller.start_phase.note
+        assert np.abs(q - planned.q).max() < 0.01  # recovery.ARRIVED
+        assert start_configuration.dexterity_cost(robot, q) == pytest.approx(planned.cost,
+                                                                             rel=0.01)
+        assert drift < 1e-3
+        assert np.abs(controller.step(q, 0.0, now).qd).max() < 1e-9  # idle again: still
+    finally:
+        controller.close()
+
+
+def test_a_target_or_a_lock_refuses_or_ends_the_start_phase() -> None:
+    controller = _controller()
+    try:
+        q = np.array([0.3, 1.0, 1.0])
+        assert controller.optimize_start(None, 0.0) == "no joint state yet"
+        controller.set_locked([1], 0.0)
+        assert "locked" in controller.optimize_start(q, 0.0)
+        controller.set_locked([], 0.0)
+        assert controller.optimize_start(q, 0.0) is None
+        controller.set_pose_goal(np.array([0.5, 0.5]), 0.1)
+        assert not controller.start_phase.active
+        assert controller.start_phase.note == "stopped: a pose goal arrived"
+        assert "target is in force" in controller.optimize_start(q, 0.2)
+    finally:
+        controller.close()

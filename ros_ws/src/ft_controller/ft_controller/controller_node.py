@@ -52,6 +52,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 #: Diagnostics period (s).
@@ -183,6 +184,7 @@ class ControllerNode(SuiteNode):
         self._timer = self.create_timer(1.0 / self.param("control_rate"), self._cycle)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
         self.create_timer(markers.PERIOD, self._publish_markers)
+        self.create_service(Trigger, names.OPTIMIZE_START, self._on_optimize_start)
         # The watchdog runs on steady time: with use_sim_time and no /clock the control
         # timer never fires, and the plant must still get explicit zeros.
         self._last_cycle = time.monotonic()
@@ -337,6 +339,19 @@ class ControllerNode(SuiteNode):
         if self.core is not None:
             self.core.close()
         super().destroy_node()
+
+    def _on_optimize_start(self, _request: Trigger.Request, response: Trigger.Response,
+                           ) -> Trigger.Response:
+        """`~/optimize_start`: the idle arm to its start configuration of best dexterity.
+
+        Refused (success false, the reason) without a model or a joint state, with a
+        target in force, a locked joint, or a phase under way (`Controller.optimize_start`).
+        """
+        reason = "no robot model yet" if self.core is None else self.core.optimize_start(
+            self._q, self.now())
+        response.success = reason is None
+        response.message = reason or self.core.start_phase.note
+        return response
 
     def _publish_markers(self) -> None:
         """The live view (`ft_msgs_py.markers`): goal, critical points, announced locks.
@@ -596,6 +611,8 @@ class ControllerNode(SuiteNode):
                   "locked_joints": sorted(self.locked_joints), "soft_limits": self.soft_limits_note,
                   "observability": self._observability_note(),
                   "recovery": "off" if self.core is None else self.core.recovery_note,
+                  "start_configuration": "idle" if self.core is None
+                  else self.core.start_phase.note,
                   "suspected_lock": self.suspected_lock or "none"}
         if last is not None:
             values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)

@@ -16,7 +16,10 @@ besides the engine's arithmetic (`ft_core.engine`):
   followed in the cycle, then the pose goal is tracked again;
 - the soft limits from critical points: the intersected self-motion boxes of Lewis
   and Maciejewski (1997), traced in a worker process (never in the cycle) and
-  switched in atomically, in the cycle, once ready.
+  switched in atomically, in the cycle, once ready;
+- on request, with no target, the start configuration of best dexterity after a
+  failure (`ft_core.start_configuration`, Zhao & Li sec. III-D step i): planned in the
+  worker process, then followed with the tool held still; a target or a lock ends it.
 
 Every input is checked by the caller or by the engine; the step never raises on a
 bad state or target: it returns explicit zeros and says why (`Step.problems`).
@@ -34,14 +37,18 @@ from functools import partial
 
 import numpy as np
 
-from ft_core import limits, recovery, selfmotion, workers
+from ft_core import limits, recovery, selfmotion, start_configuration, workers
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot, RobotModelError
+from ft_core.start_configuration import StartPhase
 from ft_core.targets import PoseTracking, pose_velocity, staleness_scale
 from ft_core.task_channel import TaskChannel
 
+#: How the start-configuration path moves and how long its plan may take: as a recovery
+#: path (`recovery.RecoveryConfig`'s acceleration, jerk, gain and timeout).
+_START = RecoveryConfig()
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -127,6 +134,7 @@ class Controller:
         self._report, self._log = report, log
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
+        self.start_phase = StartPhase(self._submit_start, _START.gain, _START.timeout)
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
         self.locked: tuple[int, ...] = ()
@@ -180,6 +188,7 @@ class Controller:
     # ------------------------------------------------------------------- inputs
     def set_twist(self, velocity: np.ndarray, stamp: float) -> None:
         """A task velocity (`targets.twist_velocity`) stamped `stamp` (s)."""
+        self.start_phase.cancel("a twist arrived")
         self.target = Target("twist", velocity, stamp)
 
     def set_pose_goal(self, goal: np.ndarray, now: float) -> None:
@@ -188,6 +197,7 @@ class Controller:
         A goal other than the one tracked restarts the task channel's window (its
         progress test is towards one goal); the same goal again changes nothing there.
         """
+        self.start_phase.cancel("a pose goal arrived")
         held = self.target
         if held is None or held.kind != "pose" or not np.array_equal(held.value, goal):
             self.channel.restart()
@@ -200,7 +210,35 @@ class Controller:
         locked = tuple(sorted(locked))
         if locked != self.locked and self.recovery is not None:
             self.recovery.reset(now)
+        if locked:
+            self.start_phase.cancel("a joint is locked")
         self.locked = locked
+
+    def optimize_start(self, q: np.ndarray | None, now: float) -> str | None:
+        """Move the idle arm to its start configuration of best dexterity; None: started.
+
+        `start_configuration`: planned in the worker process, then followed with the
+        tool held still. Otherwise the reason it does not start: no joint state, a
+        target in force, a locked joint, or a phase under way already.
+        """
+        if q is None:
+            return "no joint state yet"
+        if self.target is not None:
+            return "a target is in force: the start configuration is for an idle arm"
+        if self.locked:
+            return f"joints {list(self.locked)} are locked: the start phase is for a healthy arm"
+        try:
+            self.start_phase.request(q, now)
+        except RuntimeError as problem:
+            return str(problem)
+        return None
+
+    def _submit_start(self, q: np.ndarray) -> Future:
+        """Plan the start configuration in the worker process."""
+        engine = self.engine.config
+        return self._submit(start_configuration.plan_for_model, *self._model_source, q,
+                            self.robot.velocity_limits * engine.velocity_scale, engine.dt,
+                            _START.acceleration, _START.jerk)
 
     def set_critical_points(self, flat: Sequence[float]) -> None:
         """Task points (`selfmotion.targets_from_flat`) whose boxes become soft limits.
@@ -251,6 +289,8 @@ class Controller:
             qd = zeros
             result.jump_index = 0.0
         qd = self._excite(kinematics, qd, locked, now)
+        if self.start_phase.active:
+            qd = self._start(kinematics, qd, now)
         error = None
         if task_error is not None:
             error = float(np.linalg.norm(task_error))
@@ -321,6 +361,14 @@ class Controller:
         lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
         command = rec.step(now, q, goal, error, descent, reached, tuple(locked), bounds,
                            (lo, hi))
+        return qd if command is None else command
+
+    def _start(self, kinematics: Kinematics, qd: np.ndarray, now: float) -> np.ndarray:
+        """The start path's command while it is followed, else `qd` unchanged."""
+        q, engine = kinematics.q, self.engine
+        velocity = self.robot.velocity_limits * engine.config.velocity_scale
+        lo, hi = limits.velocity_bounds(q, *engine.bounds([]), velocity, engine.config.dt)
+        command = self.start_phase.step(now, q, (lo, hi))
         return qd if command is None else command
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,

@@ -15,16 +15,28 @@ configuration put back on the manifold by Newton's method inside the joint limit
 `iterations` steps of at most `HALVINGS` halvings. The result is a local minimum on the
 manifold's component through the start (the paper's step (iii) tries other initial
 positions when it is not good enough), with the joint path that reaches it.
+
+The controller runs it as a pre-task phase (`StartPhase`, the controller node's
+`~/optimize_start` service): planned in its worker process (`plan_for_model`: the descent,
+then the polyline time-parameterised along its length by Ruckig, at rest at both ends,
+within the joint velocity limits and the recovery's acceleration and jerk), then followed
+as the recovery follows its path (`recovery.follow`: the path's velocity plus a position
+correction). The tool holds still: every sample is on the manifold, and between samples
+0.05 rad apart the chord leaves it by a fraction of a mm.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
+from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-from ft_core import measures, selfmotion
+from ft_core import measures, recovery, robots, selfmotion
 from ft_core.robots import Robot
 
 #: Most halvings of one step before the descent stops (no decrease found).
@@ -112,3 +124,131 @@ def _gradient(robot: Robot, q: np.ndarray, joints: list[int]) -> np.ndarray:
         gradient[k] = (dexterity_cost(robot, q + offset, joints)
                        - dexterity_cost(robot, q - offset, joints)) / (2 * DIFFERENCE)
     return gradient
+
+
+def timed_path(path: np.ndarray, velocity: np.ndarray, acceleration: float, jerk: float,
+               period: float) -> recovery.Plan:
+    """The polyline `path` (k, n; rad) at rest at both ends, sampled every `period` s.
+
+    Its length is measured in the max norm, so a speed along it within the smallest of
+    `velocity` (rad/s) keeps every joint within its own; `acceleration` and `jerk` bound
+    that speed's profile (Ruckig, one degree of freedom). As a `recovery.Plan` (kfm nan:
+    not an IK solution's) for `recovery.follow`.
+    """
+    steps = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
+    arc = np.concatenate([[0.0], np.cumsum(steps)])
+    generator, parameters, trajectory = Ruckig(1), InputParameter(1), Trajectory(1)
+    parameters.current_position, parameters.target_position = [0.0], [float(arc[-1])]
+    parameters.max_velocity = [max(float(np.min(velocity)), 1e-6)]
+    parameters.max_acceleration, parameters.max_jerk = [acceleration], [jerk]
+    if generator.calculate(parameters, trajectory) not in (Result.Working, Result.Finished):
+        raise ValueError("no time parameterisation of the start path")
+    step = max(period, trajectory.duration / (recovery.MAX_SAMPLES - 1))
+    times = np.minimum(np.arange(math.ceil(trajectory.duration / step) + 1) * step,
+                       trajectory.duration)
+    along = np.array([trajectory.at_time(float(t))[:2] for t in times]).reshape(-1, 2)
+    s, speed = along[:, 0], along[:, 1]
+    positions = np.column_stack([np.interp(s, arc, path[:, j]) for j in range(path.shape[1])])
+    segment = np.clip(np.searchsorted(arc, s, side="right") - 1, 0, max(len(steps) - 1, 0))
+    slopes = (np.diff(path, axis=0) / np.maximum(steps, 1e-12)[:, None] if len(steps)
+              else np.zeros((1, path.shape[1])))
+    velocities = slopes[segment] * speed[:, None]
+    positions[-1], velocities[-1] = path[-1], 0.0
+    return recovery.Plan(path[-1].copy(), math.nan, times, positions, velocities, 1)
+
+
+def plan_for_model(spec: str, chain: Sequence, q0: np.ndarray, velocity: np.ndarray,
+                   period: float, acceleration: float, jerk: float,
+                   ) -> tuple[StartPlan, recovery.Plan]:
+    """`optimal_start` from q0 for `robots.load(spec, *chain)`, and its timed path.
+
+    For the controller's worker process (plain arguments: the robot is built there).
+    """
+    robot = robots.load(spec, *chain)
+    found = optimal_start(robot, q0)
+    return found, timed_path(found.path, velocity, acceleration, jerk, period)
+
+
+#: Starts a start-configuration plan in the background: q -> its future.
+Submit = Callable[[np.ndarray], "Future[tuple[StartPlan, recovery.Plan]]"]
+
+
+class StartPhase:
+    """The controller's pre-task phase: plan the start configuration, then move there.
+
+    `note` says what it does (diagnostics). A target (twist or pose goal), a lock, or a
+    failed plan ends it; the arm then stands still or follows the target.
+    """
+
+    def __init__(self, submit: Submit, gain: float, timeout: float):
+        self._submit, self._gain, self._timeout = submit, gain, timeout
+        self._job: tuple[float, Future] | None = None
+        self._path: tuple[recovery.Plan, float] | None = None
+        self.note = "idle"
+
+    @property
+    def active(self) -> bool:
+        """Whether a plan is computed or a path followed."""
+        return self._job is not None or self._path is not None
+
+    @property
+    def planning(self) -> bool:
+        """Whether a plan is being computed (its result not back yet)."""
+        return self._job is not None and not self._job[1].done()
+
+    def request(self, q: np.ndarray, now: float) -> None:
+        """Plan from q (rad) in the background.
+
+        Raises:
+            RuntimeError: no worker process can start (inside a daemon), or one plan
+                runs already.
+        """
+        if self.active:
+            raise RuntimeError(f"already under way: {self.note}")
+        try:
+            self._job = (now, self._submit(q.copy()))
+        except (AssertionError, OSError) as problem:
+            raise RuntimeError(f"cannot plan ({problem})") from problem
+        self.note = "planning the start configuration"
+
+    def cancel(self, why: str) -> None:
+        """End the phase (a plan still running is ignored when it ends)."""
+        if self.active:
+            self._job, self._path = None, None
+            self.note = f"stopped: {why}"
+
+    def step(self, now: float, q: np.ndarray,
+             velocity_bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray | None:
+        """The command (rad/s) while the path is followed; None otherwise."""
+        if self._job is not None:
+            self._take(*self._job, now)
+        if self._path is None:
+            return None
+        plan, start = self._path
+        elapsed = now - start
+        arrived = elapsed >= plan.duration and np.abs(plan.solution - q).max() < recovery.ARRIVED
+        if not arrived and elapsed < plan.duration + recovery.SETTLE:
+            return recovery.follow(plan, elapsed, q, (), self._gain, *velocity_bounds)
+        self._path = None
+        self.note = ("at the start configuration" if arrived else
+                     "start path not completed in time: stopped")
+        return None
+
+    def _take(self, submitted: float, job: Future, now: float) -> None:
+        if not job.done():
+            if now - submitted > self._timeout:
+                self._job = None
+                self.note = f"planning took over {self._timeout:.1f} s: given up"
+            return
+        self._job = None
+        try:
+            found, plan = job.result()
+        except (ValueError, BrokenProcessPool) as problem:
+            self.note = f"no start configuration: {problem}"
+            return
+        if not found.cost < found.start_cost:
+            self.note = f"already at the best start configuration (cost {found.cost:.3g})"
+            return
+        self._path = (plan, now)
+        self.note = (f"moving to the start configuration: {plan.duration:.2f} s, reduced "
+                     f"condition cost {found.start_cost:.3g} -> {found.cost:.3g}")

@@ -364,6 +364,7 @@ class Scenario:
         deadline = time.monotonic() + PLAN_WAIT
         while time.monotonic() < deadline and (
                 (core is not None and core.recovery is not None and core.recovery.planning)
+                or (core is not None and core.start_phase.planning)
                 or (monitor is not None and monitor.writing)):
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
