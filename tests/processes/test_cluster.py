@@ -24,6 +24,10 @@ from ft_core.offline import batch, placement
 from ft_sim import campaign
 from rosutil import fresh_domain
 
+#: A cluster of worker processes loads every core: no other separate-process graph beside it
+#: (a deployment test's plant stalled 0.2 s beside a campaign on a cluster).
+pytestmark = pytest.mark.busy_machine
+
 
 @pytest.fixture
 def cluster(monkeypatch: pytest.MonkeyPatch) -> Iterator[LocalCluster]:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
-from paths import INSTALL, PACKAGES, REPO, WORKSPACE
+from paths import INSTALL, PACKAGES, REPO
 
 
 @pytest.fixture
@@ -77,29 +77,3 @@ def test_every_executable_is_also_an_ft_console_script_in_the_venv(install_space
     result = subprocess.run([str(bin_dir / "ft-demo"), "--help"],
                             capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0 and "--lock-time" in result.stdout, result.stderr
-
-
-def test_every_package_xml_declares_what_its_code_imports() -> None:
-    """Issue 14: launch, launch_ros, ament_index_python, rosgraph_msgs, ... were missing."""
-    import ast
-    import re
-
-    python = {"numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
-              "numba": "python3-numba", "matplotlib": "python3-matplotlib",
-              "pinocchio": "pinocchio", "tqdm": "python3-tqdm",
-              "rosbags": "python3-rosbags-pip", "mujoco": "python3-mujoco-pip",
-              "ruckig": "python3-ruckig-pip"}
-    for package in PACKAGES:
-        root = WORKSPACE / "src" / package
-        declared = set(re.findall(r"<exec_depend>([^<]+)</exec_depend>",
-                                  (root / "package.xml").read_text()))
-        imported = set()
-        for path in [*root.glob(f"{package}/**/*.py"), *root.glob("launch/*.py")]:
-            for node in ast.walk(ast.parse(path.read_text())):
-                if isinstance(node, ast.Import):
-                    imported |= {alias.name.split(".")[0] for alias in node.names}
-                elif isinstance(node, ast.ImportFrom) and node.level == 0:
-                    imported.add(node.module.split(".")[0])
-        needed = {python.get(name, name) for name in imported
-                  if name not in sys.stdlib_module_names and name not in (package, "__future__")}
-        assert needed <= declared, f"{package}/package.xml lacks {sorted(needed - declared)}"
