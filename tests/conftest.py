@@ -90,16 +90,17 @@ def _two_queues(items: list[pytest.Item]) -> list[pytest.Item]:
 def _machine_share(request: FixtureRequest, tmp_path_factory: pytest.TempPathFactory):
     """Wall-time tests (the processes tier) never run beside a test that loads every core.
 
-    A `busy_machine` test holds an exclusive lock for its duration, every other
-    processes-tier test a shared one (flock on a file all workers of the run see), so
+    A `busy_machine` test (of any tier: a campaign on two workers in the nodes tier too)
+    holds an exclusive lock for its duration, every other processes-tier test a shared one
+    (flock on a file all workers of the run see), so
     with `-n 2` the other worker runs simulated-time tests meanwhile: a separate-process
     graph judged on wall time beside a full CPU load *and* another graph measured how
     two graphs on two cores starve each other, not how the nodes hold up on a busy machine.
     """
-    if request.node.get_closest_marker("processes") is None:
+    exclusive = request.node.get_closest_marker("busy_machine") is not None
+    if request.node.get_closest_marker("processes") is None and not exclusive:
         yield
         return
-    exclusive = request.node.get_closest_marker("busy_machine") is not None
     with open(tmp_path_factory.getbasetemp().parent / "ft-wall-time.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
         try:

@@ -231,6 +231,7 @@ def test_a_campaign_designs_itself_on_every_urdf_fixture(urdf: Path, task: str,
 
 
 @pytest.mark.slow
+@pytest.mark.busy_machine  # two worker processes: both cores
 def test_a_campaign_on_the_planar_arm(tmp_path: Path, capsys) -> None:
     """Issue 32: `ft-campaign --robot <planar3r.urdf> --task planar`, nothing else.
 
@@ -259,6 +260,7 @@ def test_launch_files_compile() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.busy_machine  # two worker processes: both cores
 def test_a_short_campaign_on_another_arm_resumes_from_kept_runs(tmp_path: Path, capsys) -> None:
     """Issues 15 and 32: ft-campaign on another arm, resumable.
 
