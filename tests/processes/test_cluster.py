@@ -69,7 +69,7 @@ def test_no_scheduler_is_one_clear_line() -> None:
 
 
 def test_a_campaign_refuses_daemonic_workers_with_the_fix(tmp_path: Path, capsys) -> None:
-    """Dask's default workers are daemons: the campaign says so before any run.
+    """Dask's default workers are daemons: each run refuses to run there, saying why.
 
     The controller of a run could not start the process that traces its soft limits
     there, and would run without them.

@@ -50,6 +50,7 @@ from ft_core.task_channel import TaskChannel
 #: path (`recovery.RecoveryConfig`'s acceleration, jerk, gain and timeout).
 _START = RecoveryConfig()
 
+
 @dataclass(frozen=True)
 class ControllerConfig:
     """What the cycle reads besides the engine's configuration.
@@ -159,11 +160,8 @@ class Controller:
     def _recovery(self, config: ControllerConfig) -> Recovery | None:
         if config.recovery is None:
             return None
-        # The compiled velocity bounds the follower uses load from numba's cache now, not
-        # in the first cycle (about 5 ms).
-        lower, upper = self.engine.bounds()
-        limits.velocity_bounds(np.clip(np.zeros(self.robot.n), lower, upper), lower, upper,
-                               self.robot.velocity_limits, self.engine.config.dt)
+        # The follower's compiled velocity bounds are loaded already: the engine's
+        # constructor runs its infeasible path, which uses them.
         return Recovery(config.recovery, partial(self._submit_plan, config.recovery))
 
     def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
@@ -235,10 +233,9 @@ class Controller:
 
     def _submit_start(self, q: np.ndarray) -> Future:
         """Plan the start configuration in the worker process."""
-        engine = self.engine.config
         return self._submit(start_configuration.plan_for_model, *self._model_source, q,
-                            self.robot.velocity_limits * engine.velocity_scale, engine.dt,
-                            _START.acceleration, _START.jerk)
+                            self._speeds(), self.engine.config.dt, _START.acceleration,
+                            _START.jerk)
 
     def set_critical_points(self, flat: Sequence[float]) -> None:
         """Task points (`selfmotion.targets_from_flat`) whose boxes become soft limits.
@@ -354,30 +351,33 @@ class Controller:
 
         `task_error`: the pose goal's error e; `error`: its norm.
         """
-        q, engine = kinematics.q, self.engine
+        q = kinematics.q
         descent = self.robot.jacobian(kinematics).T @ task_error
-        bounds = engine.bounds(locked)
-        velocity = self.robot.velocity_limits * engine.config.velocity_scale
-        lo, hi = limits.velocity_bounds(q, *bounds, velocity, engine.config.dt)
+        bounds = self.engine.bounds(locked)
         command = rec.step(now, q, goal, error, descent, reached, tuple(locked), bounds,
-                           (lo, hi))
+                           self._velocity_bounds(q, bounds))
         return qd if command is None else command
 
     def _start(self, kinematics: Kinematics, qd: np.ndarray, now: float) -> np.ndarray:
         """The start path's command while it is followed, else `qd` unchanged."""
-        q, engine = kinematics.q, self.engine
-        velocity = self.robot.velocity_limits * engine.config.velocity_scale
-        lo, hi = limits.velocity_bounds(q, *engine.bounds([]), velocity, engine.config.dt)
-        command = self.start_phase.step(now, q, (lo, hi))
+        q = kinematics.q
+        command = self.start_phase.step(now, q, self._velocity_bounds(q, self.engine.bounds([])))
         return qd if command is None else command
+
+    def _speeds(self) -> np.ndarray:
+        """The joint speeds the engine allows (rad/s): the URDF's, scaled."""
+        return self.robot.velocity_limits * self.engine.config.velocity_scale
+
+    def _velocity_bounds(self, q: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """The engine's joint-velocity bounds for one cycle at q within `bounds` (rad/s)."""
+        return limits.velocity_bounds(q, *bounds, self._speeds(), self.engine.config.dt)
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,
                      locked: tuple[int, ...], lower: np.ndarray, upper: np.ndarray) -> Future:
         """Plan a recovery in the worker process (`recovery.plan_for_model`)."""
-        engine = self.engine.config
         return self._submit(recovery.plan_for_model, *self._model_source, goal, q, locked,
-                            lower, upper, self.robot.velocity_limits * engine.velocity_scale,
-                            engine.dt, config)
+                            lower, upper, self._speeds(), self.engine.config.dt, config)
 
     def start_worker(self) -> Future | None:
         """Start the worker process now, off the control loop (a node does at model load).

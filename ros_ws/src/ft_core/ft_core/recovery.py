@@ -305,15 +305,20 @@ def path(start: np.ndarray, end: np.ndarray, velocity: np.ndarray, acceleration:
     parameters.synchronization = Synchronization.Phase
     if generator.calculate(parameters, trajectory) not in (Result.Working, Result.Finished):
         raise ValueError("no time parameterisation of the recovery path")
-    step = max(period, trajectory.duration / (MAX_SAMPLES - 1))
-    times = np.minimum(np.arange(math.ceil(trajectory.duration / step) + 1) * step,
-                       trajectory.duration)
-    times[-1] = trajectory.duration
+    times = sample_times(trajectory.duration, period)
     samples = [trajectory.at_time(float(t)) for t in times]
     positions = np.array([s[0] for s in samples])
     velocities = np.array([s[1] for s in samples])
     positions[-1], velocities[-1] = end, 0.0
     return times, positions, velocities
+
+
+def sample_times(duration: float, period: float) -> np.ndarray:
+    """0 to `duration` (s) every `period` s, more coarsely past `MAX_SAMPLES`; ends on it."""
+    step = max(period, duration / (MAX_SAMPLES - 1))
+    times = np.minimum(np.arange(math.ceil(duration / step) + 1) * step, duration)
+    times[-1] = duration
+    return times
 
 
 def plan(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
@@ -359,6 +364,17 @@ def follow(recovery: Plan, elapsed: float, q: np.ndarray, locked: Sequence[int],
 ARRIVED = 0.01
 #: s the follower may take past the path's duration to arrive before it hands back anyway.
 SETTLE = 2.0
+
+def path_end(path: Plan, elapsed: float, q: np.ndarray) -> str | None:
+    """How following `path` ends `elapsed` s in at q: None (go on), "arrived" or "late".
+
+    Arrived: past its duration and within `ARRIVED` of its end; late: `SETTLE` s past
+    its duration without arriving.
+    """
+    if elapsed >= path.duration and np.abs(path.solution - q).max() < ARRIVED:
+        return "arrived"
+    return "late" if elapsed >= path.duration + SETTLE else None
+
 
 #: Starts a plan in the background: (goal, q, locked, lower, upper) -> its future.
 Submit = Callable[[np.ndarray, np.ndarray, tuple[int, ...], np.ndarray, np.ndarray],
@@ -414,13 +430,12 @@ class Recovery:
             self._take(*self._job, now, locked)
         if self._path is not None:
             plan, start = self._path
-            elapsed = now - start
-            arrived = elapsed >= plan.duration and np.abs(plan.solution - q).max() < ARRIVED
-            if not arrived and elapsed < plan.duration + SETTLE:
-                return follow(plan, elapsed, q, locked, self.config.gain, *velocity_bounds)
+            end = path_end(plan, now - start, q)
+            if end is None:
+                return follow(plan, now - start, q, locked, self.config.gain, *velocity_bounds)
             self._path = None
             self._watch.reset(now)
-            self.note = ("path done, tracking the goal again" if arrived else
+            self.note = ("path done, tracking the goal again" if end == "arrived" else
                          "path not completed in time, tracking the goal again")
             return None
         against = pressed(q, descent, bounds, locked)

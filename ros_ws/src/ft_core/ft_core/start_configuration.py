@@ -143,9 +143,7 @@ def timed_path(path: np.ndarray, velocity: np.ndarray, acceleration: float, jerk
     parameters.max_acceleration, parameters.max_jerk = [acceleration], [jerk]
     if generator.calculate(parameters, trajectory) not in (Result.Working, Result.Finished):
         raise ValueError("no time parameterisation of the start path")
-    step = max(period, trajectory.duration / (recovery.MAX_SAMPLES - 1))
-    times = np.minimum(np.arange(math.ceil(trajectory.duration / step) + 1) * step,
-                       trajectory.duration)
+    times = recovery.sample_times(trajectory.duration, period)
     along = np.array([trajectory.at_time(float(t))[:2] for t in times]).reshape(-1, 2)
     s, speed = along[:, 0], along[:, 1]
     positions = np.column_stack([np.interp(s, arc, path[:, j]) for j in range(path.shape[1])])
@@ -225,12 +223,11 @@ class StartPhase:
         if self._path is None:
             return None
         plan, start = self._path
-        elapsed = now - start
-        arrived = elapsed >= plan.duration and np.abs(plan.solution - q).max() < recovery.ARRIVED
-        if not arrived and elapsed < plan.duration + recovery.SETTLE:
-            return recovery.follow(plan, elapsed, q, (), self._gain, *velocity_bounds)
+        end = recovery.path_end(plan, now - start, q)
+        if end is None:
+            return recovery.follow(plan, now - start, q, (), self._gain, *velocity_bounds)
         self._path = None
-        self.note = ("at the start configuration" if arrived else
+        self.note = ("at the start configuration" if end == "arrived" else
                      "start path not completed in time: stopped")
         return None
 

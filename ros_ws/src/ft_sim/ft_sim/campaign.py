@@ -455,7 +455,7 @@ def execute(todo: list[Task], out: Path, where: batch.Where) -> int:
     run's name beside it), whether the run was local or on a cluster's worker.
     """
     crashed = 0
-    for outcome in batch.run(one_run, todo, where, what="run", children=True):
+    for outcome in batch.run(one_run, todo, where, what="run"):
         task = todo[outcome.index]
         if outcome.error is not None:  # reported, not kept: a rerun retries it
             crashed += 1

@@ -79,19 +79,17 @@ class Outcome:
 
 
 def run(function: Callable[[Any], Any], jobs: Sequence[Any], where: Where, what: str = "job",
-        children: bool = False) -> Iterator[Outcome]:
+        ) -> Iterator[Outcome]:
     """`function(job)` for every job, each outcome as it finishes (in any order).
 
     `function` must be a module-level function (pickled by reference) and each job
     picklable. One worker locally runs the jobs in this process (no pool to start).
-    `what` names a job on the progress bar. `children`: a job starts processes of its
-    own, which a cluster's workers can only when they are not daemonic (OSError
-    otherwise, saying how to start them).
+    `what` names a job on the progress bar.
     """
     with tqdm(total=len(jobs), unit=what, disable=None, file=sys.stderr) as bar:
         failed = 0
         if where.cluster:
-            outcomes = _on_cluster(function, jobs, where.cluster, children)
+            outcomes = _on_cluster(function, jobs, where.cluster)
         elif where.workers == 1 or len(jobs) <= 1:
             outcomes = _here(function, jobs)
         else:
@@ -151,13 +149,8 @@ def _interrupt_children() -> None:
                 pass
 
 
-def _daemonic() -> bool:
-    """Whether this process is a daemon (run on each of a cluster's workers)."""
-    return multiprocessing.current_process().daemon
-
-
 def _on_cluster(function: Callable[[Any], Any], jobs: Sequence[Any], address: str,
-                children: bool) -> Iterator[Outcome]:
+                ) -> Iterator[Outcome]:
     from distributed import Client
     from distributed import as_completed as completed
 
@@ -166,10 +159,6 @@ def _on_cluster(function: Callable[[Any], Any], jobs: Sequence[Any], address: st
     except OSError as error:  # no scheduler there
         raise OSError(f"no Dask scheduler answers at {address}: {error}") from error
     with client:
-        if children and any(client.run(_daemonic).values()):
-            raise OSError(f"the workers of the cluster at {address} are daemonic processes, "
-                          "which cannot start the processes a job needs: start them with "
-                          "DASK_DISTRIBUTED__WORKER__DAEMON=False (docs/campaign.md)")
         tqdm.write(f"on the Dask cluster at {address}: "
                    f"{len(client.scheduler_info()['workers'])} workers, dashboard "
                    f"{client.dashboard_link}", file=sys.stderr)
