@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from ft_core.offline import batch, bounds, design, placement, planning
+from ft_core.offline import batch, bounds, design, placement, planning, swing_workspace
 from ft_sim import campaign, demo
 from fuzzing import examples
 from hypothesis import given, settings
@@ -35,6 +35,7 @@ PARSERS: dict[str, tuple[Callable[[], argparse.ArgumentParser], list[str]]] = {
     "ft-design multicase": (design._parser, ["multicase", "-o", "x.json"]),
     "ft-demo": (demo.parser, []),
     "ft-campaign": (campaign.parser, []),
+    "ft-swing": (swing_workspace.parser, []),
 }
 
 

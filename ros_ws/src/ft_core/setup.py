@@ -24,6 +24,7 @@ setup(
             "design = ft_core.offline.design:main",
             "map = ft_core.offline.placement:main",
             "plan = ft_core.offline.planning:main",
+            "swing = ft_core.offline.swing_workspace:main",
         ],
     },
 )

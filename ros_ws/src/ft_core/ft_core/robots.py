@@ -37,13 +37,16 @@ from ft_core.input_checks import all_finite
 TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
 
 #: Built-in models: URDF resource in ft_core/urdf and the default task space. All but
-#: one are kinematic (no inertias). "panda_inertial" is the Franka Emika Panda as the
-#: `example-robot-data` package distributes it (URDF under Apache-2.0 from Franka Emika
-#: GmbH, unchanged): with inertias (what the physics plant, `ft_core.physics`, needs),
-#: gripper finger joints, fixed joints and `package://` mesh URIs, i.e. what a user's
-#: `robot_description` looks like; its kinematics agree with "panda"'s.
+#: two are kinematic (no inertias). "planar3r_rods" is "planar3r" with a uniform 1 kg
+#: rod for each link (the free-swinging example of Maciejewski et al. sec. 3.3).
+#: "panda_inertial" is the Franka Emika Panda as the `example-robot-data` package
+#: distributes it (URDF under Apache-2.0 from Franka Emika GmbH, unchanged): with
+#: inertias (what the physics plant, `ft_core.physics`, needs), gripper finger joints,
+#: fixed joints and `package://` mesh URIs, i.e. what a user's `robot_description`
+#: looks like; its kinematics agree with "panda"'s.
 BUILTINS = {
     "planar3r": ("planar3r.urdf", "planar"),
+    "planar3r_rods": ("planar3r_rods.urdf", "planar"),
     "puma560": ("puma560.urdf", "position"),
     "panda": ("panda.urdf", "pose"),
     "panda_inertial": ("panda_from_example_robot_data.urdf", "pose"),
@@ -54,6 +57,7 @@ BUILTINS = {
 #: user's Panda URDF gets the Panda's.
 HOME = {
     "planar3r": (0.3, 1.2, 1.0),
+    "planar3r_rods": (0.3, 1.2, 1.0),
     "puma560": (0.2, -0.8, 1.6, 0.3, 0.6, 0.0),
     "panda": (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4),
     "iiwa14": (0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0),

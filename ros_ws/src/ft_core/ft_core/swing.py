@@ -67,7 +67,18 @@ class _Terms:
 def swing_angles(robot: Robot, q: np.ndarray,
                  gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray:
     """Swing angle of each joint were it to fail at q (rad, (n,); eq 13)."""
-    return _Terms(*_moments(robot, q), gravity).theta
+    return swing_state(robot, q, gravity)[0]
+
+
+def swing_state(robot: Robot, q: np.ndarray, gravity: Sequence[float] = STANDARD_GRAVITY
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(swing angles (rad, (n,); eq 13), whether gravity turns each joint at all (bool, (n,))).
+
+    Not turned: the joint's axis is along gravity or its outboard centre of mass is on
+    the axis, so gravity has no torque about it at any angle (neutral); its angle is 0.
+    """
+    terms = _Terms(*_moments(robot, q), gravity)
+    return terms.theta, terms.defined
 
 
 def swing_measure(robot: Robot, q: np.ndarray, weights: Sequence[float] | None = None,
