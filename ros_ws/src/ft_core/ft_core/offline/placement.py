@@ -6,6 +6,10 @@
 
 (A range that starts with a minus sign needs the `=` form: `--y=-0.3:0.3:13`.)
 
+`ft-map fault-tolerant-workspace` (first argument) runs
+`ft_core.offline.fault_tolerant_workspace` instead: the failure-tolerant workspace of the
+planar 3R under software joint limits (Lewis & Maciejewski 1997 fig. 3), with its own options.
+
 Lewis & Maciejewski 1997 sec. III, steps 1-2 (and fig. 7): the size of a task point's self-motion
 manifold says how fault tolerant the point is, so a critical task is best placed
 where that size is large. For every point of a grid of task positions (a line, a
@@ -67,7 +71,7 @@ import numpy as np
 import pinocchio as pin
 
 from ft_core import limits, measures, robots, selfmotion
-from ft_core.offline import batch, cli
+from ft_core.offline import batch, cli, fault_tolerant_workspace
 
 #: Longest straight move (m) of the tool per continuation step when seeding.
 CONTINUATION_STEP = 0.05
@@ -494,6 +498,9 @@ def _parser() -> argparse.ArgumentParser:
                "  height 0.5 m):\n"
                "    ft-map --robot puma560 --x 0.05:1.15:45 --y 0 --z 0.5 --joints 1,2,3,4,5\n"
                "outputs: PREFIX.npz, PREFIX.csv, PREFIX.png (see the module docstring).\n"
+               f"subcommand: ft-map {fault_tolerant_workspace.COMMAND} -h: the failure-\n"
+               "  tolerant workspace of the planar 3R under joint limits (Lewis & Maciejewski\n"
+               "  1997 fig. 3).\n"
                "exit status: 0 ok, 1 bad input, 2 usage, 3 nothing reachable, 4 no placement.")
     cli.add_model_arguments(parser, task=None, tasks=("planar", "position", "pose"))
     for name in AXES:
@@ -578,7 +585,10 @@ def _setup(args: argparse.Namespace) -> tuple:
 @cli.clear_file_errors("ft-map")
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
-    args = _parser().parse_args(argv)
+    arguments = sys.argv[1:] if argv is None else list(argv)
+    if arguments[:1] == [fault_tolerant_workspace.COMMAND]:
+        return fault_tolerant_workspace.main(arguments[1:])
+    args = _parser().parse_args(arguments)
     try:
         robot, grid, offsets, start, joints, orientation = _setup(args)
     except ValueError as error:  # RobotModelError is a ValueError
