@@ -21,11 +21,15 @@ failure. For those limits, on a square grid of task positions, this module compu
 (c) the failure-tolerant workspace, (a) intersected with every (b): the points that can
     be reached before any failure and after any one.
 
-Fig. 3's limits are drawn in its artwork and not given in the text; reading taken
+The reduction is 1 - area(c) / area(a). Reading taken: the paper's "penalty for requiring
+failure tolerance" is a share of the restricted workspace (of the whole workspace, 9 pi,
+it would be some 89% here).
+
+Fig. 3 indicates its limits in its artwork; the text gives no numbers. Reading taken
 (`FIG3_LIMITS`): joint 1 in [-15, 15] deg, joints 2 and 3 in [-90, 90] deg, i.e. the base
-swings a little and neither elbow folds back past a right angle. These round values were
-chosen among symmetric ranges as the pair closest to the text's "approximately 60%
-reduction" (docs/placement.md has the alternatives), so that agreement is by choice; the
+swings a little and neither elbow folds back past a right angle. These were chosen, among
+symmetric ranges in multiples of 15 deg, as the pair closest to the text's "approximately
+60% reduction" (docs/placement.md has the alternatives), so that agreement is by choice; the
 independent checks are the unrestricted case (only the unit circle is failure tolerant,
 fig. 1) and the shapes of (b), which follow from the geometry.
 
