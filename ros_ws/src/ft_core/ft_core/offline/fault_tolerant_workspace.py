@@ -278,9 +278,10 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Draws fig. 3's panels and prints the areas; see the module docstring.")
     parser.add_argument("--limits", metavar="L1:U1,L2:U2,L3:U3",
-                        help="software joint limits in degrees (default: the reading of "
-                        "fig. 3, " + ",".join(f"{math.degrees(low):g}:{math.degrees(high):g}"
-                                             for low, high in FIG3_LIMITS) + ")")
+                        help="software joint limits in degrees, a leading minus in the = "
+                        "form, --limits=-15:15,... (default: the reading of fig. 3, "
+                        + ",".join(f"{math.degrees(low):g}:{math.degrees(high):g}"
+                                   for low, high in FIG3_LIMITS) + ")")
     parser.add_argument("--count", type=cli.bounded(int, *GRID_RANGE), default=GRID_COUNT,
                         help="grid points per axis (default %(default)s)")
     parser.add_argument("--output", "-o", type=Path, default=Path("fault_tolerant_workspace.png"),

@@ -498,9 +498,9 @@ def _parser() -> argparse.ArgumentParser:
                "  height 0.5 m):\n"
                "    ft-map --robot puma560 --x 0.05:1.15:45 --y 0 --z 0.5 --joints 1,2,3,4,5\n"
                "outputs: PREFIX.npz, PREFIX.csv, PREFIX.png (see the module docstring).\n"
-               f"subcommand: ft-map {fault_tolerant_workspace.COMMAND} -h: the failure-\n"
-               "  tolerant workspace of the planar 3R under joint limits (Lewis & Maciejewski\n"
-               "  1997 fig. 3).\n"
+               f"subcommand: ft-map {fault_tolerant_workspace.COMMAND} (-h for its options):\n"
+               "  the failure-tolerant workspace of the planar 3R under joint limits\n"
+               "  (Lewis & Maciejewski 1997 fig. 3).\n"
                "exit status: 0 ok, 1 bad input, 2 usage, 3 nothing reachable, 4 no placement.")
     cli.add_model_arguments(parser, task=None, tasks=("planar", "position", "pose"))
     for name in AXES:
