@@ -14,7 +14,7 @@ from concurrent.futures import Future
 
 import numpy as np
 import pytest
-from ft_core import limits, measures, recovery, robots
+from ft_core import limits, measures, recovery, robots, selfmotion
 from ft_core.plant import PlantConfig
 from ft_core.recovery import RecoveryConfig, StallWatch
 from paths import REPO
@@ -123,6 +123,34 @@ def test_a_plan_reaches_the_goal_with_the_locked_joint_pinned_on_a_straight_line
     found = recovery.solutions(PANDA, GOAL, START, (LOCKED,), lower, upper, config.attempts)
     best = max(measures.kfm(PANDA.scale_task(PANDA.jacobian(s)), (LOCKED,)) for s in found)
     assert plan.solutions == len(found) > 1 and plan.kfm >= 0.5 * best
+
+
+def test_the_goals_traced_configurations_seed_the_pinned_inverse_kinematics() -> None:
+    """The traced component's configurations nearest in the locked joint are tried first.
+
+    Lewis & Maciejewski 1997 sec. III: a lock inside the box leaves a configuration of the
+    traced component with the locked joint at its value. From random configurations with
+    a joint locked inside the box, two starts (the configuration itself, then one more)
+    find a solution every time with the trace; with a random second start, not every time.
+    """
+    goal = GOAL
+    manifold = selfmotion.trace(PANDA, goal, selfmotion.find_seed(PANDA, goal, START))
+    lower, upper = manifold.box
+    rng = np.random.default_rng(7)
+    with_trace = without = 0
+    for trial in range(20):
+        joint = int(rng.integers(7))
+        q = rng.uniform(np.maximum(PANDA.lower, -3), np.minimum(PANDA.upper, 3))
+        q[joint] = rng.uniform(lower[joint], upper[joint])
+        args = (PANDA, goal, q, [joint], PANDA.lower, PANDA.upper, 2, trial)
+        found = recovery.solutions(*args, traced=manifold.samples)
+        with_trace += bool(found)
+        without += bool(recovery.solutions(*args))
+        for solution in found:
+            assert np.linalg.norm(PANDA.forward(solution) - goal) < 1e-6
+            assert solution[joint] == pytest.approx(q[joint], abs=1e-12)
+    assert with_trace == 20
+    assert without < 20
 
 
 def test_a_goal_out_of_reach_gives_no_plan() -> None:

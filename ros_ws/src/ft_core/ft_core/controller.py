@@ -49,6 +49,9 @@ from ft_core.task_channel import TaskChannel
 #: How the start-configuration path moves and how long its plan may take: as a recovery
 #: path (`recovery.RecoveryConfig`'s acceleration, jerk, gain and timeout).
 _START = RecoveryConfig()
+#: m and rad: a pose goal this close to a critical point is that point (its traced
+#: configurations seed the recovery's inverse kinematics).
+_SAME_POINT = 1e-6
 
 
 @dataclass(frozen=True)
@@ -145,6 +148,8 @@ class Controller:
         # Soft limits from critical points, computed in a worker process.
         self._critical_points: list[float] = []
         self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
+        # Each critical point and its traced configurations (recovery seeds).
+        self._traced: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
         self._boxes_dirty = False
         self._boxes_job: tuple[int, Future] | None = None
         self._boxes_generation = 0
@@ -375,9 +380,15 @@ class Controller:
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,
                      locked: tuple[int, ...], lower: np.ndarray, upper: np.ndarray) -> Future:
-        """Plan a recovery in the worker process (`recovery.plan_for_model`)."""
+        """Plan a recovery in the worker process (`recovery.plan_for_model`).
+
+        A goal that is a critical point gets its traced configurations as IK seeds.
+        """
+        traced = next((samples for target, samples in self._traced
+                       if max(recovery.mismatch(self.robot, goal, target)) < _SAME_POINT), None)
         return self._submit(recovery.plan_for_model, *self._model_source, goal, q, locked,
-                            lower, upper, self._speeds(), self.engine.config.dt, config)
+                            lower, upper, self._speeds(), self.engine.config.dt, config, 0,
+                            traced)
 
     def start_worker(self) -> Future | None:
         """Start the worker process now, off the control loop (a node does at model load).
@@ -415,7 +426,7 @@ class Controller:
         if not flat:
             self.soft_limits_note = "none"
             self._report("critical points", None)
-            self._critical_box = None
+            self._critical_box, self._traced = None, ()
             self._rebuild_engine()
             return
         self._boxes_generation += 1
@@ -437,14 +448,16 @@ class Controller:
         if generation != self._boxes_generation:
             return  # the points changed meanwhile: a newer computation follows
         try:
-            box, count = job.result()
+            result: selfmotion.SoftLimits = job.result()
         except (selfmotion.UnreachableError, RobotModelError, ValueError, BrokenProcessPool,
                 ) as error:
             self.soft_limits_note = "none (critical points failed)"
             self._report("critical points", f"{error}; running without their soft limits")
-            self._critical_box = None
+            self._critical_box, self._traced = None, ()
             self._rebuild_engine()
             return
+        box, count = result.box, len(result.targets)
+        self._traced = tuple(zip(result.targets, result.traced, strict=True))
         self.soft_limits_note = f"{count} critical points"
         self._report("critical points", None)
         self._log(f"soft limits from {count} critical points: lower "

@@ -18,8 +18,10 @@ arm cannot make the task direction without leaving it (docs/campaign.md). Recove
    first rule, for the whole visit (docs/campaign.md).
 2. **Plan** (`plan`, run in a worker process, never in the control cycle): inverse
    kinematics of the goal with the locked joints pinned (`selfmotion.project`: Newton
-   with an active set on the joint bounds), multi-start: the current configuration,
-   then seeded random configurations inside the bounds (`attempts` in all, each at most
+   with an active set on the joint bounds), multi-start (`solutions`): the current
+   configuration, then the goal's traced self-motion configurations when it is a
+   critical point (those whose locked joints are nearest first), then seeded random
+   configurations inside the bounds (`attempts` in all, each at most
    `selfmotion.project`'s iterations: bounded). The bounds are the ones the engine
    enforces (hard limits, and the soft-limit box while it still applies). Among the
    solutions whose remaining arm keeps at least half the best kfm (Lewis & Maciejewski
@@ -197,19 +199,34 @@ class Plan:
 
 def solutions(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
               lower: np.ndarray, upper: np.ndarray, attempts: int,
-              seed: int = 0) -> list[np.ndarray]:
+              seed: int = 0, traced: np.ndarray | None = None) -> list[np.ndarray]:
     """IK solutions of `goal` with the `locked` joints at q's values, inside the bounds.
 
-    Newton from q (clipped into the bounds), then from seeded random configurations
-    inside them; `attempts` starts in all, each bounded by `selfmotion.project`.
+    Newton from q (clipped into the bounds), then from configurations of the goal's
+    traced self-motion component (`traced`, (k, n), if the goal is a critical point:
+    `selfmotion.SoftLimits`), those whose locked joints are nearest q's values first, for
+    up to half the attempts, then from seeded random configurations inside the bounds;
+    `attempts` starts in all, each bounded by `selfmotion.project`. The traced ones come
+    first because of Lewis & Maciejewski 1997's guarantee (sec. III): a lock inside the
+    box leaves a configuration of that component with the locked joint at its value.
     """
     rng = np.random.default_rng(seed)
     low = np.where(np.isfinite(lower), lower, -math.pi)
     high = np.where(np.isfinite(upper), upper, math.pi)
     pinned = list(locked)
+    on_manifold = np.zeros((0, q.size)) if traced is None else np.asarray(traced, dtype=float)
+    if pinned and len(on_manifold):
+        on_manifold = on_manifold[np.argsort(
+            np.abs(on_manifold[:, pinned] - q[pinned]).max(axis=1), kind="stable")]
+    on_manifold = on_manifold[:max(0, attempts // 2)]
     found: list[np.ndarray] = []
     for k in range(attempts):
-        start = np.clip(q, lower, upper) if k == 0 else rng.uniform(low, high)
+        if k == 0:
+            start = np.clip(q, lower, upper)
+        elif k <= len(on_manifold):
+            start = np.clip(on_manifold[k - 1], lower, upper)
+        else:
+            start = rng.uniform(low, high)
         start[pinned] = q[pinned]
         solution = selfmotion.project(robot, goal, start, fixed=pinned, lower=lower,
                                       upper=upper)
@@ -323,11 +340,16 @@ def sample_times(duration: float, period: float) -> np.ndarray:
 
 def plan(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
          lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray, period: float,
-         config: RecoveryConfig, seed: int = 0) -> Plan | None:
-    """A recovery plan from q to `goal` (see the module docstring); None: none found."""
+         config: RecoveryConfig, seed: int = 0, traced: np.ndarray | None = None,
+         ) -> Plan | None:
+    """A recovery plan from q to `goal` (see the module docstring); None: none found.
+
+    `traced`: the goal's traced self-motion configurations, if it is a critical point
+    (`solutions`).
+    """
     q = np.asarray(q, dtype=float)
     goal = selfmotion.check_target(robot, goal)
-    found = solutions(robot, goal, q, locked, lower, upper, config.attempts, seed)
+    found = solutions(robot, goal, q, locked, lower, upper, config.attempts, seed, traced)
     if not found:
         return None
     solution, kfm = choose(robot, found, q, locked)
@@ -340,10 +362,10 @@ def plan(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[int],
 def plan_for_model(spec: str, chain: Sequence, goal: np.ndarray, q: np.ndarray,
                    locked: Sequence[int], lower: np.ndarray, upper: np.ndarray,
                    velocity: np.ndarray, period: float, config: RecoveryConfig,
-                   seed: int = 0) -> Plan | None:
+                   seed: int = 0, traced: np.ndarray | None = None) -> Plan | None:
     """`plan` for a robot given as `robots.load` arguments (for a worker process)."""
     return plan(robots.load(spec, *chain), goal, q, locked, lower, upper, velocity, period,
-                config, seed)
+                config, seed, traced)
 
 
 def follow(recovery: Plan, elapsed: float, q: np.ndarray, locked: Sequence[int],

@@ -661,9 +661,29 @@ def critical_boxes(robot: Robot, targets: Sequence[np.ndarray], q: np.ndarray,
     return CriticalBoxes(tuple(manifolds), lower, upper, empty, unreachable)
 
 
-def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
-                ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
-    """Critical points -> intersected self-motion boxes -> (soft limits, number of points).
+#: Most traced configurations kept per critical point as recovery seeds (`SoftLimits`).
+MAX_SEEDS = 256
+
+
+@dataclass(frozen=True)
+class SoftLimits:
+    """Soft limits from critical points, and what their tracing leaves for later.
+
+    Attributes:
+        box: (lower, upper) of the intersected boxes (rad).
+        targets: the critical points (as `Robot.forward` returns them).
+        traced: for each point, up to `MAX_SEEDS` configurations of its traced component,
+            evenly spread over it (k, n; rad): seeds for inverse kinematics of that point
+            after a lock (`recovery.solutions`).
+    """
+
+    box: tuple[np.ndarray, np.ndarray]
+    targets: tuple[np.ndarray, ...]
+    traced: tuple[np.ndarray, ...]
+
+
+def soft_limits(robot: Robot, flat: list[float], q: np.ndarray) -> SoftLimits:
+    """Critical points -> intersected self-motion boxes -> soft limits and traced seeds.
 
     Lewis & Maciejewski 1997 sec. III (`critical_boxes`). Raises UnreachableError when a
     point is out of reach, the boxes do not intersect or a point cannot be reached inside the
@@ -678,11 +698,13 @@ def soft_limits(robot: Robot, flat: list[float], q: np.ndarray,
     if boxes.unreachable:
         raise UnreachableError(f"critical points {list(boxes.unreachable)} cannot be reached "
                                "inside the intersection")
-    return (boxes.lower, boxes.upper), len(targets)
+    traced = tuple(m.samples[np.unique(np.linspace(0, len(m.samples) - 1, MAX_SEEDS).astype(int))]
+                   for m in boxes.manifolds)
+    return SoftLimits((boxes.lower, boxes.upper), tuple(targets), traced)
 
 
 def soft_limits_for_model(spec: str, chain: Sequence, flat: list[float], q: np.ndarray,
-                          ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+                          ) -> SoftLimits:
     """`soft_limits` for a model given as `robots.load(spec, *chain)`: picklable arguments.
 
     For a worker process. A thread would not do: the tracing makes thousands of

@@ -289,8 +289,8 @@ def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
                                      f"a campaign, which needs more than the {task} task's "
                                      f"{robot.m}")
     critical = critical_points(robot, points)
-    box, _ = selfmotion.soft_limits(robot, [v for p in critical for v in p],
-                                    selfmotion.bent_configuration(robot))
+    box = selfmotion.soft_limits(robot, [v for p in critical for v in p],
+                                 selfmotion.bent_configuration(robot)).box
     return {"robot": robot_spec, "base_link": base_link, "tip_link": tip_link, "task": task,
             "plant": plant, "points": points, "critical": [list(p) for p in critical],
             "box": [[float(v) for v in side] for side in box],
