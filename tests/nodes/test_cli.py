@@ -16,7 +16,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from ft_core.offline import batch, bounds, design, placement, planning, swing_workspace
+from ft_core.offline import (
+    batch,
+    bounds,
+    design,
+    fault_tolerant_workspace,
+    placement,
+    planning,
+    swing_workspace,
+)
 from ft_sim import campaign, demo
 from fuzzing import examples
 from hypothesis import given, settings
@@ -36,6 +44,7 @@ PARSERS: dict[str, tuple[Callable[[], argparse.ArgumentParser], list[str]]] = {
     "ft-demo": (demo.parser, []),
     "ft-campaign": (campaign.parser, []),
     "ft-swing": (swing_workspace.parser, []),
+    "ft-map fault-tolerant-workspace": (fault_tolerant_workspace.parser, []),
 }
 
 
