@@ -26,6 +26,8 @@ def test_theorem_1_an_undetected_lock_of_joint_1_converges_wrongly_and_is_caught
     the reduced Jacobian [j2 j3] is rank deficient and all the commanded motion is on
     joint 1 (eqs 16-17); the task-space channel names joint 1. The paper does not give
     the initial configuration: this one (elbow up, q1 = 1.87 rad) shows the behaviour.
+    Issue 34 item 6: the equilibrium is a saddle. The arm stays at it, 1.87 m off, for
+    more than 40 s, then leaves it and is within 5 cm of x_d by 100 s.
     """
     q0 = selfmotion.find_seed(PLANAR, np.array([-0.9, 1.8]), np.array([1.873, -0.708, 2.05]))
     x_d = np.array([1.5, 1.5])
@@ -44,6 +46,11 @@ def test_theorem_1_an_undetected_lock_of_joint_1_converges_wrongly_and_is_caught
     assert selfmotion.find_seed(PLANAR, x_d, q, lower, upper) is not None
     assert suspected is not None and suspected[1] == 0
     assert channel.suspect == 0 and channel.residuals[0] < 0.25 < channel.residuals[1:].min()
+    lingering = pseudoinverse_control(q, x_d, locked=0)[0]  # at 40 s: still there
+    assert np.linalg.norm(PLANAR.forward(lingering) - x_d) > 1.8
+    assert np.linalg.svd(PLANAR.jacobian(lingering)[:, 1:], compute_uv=False)[-1] < 1e-2
+    late = pseudoinverse_control(lingering, x_d, locked=0, seconds=60.0)[0]  # at 100 s
+    assert np.linalg.norm(PLANAR.forward(late) - x_d) < 0.05
 
 
 def test_a_healthy_stall_or_a_slow_approach_is_not_suspected() -> None:
