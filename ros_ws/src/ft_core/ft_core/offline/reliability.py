@@ -26,6 +26,7 @@ Units: rad, s, failure rates in 1/s, speeds in rad/s.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -235,9 +236,22 @@ def _pieces(points: Sequence[TaskPoint], trajectory: Trajectory, segments: int,
     return pieces
 
 
+def _first_failure_probability(rates: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """Probability that each joint is the first to fail and does so in [t0, t1].
+
+    Competing exponential failures: lambda_i / Lambda (exp(-Lambda t0) - exp(-Lambda t1)),
+    Lambda the sum of the rates.
+    """
+    total = float(rates.sum())
+    if total == 0:
+        return np.zeros_like(rates)
+    return rates / total * (math.exp(-total * t0) - math.exp(-total * t1))
+
+
 def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory,
                              rates: Rates, speed: float,
-                             second_failures: bool = True, segments: int = SEGMENTS) -> float:
+                             second_failures: bool = True, segments: int = SEGMENTS,
+                             exact: bool = False) -> float:
     """Probability that a lock makes the task fail along the trajectory (sec. 4.2.3).
 
     Sums, over the trajectory's pieces and joints, eqs 4.3-4.4 for joints whose lock
@@ -254,9 +268,15 @@ def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory
         speed: joint speed v of the post-failure trajectories (rad/s), > 0.
         second_failures: add scenarios C and D.
         segments: the trajectory is cut into at least this many pieces for C and D.
+        exact: integrate the pieces exactly instead of the chapter's first-order sum.
 
     The chapter's sum is first order: at high rates it can exceed 1, and is clamped
-    there (a probability; where the clamp acts, `monte_carlo` is the figure to use).
+    there (a probability). With `exact`, the same pieces are integrated exactly for
+    exponential failures instead (the model `monte_carlo` samples): a joint fails first
+    in a piece with `_first_failure_probability`, and after it, one of the others fails
+    within the post-failure time with 1 - exp(-(Lambda - lambda_i) T), memoryless. Only
+    the pieces' discretisation (fatal joints and post-failure times taken at each
+    piece's midpoint) remains, so it never exceeds 1 and needs no clamp.
     """
     lam = check_rates(rates, trajectory.configurations.shape[1])
     if not speed > 0:
@@ -265,14 +285,16 @@ def task_failure_probability(points: Sequence[TaskPoint], trajectory: Trajectory
     for t0, t1, first in _pieces(points, trajectory, segments):
         q = trajectory.at(0.5 * (t0 + t1))
         fatal = fatal_joints(points, first, q)
-        here = _interval_probability(lam, t0, t1)
+        here = (_first_failure_probability(lam, t0, t1) if exact
+                else _interval_probability(lam, t0, t1))
         total += float(here[fatal].sum())
         if not second_failures:
             continue
         for i in np.flatnonzero(~fatal & (lam > 0)):
             after = post_failure_time(points, first, q, int(i), speed)
             others = np.delete(lam, i)
-            total += float(here[i] * _interval_probability(others, t1, t1 + after).sum())
+            total += float(here[i] * (-math.expm1(-others.sum() * after) if exact else
+                                      _interval_probability(others, t1, t1 + after).sum()))
     return min(total, 1.0)
 
 
