@@ -9,7 +9,8 @@ Jacobian (Xie 2019 eq 2.6, Maciejewski et al. eq 10). `redundant_optimal_jacobia
 to several degrees of redundancy (eqs 3.26-3.29).
 
 The command line `ft-design` (`main`) runs these and the tools of `ft_core.offline.dh`
-(DH parameters and the 7! designs, sec. 2.3), `ft_core.offline.design7r` (7R-realisable
+(DH parameters and the 7! designs, sec. 2.3), `ft_core.offline.global_dexterity` (their
+global pre- and post-failure dexterity, sec. 2.4), `ft_core.offline.design7r` (7R-realisable
 optima, eqs 3.20-3.24) and `ft_core.offline.multicase` (eq 3.30), writing JSON and a figure.
 """
 
@@ -247,6 +248,50 @@ def _plot_dh(report: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
+def _global_report(args: argparse.Namespace) -> dict[str, Any]:
+    from ft_core.offline import global_dexterity as gd
+
+    study = gd.study(args.samples, args.poses, args.seed, batch.Where.from_arguments(args))
+    rows = gd.comparison(study)
+    orders = gd.column_orders()
+
+    def design(index: int) -> dict[str, Any]:
+        entry = {"design": index, "columns": (orders[index] + 1).tolist(),
+                 "joint_space": study.joint_space[index].tolist(),
+                 "good_pairs": int(study.good_pairs[index]), "reach": float(study.reaches[index])}
+        if index in study.workspace:
+            entry.update(workspace=study.workspace[index].tolist(),
+                         workspace_error=study.workspace_error[index].tolist(),
+                         closed=study.closed[index])
+        return entry
+
+    return {
+        "sampling": {"joint_samples": study.samples, "workspace_poses": study.poses,
+                     "seed": study.seed, "table_samples": gd.TABLE_SAMPLES,
+                     "step": gd.STEP, "max_steps": gd.MAX_STEPS},
+        "measures": list(gd.MEASURES),
+        "table_2_1": study.table.tolist(),
+        "joint_space": study.joint_space.tolist(),
+        "reaches": study.reaches.tolist(),
+        "candidates": [design(int(d)) for d in study.candidates],
+        "random_designs": [design(int(d)) for d in study.random_designs],
+        "thesis_candidates": {"1": design(int(gd.thesis_designs()[0])),
+                              "4": design(int(gd.thesis_designs()[1]))},
+        "workspace_front": study.workspace_front().tolist(),
+        "pose_error": study.pose_error,
+        "comparison": [dict(zip(("what", "thesis", "here", "rule", "verdict"), row, strict=True))
+                       for row in rows],
+        "_study": study,
+        "_markdown": gd.markdown(rows),
+    }
+
+
+def _plot_global(report: dict[str, Any], path: Path) -> None:
+    from ft_core.offline import global_dexterity
+
+    global_dexterity.figure(report["_study"], path)
+
+
 def _r7_report(args: argparse.Namespace) -> dict[str, Any]:
     from ft_core import measures
     from ft_core.offline import design7r, dh
@@ -396,7 +441,8 @@ def _probabilities(text: str) -> list[float]:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ft-design", description="Design tools of Xie 2019 ch. 2-3: DH parameters and the"
-        " 7! designs, 7R-realisable optima, several degrees of redundancy, eq 3.30.")
+        " 7! designs and their global dexterity, 7R-realisable optima, several degrees of"
+        " redundancy, eq 3.30.")
     commands = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--output", "-o", type=Path, required=True, help="JSON file to write")
@@ -409,6 +455,17 @@ def _parser() -> argparse.ArgumentParser:
     dh_cmd.add_argument("--jacobian", type=Path, help="JSON 6 x n matrix (default: eq 2.7)")
     dh_cmd.add_argument("--verify", action="store_true",
                         help="recompute every design's DH table from its own axes")
+
+    glob = commands.add_parser("global", parents=[common, workers],
+                               help="global dexterity of the 7! designs (sec. 2.4)")
+    glob.add_argument("--samples", type=cli.bounded(int, 10, 100000), default=2000,
+                      help="joint samples per design (10 to 100000, default 2000; the thesis"
+                      " used 10000)")
+    glob.add_argument("--poses", type=cli.bounded(int, 1, 5000), default=200,
+                      help="workspace poses per traced design (1 to 5000, default 200; the"
+                      " thesis used 5000)")
+    glob.add_argument("--seed", type=cli.bounded(int, 0, cli.MAX_SEED), default=0,
+                      help="random seed (default 0)")
 
     r7 = commands.add_parser("r7", parents=[common],
                              help="7R-realisable optimal Jacobian (eqs 3.20-3.24)")
@@ -454,6 +511,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "dh":
             report, plot = _dh_report(_load_jacobian(args.jacobian), args.verify,
                                       batch.Where.from_arguments(args)), _plot_dh
+        elif args.command == "global":
+            report, plot = _global_report(args), _plot_global
         elif args.command == "r7":
             if args.start == "3.24" and args.probabilities is None:
                 from ft_core.offline.design7r import W_324
@@ -473,6 +532,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.figure is not None:
         args.figure.parent.mkdir(parents=True, exist_ok=True)
         plot(report, args.figure)
+    if "_markdown" in report:
+        print(report["_markdown"])
     print(f"ft-design {args.command}: wrote {args.output}"
           + (f" and {args.figure}" if args.figure else ""))
     return 0

@@ -22,8 +22,9 @@ Readings taken where the thesis leaves a choice:
   distance of the tool point from the base frame's origin (on the first axis, at the
   foot of the common normal x_1, as `dh` places it). R is found by gradient ascent of
   |p|^2 from the farthest of `REACH_SAMPLES` joint samples (`reach`), so it does not
-  depend on the number of measure samples. With it, Table 2.1 is met to 0.02; the bound
-  sum sqrt(a_i^2 + d_i^2) or the sample maximum alone do about as well (within 0.02).
+  depend on the number of measure samples. With it, Table 2.1 is met to 0.015; the bound
+  sum sqrt(a_i^2 + d_i^2) or the sample maximum alone do about as well (0.02). The
+  measures are then dimensionless (velocities per joint rate, lengths in units of R).
 - Joint space (eqs 2.13-2.14): every joint uniform on [-pi, pi) (no joint limits are
   given); the same samples for every design (common random numbers, so differences
   between designs carry less sampling noise than the means themselves).
@@ -43,7 +44,8 @@ Readings taken where the thesis leaves a choice:
   joint space, the last layer cut by the sum of the measures normalised by their
   largest value over the 7! designs; candidate k is k-th by that sum (the thesis's
   order, "somewhat arbitrarily"). That property holds for any such set: a design that
-  dominates another sits in an earlier layer.
+  dominates another sits in an earlier layer. Fig. 2.9's "normalized" measures are
+  divided the same way.
 """
 
 from __future__ import annotations
@@ -280,15 +282,14 @@ class SelfMotion:
     pose_error: float
 
 
-def self_motion_maxima(designs: Designs, q0: np.ndarray, lengths: np.ndarray,
-                       max_steps: int = MAX_STEPS) -> SelfMotion:
+def self_motion_maxima(designs: Designs, q0: np.ndarray, lengths: np.ndarray) -> SelfMotion:
     """Largest sigma_m and sigma_m^* on the self-motion manifold through each q0 (sec. 2.4.3).
 
     Row k traces design row k from q0[k] (M, 7) at the pose q0[k] gives: a step of `STEP`
     rad along the null vector (its sign kept continuous), two Newton corrections
     q += J^T (J J^T)^-1 e back to the pose, then the measures with the linear rows
     divided by lengths[k]. A row stops when it is back within `STEP` of q0 (after three
-    steps) or after `max_steps`; finished rows leave the batch.
+    steps) or after `MAX_STEPS`; finished rows leave the batch.
     """
     count = len(q0)
     lengths = np.broadcast_to(np.asarray(lengths, dtype=float), (count,))
@@ -297,7 +298,7 @@ def self_motion_maxima(designs: Designs, q0: np.ndarray, lengths: np.ndarray,
     closed, steps = np.zeros(count, dtype=bool), np.zeros(count, dtype=int)
     active = np.arange(count)
     q, previous, pose_error = q0.copy(), _null_directions(J), 0.0
-    for step in range(max_steps):
+    for step in range(MAX_STEPS):
         rows, goal = designs.take(active), target[active]
         direction = _null_directions(J)
         flip = np.sum(direction * previous, axis=1) < 0
@@ -503,11 +504,11 @@ def _columns(design: int) -> str:
     return "[" + " ".join(str(c + 1) for c in column_orders()[design]) + "]"
 
 
-def comparison(s: GlobalStudy) -> list[tuple[str, str, str, str]]:
-    """Rows (what, Xie 2019 sec. 2.4, here, verdict) comparing a study with the thesis.
+def comparison(s: GlobalStudy) -> list[tuple[str, str, str, str, str]]:
+    """Rows (what, Xie 2019 sec. 2.4, here, rule, verdict) comparing a study with the thesis.
 
-    The verdict's rule is in each row: printed numbers have a tolerance, figures are
-    compared by the sign or order of what they show.
+    Printed numbers are met to a tolerance; figures are compared by the sign or order
+    of what they show. The verdict is "agrees", "differs" or "n/a" (no rule applies).
     """
     table, tm = s.table, s.table_measures
     pre, post = np.linalg.norm(table[:3, :3], axis=0), np.linalg.norm(table[3:, 3:], axis=0)
@@ -535,63 +536,66 @@ def comparison(s: GlobalStudy) -> list[tuple[str, str, str, str]]:
         label = f"our candidate {ours[design]}" if design in ours else "not a candidate"
         return f"{label} (rank {rank[design]} by the sum, layer {layers[design] + 1})"
 
+    def row(what: str, thesis: str, here: str, rule: str, holds: bool | None
+            ) -> tuple[str, str, str, str, str]:
+        return what, thesis, here, rule, "n/a" if holds is None else (
+            "agrees" if holds else "differs")
+
+    largest = float(np.abs(table - TABLE_2_1).max())
     return [
-        ("Table 2.1: correlations of 1/kappa, w, sigma_m and their worst cases (design of"
-         " eq 2.7, 10,000 joint samples)", "printed to 0.001",
-         f"largest difference {np.abs(table - TABLE_2_1).max():.3f}",
-         _verdict(np.abs(table - TABLE_2_1).max() <= 0.03, "within 0.03")),
-        ("sigma_m and sigma_m^* the most representative (largest column norm in their block)",
-         "yes", f"pre {pre.round(3).tolist()}, post {post.round(3).tolist()}",
-         _verdict(np.argmax(pre) == 2 and np.argmax(post) == 2, "same largest column")),
-        ("Fig. 2.5: sigma_m^* <= sigma_m; sigma_m^* near 0 even where sigma_m is large",
-         "figure", f"sigma_m^*/sigma_m <= {(tm[:, 5] / tm[:, 2]).max():.3f}; least sigma_m^* with"
-         f" sigma_m above its median {tm[high, 5].min():.1e}",
-         _verdict(bool(np.all(tm[:, 5] <= tm[:, 2])) and tm[high, 5].min() < 0.01 * tm[:, 5].max(),
-                  "bounded, and below 1 % of its largest value")),
-        ("error of the joint-space means", "~3 % (sigma_m), ~5 % (sigma_m^*) at N = 10,000",
-         f"{100 * relative[0]:.1f} %, {100 * relative[1]:.1f} % (one standard error,"
-         f" design of eq 2.7, N = {s.samples})",
-         "not comparable (the thesis's error is not defined)"),
-        ("sec. 2.4.3: joint space vs workspace, 20 random designs", "r = 0.74 (sigma_m),"
-         " 0.71 (sigma_m^*)", f"r = {r[0]:.2f}, {r[1]:.2f}",
-         _verdict(min(r) > 0.5, "positive and strong (r > 0.5); ours stronger")),
-        ("Fig. 2.8: means rise with the number of good pairs (groups of 1968, 2016, 864, 192)",
-         "figure", "sigma_m " + ", ".join(f"{m:.4f}" for m in means[:, 0]) + "; sigma_m^* "
-         + ", ".join(f"{m:.5f}" for m in means[:, 1]), _verdict(rising, "both rise")),
-        ("Fig. 2.8: the worst design with three good pairs is still relatively good", "figure",
-         f"it beats {percentile[0]:.0f} % (sigma_m) and {percentile[1]:.0f} % (sigma_m^*) of the"
-         " designs", _verdict(min(percentile) >= 40, "beats >= 40 %")),
-        ("Fig. 2.9: a design and its reverse can differ a lot, though usually not",
-         "figure", f"normalised distance: median {np.median(differences):.3f}, largest"
-         f" {differences.max():.3f}",
-         _verdict(differences.max() > 5 * np.median(differences), "largest > 5 x median")),
-        ("sec. 2.4.5: Candidate 4 " + _columns(c4) + " among the 20", "yes", where(c4),
-         _verdict(c4 in ours, "in our 20")),
-        ("sec. 2.4.5: Candidate 1 " + _columns(c1) + " among the 20", "yes", where(c1),
-         _verdict(c1 in ours, "in our 20")),
-        ("Fig. 2.10: workspace measures much better than joint space (20 candidates)", "yes",
-         f"{ratio[:, 0].min():.1f}-{ratio[:, 0].max():.1f} x (sigma_m), {ratio[:, 1].min():.1f}-"
-         f"{ratio[:, 1].max():.1f} x (sigma_m^*)", _verdict(bool(np.all(ratio > 1.2)), "> 1.2 x")),
-        ("Fig. 2.11: workspace Pareto front of the candidates", "Candidates 1 and 4: best"
-         " sigma_m^* and best sigma_m", ", ".join(_columns(int(d)) for d in front) + "; best"
-         f" sigma_m {_columns(best[0])}, best sigma_m^* {_columns(best[1])}; the thesis's"
-         f" Candidate 4 {thesis_space[1, 0]:.3f}, {thesis_space[1, 1]:.4f}, Candidate 1"
-         f" {thesis_space[0, 0]:.3f}, {thesis_space[0, 1]:.4f} (best {space[:, 0].max():.3f},"
-         f" {space[:, 1].max():.4f})", _verdict(set(front.tolist()) == {int(c1), int(c4)},
-                                              "the same two designs")),
-        ("error of the workspace means", "~2 % at N = 5000", f"{100 * space_error[0]:.1f} %,"
-         f" {100 * space_error[1]:.1f} % (median standard error, N = {s.poses})",
-         "not comparable (as above)"),
+        row("Table 2.1: correlations of the six local measures (design of eq 2.7, 10,000"
+            " joint samples)", "printed to 0.001", f"largest difference {largest:.3f}",
+            "within 0.03", largest <= 0.03),
+        row("sigma_m, sigma_m^* the most representative (largest column norm in their block)",
+            "yes", f"pre {pre.round(3).tolist()}, post {post.round(3).tolist()}",
+            "the same column", bool(np.argmax(pre) == 2 and np.argmax(post) == 2)),
+        row("Fig. 2.5: sigma_m^* <= sigma_m, and near 0 even where sigma_m is large", "figure",
+            f"sigma_m^*/sigma_m <= {(tm[:, 5] / tm[:, 2]).max():.3f}; least sigma_m^* where"
+            f" sigma_m is above its median {tm[high, 5].min():.1e}",
+            "bounded; < 1 % of its largest value",
+            bool(np.all(tm[:, 5] <= tm[:, 2]) and tm[high, 5].min() < 0.01 * tm[:, 5].max())),
+        row("error of the joint-space means", "~3 % (sigma_m), ~5 % (sigma_m^*), N = 10,000",
+            f"{100 * relative[0]:.1f} %, {100 * relative[1]:.1f} % (one standard error, design"
+            f" of eq 2.7, N = {s.samples})", "the thesis does not define its error", None),
+        row("sec. 2.4.3: joint space vs workspace, 20 random designs",
+            "r = {sigma_m} (sigma_m), {sigma_m*} (sigma_m^*)".format(
+                **JOINT_WORKSPACE_CORRELATION), f"r = {r[0]:.2f}, {r[1]:.2f}",
+            "both r > 0.5", min(r) > 0.5),
+        row("Fig. 2.8: means rise with the number of good pairs (1968, 2016, 864, 192 designs)",
+            "figure", "sigma_m " + ", ".join(f"{m:.4f}" for m in means[:, 0]) + "; sigma_m^* "
+            + ", ".join(f"{m:.5f}" for m in means[:, 1]), "both rise", rising),
+        row("Fig. 2.8: the worst design with three good pairs is still relatively good",
+            "figure", f"beats {percentile[0]:.0f} % (sigma_m), {percentile[1]:.0f} % (sigma_m^*)"
+            " of the designs", "beats >= 40 % in both", min(percentile) >= 40),
+        row("Fig. 2.9: a design and its reverse can differ a lot, though usually not", "figure",
+            f"normalised distance: median {np.median(differences):.3f}, largest"
+            f" {differences.max():.3f}", "largest > 5 x median",
+            bool(differences.max() > 5 * np.median(differences))),
+        row(f"sec. 2.4.5: Candidate 4 {_columns(c4)} among the 20", "yes", where(c4),
+            "in our 20", c4 in ours),
+        row(f"sec. 2.4.5: Candidate 1 {_columns(c1)} among the 20", "yes", where(c1),
+            "in our 20", c1 in ours),
+        row("Fig. 2.10: workspace measures much better than joint space (20 candidates)",
+            "yes", f"{ratio[:, 0].min():.1f}-{ratio[:, 0].max():.1f} x (sigma_m),"
+            f" {ratio[:, 1].min():.1f}-{ratio[:, 1].max():.1f} x (sigma_m^*)", "> 1.2 x",
+            bool(np.all(ratio > 1.2))),
+        row("Fig. 2.11: workspace Pareto front of the candidates",
+            "Candidate 4 (best sigma_m), Candidate 1 (best sigma_m^*)",
+            ", ".join(_columns(int(d)) for d in front) + f"; best sigma_m {_columns(best[0])}"
+            f" {space[:, 0].max():.3f}, best sigma_m^* {_columns(best[1])}"
+            f" {space[:, 1].max():.4f}; the thesis's Candidate 4 {thesis_space[1, 0]:.3f},"
+            f" {thesis_space[1, 1]:.4f}, Candidate 1 {thesis_space[0, 0]:.3f},"
+            f" {thesis_space[0, 1]:.4f}", "the same two designs",
+            set(front.tolist()) == {int(c1), int(c4)}),
+        row("error of the workspace means", "~2 %, N = 5000", f"{100 * space_error[0]:.1f} %,"
+            f" {100 * space_error[1]:.1f} % (median standard error, N = {s.poses})",
+            "the thesis does not define its error", None),
     ]
 
 
-def _verdict(holds: bool | np.bool_, rule: str) -> str:
-    return ("agrees" if holds else "differs") + f" ({rule})"
-
-
-def markdown(rows: list[tuple[str, str, str, str]]) -> str:
+def markdown(rows: list[tuple[str, str, str, str, str]]) -> str:
     """The comparison as a markdown table."""
-    lines = ["| Xie 2019 sec. 2.4 | thesis | here | verdict |", "|---|---|---|---|"]
+    lines = ["| Xie 2019 sec. 2.4 | thesis | here | rule | verdict |", "|---|---|---|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
 
@@ -649,12 +653,15 @@ def figure(s: GlobalStudy, path: Path) -> None:
     for k, point in enumerate(space):
         ax[1, 3].annotate(str(k + 1), point, fontsize=7, xytext=(3, 3), textcoords="offset points")
     thesis = s.workspace_of(thesis_designs())
-    ax[1, 3].scatter(*thesis.T, marker="x", c="black", label="thesis C1, C4")
+    ax[1, 3].scatter(*thesis.T, marker="x", c="black", label="thesis's candidates")
+    for label, point in zip(("C1", "C4"), thesis, strict=True):
+        ax[1, 3].annotate(f"thesis {label}", point, fontsize=8, xytext=(4, -10),
+                          textcoords="offset points")
     ax[1, 3].set(xlabel="global sigma_m, workspace", ylabel="global sigma_m*, workspace",
                  title="Fig. 2.11: workspace")
     ax[1, 3].legend(fontsize=7)
     for axis in ax.flat:
         axis.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=72)
+    fig.savefig(path, dpi=72, pil_kwargs={"optimize": True})
     plt.close(fig)
