@@ -216,7 +216,8 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
             f"the guard's first zeros {zeros[:1]} s after the kill ({stall:.2f} s stalled)")
         assert travel < bound + speed * stall, (
             f"the arm moved {travel:.3f} rad after the kill, bound {bound:.3f} (at {speed:.2f} "
-            f"rad/s when it died; guard's first zeros {zeros[0]:.3f} s after it; {stall:.3f} s stalled)")
+            f"rad/s when it died; guard's first zeros {zeros[0]:.3f} s after it; "
+            f"{stall:.3f} s stalled)")
         g.wait(lambda: np.max(np.abs(g.states[-1].velocity)) < 1e-6, 5.0, "the arm at rest")
         problems = [s.message for _, s in g.diagnostics.get("/controller", [])]
         assert any("no answer from the monitor" in m for m in problems), problems[-3:]
