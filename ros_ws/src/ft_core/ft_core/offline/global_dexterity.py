@@ -208,6 +208,9 @@ def local_measures(J: np.ndarray) -> np.ndarray:
 def reach(designs: Designs, seed: int) -> np.ndarray:
     """R (D,): the largest distance of the tool point from the base origin (sec. 2.4.2).
 
+    In the units of eq 2.7's linear rows (the radius of the sphere every joint axis
+    touches at the design pose).
+
     The `REACH_STARTS` farthest of `REACH_SAMPLES` joint samples climb |p|^2 along its
     gradient 2 J_v^T p with normalised steps `REACH_STEPS`; R is the best end point.
     """
@@ -229,7 +232,10 @@ def reach(designs: Designs, seed: int) -> np.ndarray:
 
 
 def sampled_measures(designs: Designs, q: np.ndarray, reaches: np.ndarray) -> np.ndarray:
-    """(D, S, 6) local measures of every design at every sample (S, 7), in `BLOCK`s."""
+    """(D, S, 6) local `MEASURES` of every design at every sample q (S, 7, rad).
+
+    Design d's linear rows are divided by reaches[d] (`reach`); computed in `BLOCK`s.
+    """
     count = len(designs) * len(q)
     out = np.empty((count, len(MEASURES)))
     rows = designs.rows(len(q))
