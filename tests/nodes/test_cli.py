@@ -41,6 +41,7 @@ PARSERS: dict[str, tuple[Callable[[], argparse.ArgumentParser], list[str]]] = {
     "ft-design redundant": (design._parser, ["redundant", "-o", "x.json", "--m", "3",
                                              "--probabilities", "0.1,0.2,0.3,0.4"]),
     "ft-design multicase": (design._parser, ["multicase", "-o", "x.json"]),
+    "ft-design global": (design._parser, ["global", "-o", "x.json"]),
     "ft-demo": (demo.parser, []),
     "ft-campaign": (campaign.parser, []),
     "ft-swing": (swing_workspace.parser, []),
@@ -60,7 +61,8 @@ def _actions(tool: str) -> list[argparse.Action]:
 
 def test_every_batch_tool_takes_the_same_execution_options() -> None:
     """Issue 33: `--workers` and `--cluster` (`ft_core.offline.batch`), nothing else."""
-    batch_tools = ["ft-plan", "ft-map", "ft-design dh", "ft-design multicase", "ft-campaign"]
+    batch_tools = ["ft-plan", "ft-map", "ft-design dh", "ft-design multicase", "ft-design global",
+                   "ft-campaign"]
     for tool in PARSERS:
         options = {o for a in _actions(tool) for o in a.option_strings}
         assert ({"--workers", "--cluster"} <= options) == (tool in batch_tools), tool
