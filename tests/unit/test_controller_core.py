@@ -178,7 +178,8 @@ def test_a_lasting_suspect_is_announced_again_once_per_window() -> None:
 @pytest.mark.parametrize("name", ["state_timeout", "target_timeout"])
 def test_configure_keeps_the_traced_box_and_takes_new_settings(name: str) -> None:
     c = core()
-    c._critical_box = (PANDA.lower + 0.1, PANDA.upper - 0.1)  # as a finished trace leaves it
+    # As a finished trace leaves it.
+    c._critical = selfmotion.SoftLimits((PANDA.lower + 0.1, PANDA.upper - 0.1), (), ())
     c.configure(EngineConfig(dt=DT, resolution="least_norm"), ControllerConfig(**{name: 1.5}))
     assert getattr(c.config, name) == 1.5
     assert c.engine.config.resolution == "least_norm"

@@ -147,9 +147,8 @@ class Controller:
         self._suspect_sent = -math.inf
         # Soft limits from critical points, computed in a worker process.
         self._critical_points: list[float] = []
-        self._critical_box: tuple[np.ndarray, np.ndarray] | None = None
-        # Each critical point and its traced configurations (recovery seeds).
-        self._traced: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+        # Their box, and their traced configurations (recovery seeds), once computed.
+        self._critical: selfmotion.SoftLimits | None = None
         self._boxes_dirty = False
         self._boxes_job: tuple[int, Future] | None = None
         self._boxes_generation = 0
@@ -180,8 +179,9 @@ class Controller:
         self._rebuild_engine()
 
     def _rebuild_engine(self) -> None:
-        config, box = self._engine_config, self._critical_box
-        if box is not None:
+        config, critical = self._engine_config, self._critical
+        if critical is not None:
+            box = critical.box
             if len(config.soft_lower):
                 box = (np.maximum(config.soft_lower, box[0]),
                        np.minimum(config.soft_upper, box[1]))
@@ -384,8 +384,10 @@ class Controller:
 
         A goal that is a critical point gets its traced configurations as IK seeds.
         """
-        traced = next((samples for target, samples in self._traced
-                       if max(recovery.mismatch(self.robot, goal, target)) < _SAME_POINT), None)
+        critical = self._critical
+        traced = None if critical is None else next(
+            (samples for target, samples in zip(critical.targets, critical.traced, strict=True)
+             if max(recovery.mismatch(self.robot, goal, target)) < _SAME_POINT), None)
         return self._submit(recovery.plan_for_model, *self._model_source, goal, q, locked,
                             lower, upper, self._speeds(), self.engine.config.dt, config, 0,
                             traced)
@@ -426,7 +428,7 @@ class Controller:
         if not flat:
             self.soft_limits_note = "none"
             self._report("critical points", None)
-            self._critical_box, self._traced = None, ()
+            self._critical = None
             self._rebuild_engine()
             return
         self._boxes_generation += 1
@@ -453,16 +455,15 @@ class Controller:
                 ) as error:
             self.soft_limits_note = "none (critical points failed)"
             self._report("critical points", f"{error}; running without their soft limits")
-            self._critical_box, self._traced = None, ()
+            self._critical = None
             self._rebuild_engine()
             return
         box, count = result.box, len(result.targets)
-        self._traced = tuple(zip(result.targets, result.traced, strict=True))
         self.soft_limits_note = f"{count} critical points"
         self._report("critical points", None)
         self._log(f"soft limits from {count} critical points: lower "
                   f"{np.round(box[0], 3).tolist()}, upper {np.round(box[1], 3).tolist()}")
-        self._critical_box = box
+        self._critical = result
         self._rebuild_engine()
 
     def close(self) -> None:

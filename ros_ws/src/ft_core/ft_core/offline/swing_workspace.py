@@ -338,8 +338,7 @@ def zero_torque_solutions(robot: Robot, joint: int, point: Sequence[float], mesh
         settled = _settle(robot, joint, q, gravity)
         if settled is None or np.linalg.norm(robot.forward(settled) - target) > REACH_TOLERANCE:
             continue
-        if all(np.abs(np.sin((settled - other) / 2)).max() > SAME_CONFIGURATION / 2
-               for other in found):
+        if all(np.abs(_wrap(settled - other)).max() > SAME_CONFIGURATION for other in found):
             found.append(settled)
     return np.array(found).reshape(-1, 3)
 
