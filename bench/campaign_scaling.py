@@ -8,8 +8,13 @@ not daemonic), here on this machine. Each is the installed `ft-campaign` as a pr
 of its own; the wall time is from its start to its end (start-up included), the
 throughput runs per hour. The speed-up of 2 workers over 1 is the figure the issue's
 target asks for (linear: 2), beside the same ratio for plain compute (`compute_scaling`: the
-machine's own ceiling, which 2 virtual CPUs may keep well below 2). Writes
-`<out>/campaign_scaling.md` and `.json`.
+machine's own ceiling, which 2 virtual CPUs may keep well below 2).
+
+Then what one run costs (`cpu_per_run`): the same runs once more, one after the other in
+this process (`ft_sim.campaign.one_run`, as a worker runs them), each timed in CPU
+seconds: this process's and those of its children that ended (the controller's planner
+process), start-up and the run's own draws included. Writes `<out>/campaign_scaling.md`
+and `.json`.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -25,22 +31,28 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from ft_sim.campaign import design_of, one_run, tasks
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from engine_cycle import machine, report
 
 BIN = Path(sys.executable).parent
-#: The realistic plant of the campaign in docs/campaign.md.
-PLANT = ["--latency", "0.02", "--response-time", "0.03", "--hold-last-command"]
+#: The realistic plant of the campaign in docs/campaign.md (`ScenarioConfig` fields).
+PLANT = {"plant": "kinematic", "command_latency": 0.02, "response_time": 0.03,
+         "hold_last_command": True}
+#: The same, as `ft-campaign` options.
+PLANT_OPTIONS = ["--latency", str(PLANT["command_latency"]), "--response-time",
+                 str(PLANT["response_time"]), "--hold-last-command"]
 
 
 def campaign(out: Path, runs: int, *where: str) -> float:
     """Wall time (s) of one `ft-campaign` into `out`; raises if it fails."""
     started = time.monotonic()
     # One BLAS thread in every case, as the pool's workers have (`batch`): the same work.
-    subprocess.run([str(BIN / "ft-campaign"), "--runs", str(runs), "--modes", "blend", *PLANT,
-                    "--out", str(out), *where], check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    subprocess.run([str(BIN / "ft-campaign"), "--runs", str(runs), "--modes", "blend",
+                    *PLANT_OPTIONS, "--out", str(out), *where], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     return time.monotonic() - started
 
 
@@ -93,8 +105,24 @@ def compute_scaling(jobs: int = 8) -> float:
     return seconds[0] / seconds[1]
 
 
+def cpu_per_run(runs: int, first_domain: int) -> list[dict]:
+    """CPU seconds and wall seconds of each run of the small campaign, run here in turn."""
+    design = design_of("panda", "", "", PLANT)
+    measured = []
+    for task in tasks(runs, ("blend",), first_domain, design):
+        cpu, children = time.process_time(), resource.getrusage(resource.RUSAGE_CHILDREN)
+        wall = time.monotonic()
+        result = one_run(task)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        measured.append({"run": task.name, "success": result["success"],
+                         "wall_s": time.monotonic() - wall,
+                         "cpu_s": time.process_time() - cpu + after.ru_utime
+                         - children.ru_utime + after.ru_stime - children.ru_stime})
+    return measured
+
+
 def main() -> None:
-    """Measure the three ways and write the table."""
+    """Measure the three ways and the CPU of each run; write the tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=4, help="seeds (2 runs each)")
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
@@ -107,6 +135,7 @@ def main() -> None:
                    "Dask cluster, 2 workers": on_cluster(root / "cluster", args.runs, root)}
     per_hour = {name: 3600 * runs / s for name, s in seconds.items()}
     ceiling = compute_scaling()
+    costs = cpu_per_run(args.runs, int(os.environ.get("ROS_DOMAIN_ID", "0")) + 1)
     lines = [f"{runs} campaign runs (blend, with and without soft limits, realistic plant), "
              f"{machine()['cores']} cores", "",
              "| where | wall time (s) | runs per hour | speed-up over 1 worker |",
@@ -114,10 +143,16 @@ def main() -> None:
     lines += [f"| {name} | {seconds[name]:.1f} | {per_hour[name]:.0f} | "
               f"{per_hour[name] / per_hour['1 worker']:.2f} |" for name in seconds]
     lines += ["", f"Plain compute in 2 processes against 1 on this machine: {ceiling:.2f} x "
-              "(the ceiling of the speed-up)."]
+              "(the ceiling of the speed-up).", "",
+              "| run | succeeded | CPU (s) | wall (s) |", "|---|---|---:|---:|"]
+    lines += [f"| {c['run']} | {'yes' if c['success'] else 'no'} | {c['cpu_s']:.2f} | "
+              f"{c['wall_s']:.2f} |" for c in costs]
+    cpu = [c["cpu_s"] for c in costs]
+    lines += ["", f"CPU per run: median {np.median(cpu):.2f} s, total {sum(cpu):.1f} s "
+              f"({len(cpu)} runs one after the other in one process)."]
     report(args.out, "campaign_scaling", lines,
            {"machine": machine(), "runs": runs, "seconds": seconds, "per_hour": per_hour,
-            "compute_scaling": ceiling})
+            "compute_scaling": ceiling, "cpu_per_run": costs})
 
 
 if __name__ == "__main__":

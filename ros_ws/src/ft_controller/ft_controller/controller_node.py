@@ -146,6 +146,7 @@ class ControllerNode(SuiteNode):
         # Built once per model, refilled each cycle (`_publish`).
         self._command_msg = JointState()
         self._metrics_msg = Float64MultiArray()
+        self._last_result = None  # the last cycle's engine result (its metrics)
         self._q: np.ndarray | None = None
         #: The last command published (rad/s, chain order), for in-process harnesses.
         self.last_command: np.ndarray | None = None
@@ -215,6 +216,7 @@ class ControllerNode(SuiteNode):
         self._labels = metrics.labels(self.command_joints)
         self._command_msg = convert.joint_state(self.command_joints, Time())
         self._metrics_msg = metrics.template(self._labels)
+        self._last_result = None
         if self.param("critical_points"):
             core.set_critical_points(self.param("critical_points"))
         self.problems.report("model", None)
@@ -303,8 +305,10 @@ class ControllerNode(SuiteNode):
 
     @property
     def last_metrics(self) -> dict[str, float]:
-        """The last `ft/metrics` published, by label (empty before any)."""
-        return metrics.values(self._metrics_msg) if self._labels else {}
+        """The last cycle's `ft/metrics`, by label, published or not (empty before any)."""
+        if self._last_result is None:
+            return {}
+        return dict(zip(self._labels, self._metric_values(self._last_result), strict=True))
 
     @property
     def suspected_lock(self) -> str | None:
@@ -561,14 +565,20 @@ class ControllerNode(SuiteNode):
                          msg.velocity)
         if self._command_taker is not None:
             self._command_taker(msg)
-        if result is None or not self._metrics_pub.get_subscription_count():
+        if result is None:
             return
+        self._last_result = result
+        if self._metrics_pub.get_subscription_count():
+            metrics.fill(self._metrics_msg, self._metric_values(result))
+            self._metrics_pub.publish(self._metrics_msg)
+
+    def _metric_values(self, result) -> list[float]:
+        """A cycle's `ft/metrics` values, in label order (`ft_msgs_py.metrics`)."""
         sigmas = result.post_failure_sigmas[self._order]
-        metrics.fill(self._metrics_msg, [
-            result.kfm, result.sigma_min, result.jump_index, result.task_scale,
-            result.soft_limit_margin if math.isfinite(result.soft_limit_margin)
-            else metrics.NO_SOFT_BOX, *np.where(np.isfinite(sigmas), sigmas, metrics.LOCKED)])
-        self._metrics_pub.publish(self._metrics_msg)
+        return [result.kfm, result.sigma_min, result.jump_index, result.task_scale,
+                result.soft_limit_margin if math.isfinite(result.soft_limit_margin)
+                else metrics.NO_SOFT_BOX,
+                *np.where(np.isfinite(sigmas), sigmas, metrics.LOCKED).tolist()]
 
     # ------------------------------------------------------------- diagnostics
     def _publish_diagnostics(self) -> None:

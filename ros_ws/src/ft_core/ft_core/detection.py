@@ -257,27 +257,34 @@ def _slope_error(values: np.ndarray, centred: np.ndarray, slope: np.ndarray,
 
 @njit(cache=True, error_model="numpy")
 def _window_fit(times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
+                predicted_sum: np.ndarray, timed_sum: np.ndarray, base: float,
                 models: np.ndarray, best: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least-squares slopes over the window (compiled: one call per joint state).
 
     Returns the measured slopes (n,), the slopes of the models at indices `models`
     (len(models), n) and the slopes' standard error (n,): the smaller of the residual
     estimates of the measured positions and of the measured minus the best model's.
+    A model's slope comes from the window's running sums (`Samples`): the sum over
+    samples of (t - mean t) p = sum (t - base) p - (mean t - base) sum p, so it costs
+    the models times the joints, not that times the samples.
     """
     count, n = positions.shape
-    centred = times - times.mean()
+    mean = times.mean()
+    centred = times - mean
     spread = centred @ centred
     measured = np.zeros(n)
     best_slope = np.zeros(n)
-    slopes = np.zeros((models.size, n))
     for s in range(count):
         c = centred[s] / spread
         for j in range(n):
             measured[j] += c * positions[s, j]
             best_slope[j] += c * predicted[s, best, j]
-        for i in range(models.size):
-            for j in range(n):
-                slopes[i, j] += c * predicted[s, models[i], j]
+    shift = mean - base
+    slopes = np.empty((models.size, n))
+    for i in range(models.size):
+        for j in range(n):
+            m = models[i]
+            slopes[i, j] = (timed_sum[m, j] - shift * predicted_sum[m, j]) / spread
     error = np.minimum(_slope_error(positions, centred, measured, spread),
                        _slope_error(positions - predicted[:, best, :], centred,
                                     measured - best_slope, spread))
@@ -285,15 +292,42 @@ def _window_fit(times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def _window_offsets(positions: np.ndarray, predicted: np.ndarray) -> np.ndarray:
-    """Mean over the window of measured minus predicted positions, (models, n) (rad)."""
-    count, models, n = predicted.shape
-    out = np.zeros((models, n))
+def _window_offsets(positions: np.ndarray, predicted_sum: np.ndarray,
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Mean over the window of measured minus predicted positions, (models, n) (rad).
+
+    From the window's running sum of predicted positions (`Samples`); also returns the
+    window's mean measured positions (n,).
+    """
+    count, n = positions.shape
+    means = np.zeros(n)
     for s in range(count):
+        for j in range(n):
+            means[j] += positions[s, j]
+    means /= count
+    out = np.empty(predicted_sum.shape)
+    for i in range(predicted_sum.shape[0]):
+        for j in range(n):
+            out[i, j] = means[j] - predicted_sum[i, j] / count
+    return out, means
+
+
+@njit(cache=True, error_model="numpy")
+def _accumulate(predicted_sum: np.ndarray, timed_sum: np.ndarray, times: np.ndarray,
+                predicted: np.ndarray, first: int, last: int, base: float,
+                sign: float) -> None:
+    """Add (sign 1) or take away (-1) entries [first, last) to the running sums.
+
+    `predicted_sum` += p and `timed_sum` += (t - base) p, per model and joint.
+    """
+    models, n = predicted_sum.shape
+    for s in range(first, last):
+        weight = times[s] - base
         for i in range(models):
             for j in range(n):
-                out[i, j] += positions[s, j] - predicted[s, i, j]
-    return out / count
+                p = sign * predicted[s, i, j]
+                predicted_sum[i, j] += p
+                timed_sum[i, j] += weight * p
 
 
 class _Buffers:
@@ -480,7 +514,11 @@ class CommandHistory(_Buffers):
 class Samples(_Buffers):
     """The window's measurements: times, positions and every model's predicted positions.
 
-    Contiguous arrays: the per-update fits read views, no copies.
+    Contiguous arrays: the per-update fits read views, no copies. Also the running sums
+    over the window of each model's predicted positions p and of (t - `base`) p, which
+    the fits use (`_window_fit`, `_window_offsets`): kept as entries come and go, and
+    summed afresh whenever the entries move to the front of the arrays (every few
+    windows), so rounding never accumulates. `base` is the first entry's time then.
     """
 
     NAMES = ("times", "positions", "predicted")
@@ -490,14 +528,36 @@ class Samples(_Buffers):
         self.positions = np.zeros((capacity, n))
         self.predicted = np.zeros((capacity, models, n))
         self.start = self.end = 0
+        self.base = 0.0
+        self.predicted_sum = np.zeros((models, n))
+        self.timed_sum = np.zeros((models, n))
 
     def append(self, time: float, position: np.ndarray, predicted: np.ndarray) -> None:
         """One measurement and the models' predictions at its time."""
         if self.end == self.times.size:
             self._make_room()
+            self._sum_afresh()
+        if not len(self):
+            self.base = time
+            self.predicted_sum[:] = self.timed_sum[:] = 0.0
         k = self.end
         self.times[k], self.positions[k], self.predicted[k] = time, position, predicted
         self.end += 1
+        _accumulate(self.predicted_sum, self.timed_sum, self.times, self.predicted, k, k + 1,
+                    self.base, 1.0)
+
+    def drop_before(self, time: float) -> None:
+        """Forget entries whose times are before `time`, and take them out of the sums."""
+        first = self.start
+        super().drop_before(time)
+        _accumulate(self.predicted_sum, self.timed_sum, self.times, self.predicted, first,
+                    self.start, self.base, -1.0)
+
+    def _sum_afresh(self) -> None:
+        self.base = float(self.times[self.start]) if len(self) else 0.0
+        self.predicted_sum[:] = self.timed_sum[:] = 0.0
+        _accumulate(self.predicted_sum, self.timed_sum, self.times, self.predicted,
+                    self.start, self.end, self.base, 1.0)
 
     def window(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(times, positions, predicted) of the window, as views."""
@@ -657,9 +717,8 @@ class LockDetector:
         self._samples.append(time, np.asarray(position, dtype=float),
                              self.history.positions(time - self._latencies).reshape(-1, self.n))
         self._samples.drop_before(time - self.config.window)
-        _times, positions, predicted = self._samples.window()
-        self._offsets.append(time, _window_offsets(positions, predicted),
-                             positions.mean(axis=0))
+        samples = self._samples
+        self._offsets.append(time, *_window_offsets(samples.window()[1], samples.predicted_sum))
         self._offsets.drop_before(time - max(self._horizon(), SLOW_SPAN))
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
@@ -810,19 +869,19 @@ class LockDetector:
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None) -> Update:
         cfg = self.config
-        times, positions, predicted = self._samples.window()  # predicted: (samples, models, n)
+        samples = self._samples
+        _times, positions, _predicted = window = samples.window()
+        fit = (*window, samples.predicted_sum, samples.timed_sum, samples.base)
         best = int(np.argmin(self._scores))  # always plausible
         # Identification (every model) at most every IDENTIFY_PERIOD; decisions need only
         # the plausible models, far fewer once identified.
         identify = now - self._last_identification_try >= IDENTIFY_PERIOD
         if identify:
             self._last_identification_try = now
-            measured, slopes, error = _window_fit(times, positions, predicted,
-                                                  self._all_models, best)  # (models, n)
+            measured, slopes, error = _window_fit(*fit, self._all_models, best)  # (models, n)
             plausible = slopes[self._plausible]
         else:
-            measured, plausible, error = _window_fit(times, positions, predicted,
-                                                     self._plausible_models, best)
+            measured, plausible, error = _window_fit(*fit, self._plausible_models, best)
         unlocked = np.array([e.locked_at is None for e in self.joints])
         undeclared = np.array([e.swinging_at is None for e in self.joints])
         latest = positions[-1]

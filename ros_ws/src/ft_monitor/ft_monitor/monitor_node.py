@@ -132,6 +132,7 @@ class MonitorNode(SuiteNode):
                                  qos.SENSOR_INPUT)
         #: Also given each joint state (`share_joint_states`; ft-stack).
         self._state_listeners: list[Callable[[JointState], None]] = []
+        self._command_taker: Callable[[JointState], None] | None = None
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
@@ -221,6 +222,13 @@ class MonitorNode(SuiteNode):
         self.destroy_subscription(self._command_subscription)
         return self._on_command
 
+    def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
+        """Give every command to `take` as a call too (a plant in the same process).
+
+        `ft/command` is then published only while someone subscribes to it.
+        """
+        self._command_taker = take
+
     def share_joint_states(self, listener: Callable[[JointState], None]) -> None:
         """Give `listener` every `joint_states` message this node takes."""
         self._state_listeners.append(listener)
@@ -234,8 +242,8 @@ class MonitorNode(SuiteNode):
         q = self.read_joint_state(msg, self.core.robot.joint_names, self.core.absurd)
         if q is None:
             return
-        listeners = (self._command_pub.get_subscription_count()
-                     + self._array_pub.get_subscription_count())
+        listeners = (self._command_taker is not None or self._command_pub.get_subscription_count()
+                     or self._array_pub.get_subscription_count())
         stamp = self.state_stamp
         self._announce(self.core.observe(
             q, stamp, None if listeners else "nobody subscribes to ft/command(_array)"))
@@ -352,7 +360,10 @@ class MonitorNode(SuiteNode):
         ordered = qd_chain[self._order].tolist()
         self._command_msg.header.stamp = stamp
         self._command_msg.velocity = ordered
-        self._command_pub.publish(self._command_msg)
+        if self._command_taker is None or self._command_pub.get_subscription_count():
+            self._command_pub.publish(self._command_msg)
+        if self._command_taker is not None:
+            self._command_taker(self._command_msg)
         if self._array_pub.get_subscription_count():  # a JointGroupVelocityController
             self._array_msg.data = ordered
             self._array_pub.publish(self._array_msg)

@@ -3,16 +3,26 @@
 The sim owns the clock and is stepped by hand, so a run is as fast as the
 computation allows and the same on every machine. Each step: the sim integrates
 and publishes `/clock` and `joint_states`; the controller's timer fires and
-commands; the monitor republishes; the step ends once the sim holds the command
-for the new instant. A driver visits the task points in turn with `ft/target_pose`
-(the next one once the tool is within `goal_tolerance`, or after `goal_timeout`)
-and locks `lock_joint` through `ft/inject_failure` `lock_time` after the task
-started. The task starts once the controller has its soft limits (the critical
-points' boxes are traced in the background while the arm holds still), so that runs
-with and without them wander for the same time. After the lock
-it tours the critical points once, each until reached or `goal_timeout` (Lewis & Maciejewski 1997
-sec. V: can every critical point still be reached?), and the run ends. Every
-step is recorded for the report.
+commands; the monitor filters the command and hands it to the sim; the step ends
+once the sim holds the command for the new instant.
+
+The nodes are wired as `ft-stack` wires them (`ft_sim.stack.compose`: the command and
+the joint states pass between controller and monitor by calls), the monitor hands its
+command to the sim by a call too (`MonitorNode.hand_commands_to`), the record reads
+the controller's command and metrics from the node, and no node serves parameters
+(nothing here asks). Each message and service less is one entity less in the wait set
+the executor rebuilds at every wave of a step, and one callback less: half of a run's
+CPU went there (docs/campaign.md). The topics are still published while anyone
+subscribes (`--record`, `ft-demo --live`).
+
+A driver visits the task points in turn with `ft/target_pose` (the next one once the
+tool is within `goal_tolerance`, or after `goal_timeout`) and locks `lock_joint`
+through `ft/inject_failure` `lock_time` after the task started. The task starts once
+the controller has its soft limits (the critical points' boxes are traced in the
+background while the arm holds still), so that runs with and without them wander for
+the same time. After the lock it tours the critical points once, each until reached
+or `goal_timeout` (Lewis & Maciejewski 1997 sec. V: can every critical point still be
+reached?), and the run ends. Every step is recorded for the report.
 """
 
 from __future__ import annotations
@@ -33,11 +43,11 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 
 from ft_sim.bag import Recorder
 from ft_sim.live import LiveServer
 from ft_sim.sim_node import SimNode
+from ft_sim.stack import compose
 
 #: Critical points of the built-in 7-DOF arms for a position task (m, base frame): a
 #: pick place, a place place and a tool rest, all reachable inside their intersected
@@ -207,19 +217,21 @@ class Scenario:
             "position_noise": config.noise, "seed": config.seed,
             "command_latency": config.command_latency, "response_time": config.response_time,
             "hold_last_command": config.hold_last_command,
-            "initial_positions": [float(v) for v in start]})
+            "initial_positions": [float(v) for v in start]}, services=False)
         # Lock-step on simulated time: wall-clock gaps between steps (a busy machine) are not
         # stalls of the loop, so no steady-time watchdog may fire in them (the controller's
         # is max(state_timeout, 2 periods), its guard of a dead monitor monitor_timeout;
         # states are always fresh here).
-        self.controller = ControllerNode(context=self.context, parameter_overrides=_params(
+        self.controller = ControllerNode(context=self.context, **_quiet(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
             state_timeout=60.0, monitor_timeout=60.0, **{"recovery.enabled": config.recovery},
             **self._soft_limits(flat)))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
-        self.monitor = MonitorNode(context=self.context, parameter_overrides=_params(
+        self.monitor = MonitorNode(context=self.context, **_quiet(
             model, use_sim_time=True, state_directory=self._state.name, command_timeout=60.0))
+        compose(self.controller, self.monitor)
+        self.monitor.hand_commands_to(self.sim.take_commands_by_call())
         self.driver = spin.harness_node("driver", self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
@@ -227,10 +239,6 @@ class Scenario:
                                                         qos.RELIABLE)
         self._swing_pub = self.driver.create_publisher(JointState, names.INJECT_FREE_SWING,
                                                        qos.RELIABLE)
-        self.driver.create_subscription(JointState, names.COMMAND_RAW, self._on_raw,
-                                        qos.SENSOR_INPUT)
-        self.driver.create_subscription(Float64MultiArray, names.METRICS, self._on_metrics,
-                                        qos.SENSOR_INPUT)
         self.driver.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked,
                                         qos.LATCHED)
         self.recorder = None if bag is None else Recorder(
@@ -242,14 +250,6 @@ class Scenario:
         self.record = Record(list(self.robot.joint_names))
 
     # ----------------------------------------------------------------- inputs
-    def _on_raw(self, msg: JointState) -> None:
-        if not np.all(np.isfinite(msg.velocity)):
-            self.record.non_finite += 1
-
-    def _on_metrics(self, msg: Float64MultiArray) -> None:
-        if not np.all(np.isfinite(msg.data)):
-            self.record.non_finite += 1
-
     def _on_locked(self, msg: JointState) -> None:
         if msg.name and self.record.injected_at is None:
             self.record.false_locks = sorted(set(self.record.false_locks) | set(msg.name))
@@ -368,6 +368,8 @@ class Scenario:
                 or (monitor is not None and monitor.writing)):
             time.sleep(WAIT_PERIOD / 2)
         self.sim.advance(self.executor)
+        if not np.isfinite(self.command).all():
+            self.record.non_finite += 1
         if monitor is not None:
             self._deliver_locked_set(monitor)
         if self.live is not None:
@@ -507,8 +509,11 @@ class Scenario:
         self._state.cleanup()
 
 
-def _params(model: dict, **values) -> list[Parameter]:
-    return [Parameter(k, value=v) for k, v in {**model, **values}.items()]
+def _quiet(model: dict, **values) -> dict:
+    """A harness node's keyword arguments: these parameters, and no parameter services."""
+    values = {**model, **values, "start_type_description_service": False}
+    return {"parameter_overrides": [Parameter(k, value=v) for k, v in values.items()],
+            "start_parameter_services": False}
 
 
 def run(config: ScenarioConfig, domain_id: int | None = None, bag: Path | None = None,

@@ -40,6 +40,7 @@ scheduled with `failure.joint` and `failure.time` (s of plant time).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from ft_core import robots, swing
@@ -108,7 +109,8 @@ class SimNode(SuiteNode):
         self._steps = 0
         self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
                            if self._own_clock else None)
-        self.create_subscription(JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
+        self._command_subscription = self.create_subscription(
+            JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
         self.create_subscription(JointState, names.INJECT_FREE_SWING, self._on_free_swing,
                                  qos.RELIABLE)
@@ -204,6 +206,14 @@ class SimNode(SuiteNode):
             return
         self.plant.command(self.t, velocity)
 
+    def take_commands_by_call(self) -> Callable[[JointState], None]:
+        """Stop subscribing to `ft/command`; returns what to call with each command instead.
+
+        For a harness with the monitor in the same process (`ft_sim.scenario`).
+        """
+        self.destroy_subscription(self._command_subscription)
+        return self._on_command
+
     @property
     def command_time(self) -> float:
         """Plant time (s) at which the newest command arrived; -inf before any."""
@@ -271,14 +281,16 @@ class SimNode(SuiteNode):
         return response
 
     @classmethod
-    def stepped_by_hand(cls, context, values: dict) -> SimNode:
+    def stepped_by_hand(cls, context, values: dict, services: bool = True) -> SimNode:
         """A sim that owns the clock and moves only when `step` or `advance` is called.
 
         The harness of the node tests, the demo and the campaign: simulated time, as
-        fast as the nodes answer. `values`: parameter name -> value.
+        fast as the nodes answer. `values`: parameter name -> value; `services`: whether
+        it serves its parameters (and its type description).
         """
-        sim = cls(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in {**values, "publish_clock": True}.items()])
+        values = {**values, "publish_clock": True, "start_type_description_service": services}
+        sim = cls(context=context, start_parameter_services=services, parameter_overrides=[
+            Parameter(k, value=v) for k, v in values.items()])
         sim.timer.cancel()
         return sim
 
