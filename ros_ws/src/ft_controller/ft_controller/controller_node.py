@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -134,8 +135,10 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
 class ControllerNode(SuiteNode):
     """The controller; see the module docstring."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, background: ProcessPoolExecutor | None = None, **kwargs):
+        """`background`: the worker pool of its `Controller`s (None: each starts its own)."""
         super().__init__("controller", **kwargs)
+        self._shared_background = background
         parameters.declare(self, PARAMETERS)
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.robot: Robot | None = None
@@ -204,7 +207,8 @@ class ControllerNode(SuiteNode):
             core = Controller(robot, self._engine_config(robot, order, {}),
                               self._controller_config({}),
                               (spec, parameters.chain_arguments(self)),
-                              report=self.problems.report, log=self.get_logger().info)
+                              report=self.problems.report, log=self.get_logger().info,
+                              background=self._shared_background)
         except (RobotModelError, ValueError) as error:
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return

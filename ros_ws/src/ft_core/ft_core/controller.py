@@ -124,12 +124,17 @@ class Controller:
         report: called with (input name, problem or None) when a background job
             fails or recovers ("critical points").
         log: called with an informational message.
+        background: the worker process pool for the boxes and the plans (its jobs are
+            pure functions of their arguments); None: one of its own, started on first
+            use and stopped by `close`. A pool given is left running by `close`: a
+            harness that runs many controllers in turn shares one (`ft_sim.scenario`).
     """
 
     def __init__(self, robot: Robot, engine_config: EngineConfig, config: ControllerConfig,
                  model_source: tuple[str, Sequence],
                  report: Report = lambda *_args, **_kwargs: None,
-                 log: Callable[[str], None] = lambda _message: None):
+                 log: Callable[[str], None] = lambda _message: None,
+                 background: ProcessPoolExecutor | None = None):
         self.robot = robot
         self.config = config
         self._engine_config = engine_config
@@ -152,7 +157,8 @@ class Controller:
         self._boxes_dirty = False
         self._boxes_job: tuple[int, Future] | None = None
         self._boxes_generation = 0
-        self._background: ProcessPoolExecutor | None = None
+        self._background = background
+        self._owns_background = background is None  # a pool given is its giver's to stop
         self.soft_limits_note = "none"
 
     # ------------------------------------------------------------ configuration
@@ -468,5 +474,5 @@ class Controller:
 
     def close(self) -> None:
         """Stop the background work."""
-        if self._background is not None:
+        if self._background is not None and self._owns_background:
             self._background.shutdown(wait=False, cancel_futures=True)

@@ -368,6 +368,16 @@ class MonitorNode(SuiteNode):
             self._array_msg.data = ordered
             self._array_pub.publish(self._array_msg)
 
+    def destroy_node(self) -> None:
+        """End the locked set's writer thread too (after the write under way, if any).
+
+        Without it each node a process makes and destroys in turn (the campaign's runs)
+        left an idle thread behind.
+        """
+        if self.core is not None:
+            self.core.close()
+        super().destroy_node()
+
     def stop(self) -> None:
         """Publish explicit zero velocities, finish writing the locked set (on shutdown)."""
         if self.core is not None:

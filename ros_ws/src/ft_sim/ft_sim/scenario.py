@@ -28,15 +28,19 @@ reached?), and the run ends. Every step is recorded for the report.
 from __future__ import annotations
 
 import math
+import multiprocessing.util
+import os
 import tempfile
+import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import rclpy
 from ft_controller.controller_node import ControllerNode
-from ft_core import recovery, robots, selfmotion
+from ft_core import recovery, robots, selfmotion, workers
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, spin
 from geometry_msgs.msg import PoseStamped
@@ -222,7 +226,7 @@ class Scenario:
         # stalls of the loop, so no steady-time watchdog may fire in them (the controller's
         # is max(state_timeout, 2 periods), its guard of a dead monitor monitor_timeout;
         # states are always fresh here).
-        self.controller = ControllerNode(context=self.context, **_quiet(
+        self.controller = ControllerNode(background=planner(), context=self.context, **_quiet(
             model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
             state_timeout=60.0, monitor_timeout=60.0, **{"recovery.enabled": config.recovery},
             **self._soft_limits(flat)))
@@ -507,6 +511,46 @@ class Scenario:
             node.destroy_node()
         rclpy.shutdown(context=self.context)
         self._state.cleanup()
+
+
+#: The worker process the scenarios of this process share (`planner`), and its lock.
+_PLANNER: list[ProcessPoolExecutor] = []
+_PLANNER_LOCK = threading.Lock()
+#: Longest wait (s) for the shared worker to answer before a scenario starts.
+PLANNER_CHECK = 60.0
+
+
+def planner() -> ProcessPoolExecutor:
+    """The worker process of the controllers of this process's scenarios, one after another.
+
+    Started once and kept: a campaign worker runs many scenarios, and starting a worker
+    and importing the planner's modules in it cost more CPU (about 1.2 s) than some
+    runs' whole control loop. Its jobs (boxes, plans) are pure functions of their
+    arguments, seeded, so sharing it changes no result. Checked before each scenario (a
+    job a run left behind ends first); one that died, or that cannot run (in a daemonic
+    process the controller then says it cannot plan, as with a pool of its own), is
+    replaced. It ends with the process (`stop_planner`): a process of a pool (a campaign
+    worker) would otherwise wait at its exit for a child that waits for work.
+    """
+    with _PLANNER_LOCK:
+        if _PLANNER:
+            try:
+                _PLANNER[0].submit(os.getpid).result(timeout=PLANNER_CHECK)
+                return _PLANNER[0]
+            except (RuntimeError, OSError, AssertionError, TimeoutError):  # broken, no child
+                _PLANNER.pop().shutdown(wait=False, cancel_futures=True)
+        _PLANNER.append(workers.pool())
+        # At the exit of a process of a pool, before multiprocessing closes the pool's
+        # queues (their finalizers have priority 10) and joins the children.
+        multiprocessing.util.Finalize(None, stop_planner, exitpriority=100)
+        return _PLANNER[0]
+
+
+def stop_planner() -> None:
+    """End the shared worker process (`planner`), if any, and wait for it."""
+    with _PLANNER_LOCK:
+        while _PLANNER:
+            _PLANNER.pop().shutdown(wait=True, cancel_futures=True)
 
 
 def _quiet(model: dict, **values) -> dict:
