@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import ast
 import json
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import psutil
 import pytest
 import yaml
-from ft_core import robots, selfmotion
-from ft_sim import campaign, demo
+from ft_core import robots, selfmotion, workers
+from ft_sim import campaign, demo, scenario
 from ft_sim.scenario import ScenarioConfig, run
 from models import chain_urdf
 from paths import PANDA_URDF, REPO
@@ -154,6 +158,46 @@ def test_a_campaign_run(soft: bool, plant: str) -> None:
         assert not result["outside_box"] and result["reachable"] == 3
     row = campaign.table([result]).splitlines()[2]
     assert row.startswith(f"| blend, {'with' if soft else 'without'} soft limits | 1 |")
+
+
+def _plan_in_a_worker() -> tuple[int, int]:
+    """In a pool's process: the shared planner runs a job; (this pid, the planner's pid)."""
+    return os.getpid(), scenario.planner().submit(os.getpid).result(timeout=60)
+
+
+def _running(pid: int) -> bool:
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+def test_the_scenarios_of_a_process_share_one_worker_process() -> None:
+    """Issue 33: one planner process per process, replaced once gone, ended at exit.
+
+    A campaign worker that ran scenarios must still exit: without the finalizer, its
+    exit waited for the planner, which waited for work (the campaign hung at its end).
+    """
+    first = scenario.planner()
+    assert scenario.planner() is first
+    first.shutdown()
+    second = scenario.planner()
+    assert second is not first
+    assert second.submit(os.getpid).result(timeout=60) != os.getpid()
+    scenario.stop_planner()
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=workers.SPAWN)
+    worker, planner = pool.submit(_plan_in_a_worker).result(timeout=120)
+    assert _running(worker) and _running(planner) and planner != worker
+    pool.shutdown(wait=False)
+    deadline = time.monotonic() + 30.0
+    try:
+        while (_running(worker) or _running(planner)) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _running(worker) and not _running(planner)
+    finally:
+        for pid in (worker, planner):
+            if _running(pid):
+                psutil.Process(pid).kill()
 
 
 def test_the_per_point_table_counts_reached_among_reachable() -> None:

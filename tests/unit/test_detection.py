@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from ft_core.detection import DetectorConfig, LockDetector, Update
+from ft_core.detection import DetectorConfig, LockDetector, Samples, Update
 from ft_core.plant import PlantConfig
 from paths import REPO
 
@@ -485,3 +485,27 @@ def test_declared_locks_and_reset() -> None:
 def test_invalid_configurations_are_rejected(field: str) -> None:
     with pytest.raises(ValueError, match=field):
         DetectorConfig(**{field: 0})
+
+
+@pytest.mark.parametrize("start", [0.0, 1.7e9])  # simulated time, and ROS time since 1970
+def test_window_sums_match_the_window(start: float) -> None:
+    """Issue 28: the running sums the fits read equal sums over the window's entries.
+
+    Through many windows, so that the entries move to the front of the arrays (and the
+    sums are made afresh) several times, with every model's predictions.
+    """
+    rng = np.random.default_rng(3)
+    samples = Samples(7, 128)
+    compacted = 0
+    for k in range(1000):
+        time = start + 0.001 * k + 2e-4 * rng.random()
+        before = samples.start
+        samples.append(time, rng.normal(size=7), rng.normal(scale=3.0, size=(128, 7)))
+        compacted += samples.start < before
+        samples.drop_before(time - 0.08)
+        times, _positions, predicted = samples.window()
+        assert k < 100 or times.size >= 70
+        np.testing.assert_allclose(samples.predicted_sum, predicted.sum(axis=0), atol=1e-10)
+        timed = np.einsum("s,smj->mj", times - samples.base, predicted)
+        np.testing.assert_allclose(samples.timed_sum, timed, atol=1e-10)
+    assert compacted >= 4  # summed afresh along the way

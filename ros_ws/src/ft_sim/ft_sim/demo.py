@@ -1,6 +1,6 @@
 """`make demo` / `ft-demo` / `ros2 run ft_sim demo`: a joint locks mid-task and the task goes on.
 
-In one process, on real topics: the sim (owning the clock), the controller (with
+In one process (`ft_sim.scenario`): the sim (owning the clock), the controller (with
 bounding-box soft limits from the task's critical points) and the monitor. The
 Panda visits three task points in turn; mid-task a joint is locked through
 `ft/inject_failure`; the monitor detects it and the controller carries on with

@@ -1,4 +1,4 @@
-"""An in-process closed loop: sim, controller and monitor on real topics, in simulated time.
+"""An in-process closed loop: sim, controller and monitor nodes, in simulated time.
 
 The sim owns the clock and is stepped by hand, so a run is as fast as the
 computation allows and the same on every machine. Each step: the sim integrates
