@@ -282,8 +282,8 @@ def _window_fit(times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
     shift = mean - base
     slopes = np.empty((models.size, n))
     for i in range(models.size):
+        m = models[i]
         for j in range(n):
-            m = models[i]
             slopes[i, j] = (timed_sum[m, j] - shift * predicted_sum[m, j]) / spread
     error = np.minimum(_slope_error(positions, centred, measured, spread),
                        _slope_error(positions - predicted[:, best, :], centred,

@@ -97,12 +97,21 @@ def _drop_event_handlers(node: Node) -> None:
 def harness_node(name: str, context: Context) -> Node:
     """A plain node for a lock-step harness's own publishers and subscriptions.
 
-    No parameter or type-description services: nobody calls them, and each service is
-    one more entity in every wait set the LockStepExecutor rebuilds.
+    No parameter or type-description services (`node_arguments`).
     """
-    return rclpy.create_node(name, context=context, start_parameter_services=False,
-                             parameter_overrides=[Parameter(
-                                 START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
+    return rclpy.create_node(name, context=context, **node_arguments({}, services=False))
+
+
+def node_arguments(values: dict, services: bool = True) -> dict:
+    """A node's keyword arguments: `values` (name -> value) as its parameter overrides.
+
+    With `services` False the node serves neither its parameters nor its type
+    description, as a harness's nodes need not (nobody calls them, and each service is
+    one more entity in every wait set the LockStepExecutor rebuilds).
+    """
+    overrides = values if services else {**values, START_TYPE_DESCRIPTION_SERVICE_PARAM: False}
+    return {"parameter_overrides": [Parameter(k, value=v) for k, v in overrides.items()],
+            "start_parameter_services": services}
 
 
 def spin_until(executor: Executor, condition: Callable[[], bool],

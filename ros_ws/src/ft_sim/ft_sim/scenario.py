@@ -45,7 +45,6 @@ from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, spin
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from ft_sim.bag import Recorder
@@ -226,14 +225,18 @@ class Scenario:
         # stalls of the loop, so no steady-time watchdog may fire in them (the controller's
         # is max(state_timeout, 2 periods), its guard of a dead monitor monitor_timeout;
         # states are always fresh here).
-        self.controller = ControllerNode(background=planner(), context=self.context, **_quiet(
-            model, use_sim_time=True, control_rate=config.rate, resolution=config.resolution,
-            state_timeout=60.0, monitor_timeout=60.0, **{"recovery.enabled": config.recovery},
-            **self._soft_limits(flat)))
+        controller = {**model, "use_sim_time": True, "control_rate": config.rate,
+                      "resolution": config.resolution, "state_timeout": 60.0,
+                      "monitor_timeout": 60.0, "recovery.enabled": config.recovery,
+                      **self._soft_limits(flat)}
+        self.controller = ControllerNode(background=planner(), context=self.context,
+                                         **spin.node_arguments(controller, services=False))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
-        self.monitor = MonitorNode(context=self.context, **_quiet(
-            model, use_sim_time=True, state_directory=self._state.name, command_timeout=60.0))
+        monitor = {**model, "use_sim_time": True, "state_directory": self._state.name,
+                   "command_timeout": 60.0}
+        self.monitor = MonitorNode(context=self.context,
+                                   **spin.node_arguments(monitor, services=False))
         compose(self.controller, self.monitor)
         self.monitor.hand_commands_to(self.sim.take_commands_by_call())
         self.driver = spin.harness_node("driver", self.context)
@@ -551,13 +554,6 @@ def stop_planner() -> None:
     with _PLANNER_LOCK:
         while _PLANNER:
             _PLANNER.pop().shutdown(wait=True, cancel_futures=True)
-
-
-def _quiet(model: dict, **values) -> dict:
-    """A harness node's keyword arguments: these parameters, and no parameter services."""
-    values = {**model, **values, "start_type_description_service": False}
-    return {"parameter_overrides": [Parameter(k, value=v) for k, v in values.items()],
-            "start_parameter_services": False}
 
 
 def run(config: ScenarioConfig, domain_id: int | None = None, bag: Path | None = None,

@@ -288,9 +288,8 @@ class SimNode(SuiteNode):
         fast as the nodes answer. `values`: parameter name -> value; `services`: whether
         it serves its parameters (and its type description).
         """
-        values = {**values, "publish_clock": True, "start_type_description_service": services}
-        sim = cls(context=context, start_parameter_services=services, parameter_overrides=[
-            Parameter(k, value=v) for k, v in values.items()])
+        sim = cls(context=context, **spin.node_arguments({**values, "publish_clock": True},
+                                                         services))
         sim.timer.cancel()
         return sim
 
