@@ -65,3 +65,24 @@ def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
         for _ in range(5):
             sim.advance(executor)
         assert raw, "no ft/command_raw although someone subscribes"
+
+
+def test_a_command_by_call_for_another_chain_goes_by_name() -> None:
+    with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {"robot_model": "panda", "state_directory": state,
+                                               "command_timeout": 60.0}.items()])
+        take = monitor.take_commands_by_call()
+        assert monitor.core is not None
+        joints = monitor.core.robot.joint_names
+        qd = np.linspace(0.1, 0.7, len(joints))
+        sent = []
+        for order in (slice(None), slice(None, None, -1)):  # the model's chain, then reversed
+            now = monitor.now() + 0.01 * len(sent)
+            take(qd[order], joints[order], convert.stamp_from_nanoseconds(round(now * 1e9)), now)
+            history = monitor.core.detector.history
+            sent.append((history.last_time, history.values[history.end - 1].copy()))
+        assert sent[1][0] > sent[0][0], "the second command never reached the filter"
+        np.testing.assert_allclose(sent[0][1], qd)
+        np.testing.assert_allclose(sent[1][1], qd)  # by name: the same joints' velocities
+        monitor.destroy_node()

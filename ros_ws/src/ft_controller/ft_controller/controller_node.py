@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
@@ -51,6 +51,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
+from rclpy.time import Time as RosTime
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header
 from std_srvs.srv import Trigger
@@ -64,6 +65,9 @@ WATCHDOG_PERIOD = 0.05
 #: (`ft_msgs_py.monitor_guard`): 5 cycles at 100 Hz; the echo normally takes a few ms.
 #: Each 10 ms more lets a dead monitor's last command run on 10 ms longer.
 MONITOR_TIMEOUT = 0.05
+#: What takes each command by a call (`hand_commands_to`): (velocities in rad/s, the
+#: joints they are for, the stamp, the node clock's time in s).
+CommandTaker = Callable[[np.ndarray, Sequence[str], Time, float], None]
 
 #: The defaults of every parameter that configures the core: its dataclasses' own.
 _ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
@@ -178,7 +182,7 @@ class ControllerNode(SuiteNode):
         self._state_subscription = self.create_subscription(
             JointState, names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
         #: Takes each command as a call (`hand_commands_to`; ft-stack), or None.
-        self._command_taker: Callable[[JointState], None] | None = None
+        self._command_taker: CommandTaker | None = None
         self.create_subscription(TwistStamped, names.TARGET_TWIST, self._on_twist, qos.RELIABLE)
         self.create_subscription(PoseStamped, names.TARGET_POSE, self._on_pose, qos.RELIABLE)
         self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked, qos.LATCHED)
@@ -382,8 +386,11 @@ class ControllerNode(SuiteNode):
                             markers.HALO_DIAMETER)]))
 
     # ------------------------------------------------------- one-process wiring
-    def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
+    def hand_commands_to(self, take: CommandTaker) -> None:
         """Give every command to `take` as a call (the monitor's, in the same process).
+
+        `take(qd, joints, stamp, now)`: the velocities (rad/s) of `joints` (the chain's
+        names), the command's stamp and the node clock's time then (s).
 
         `ft/command_raw` is then published only while someone else subscribes to it. The
         guard of a dead monitor is off: the monitor dies only with this process.
@@ -539,11 +546,11 @@ class ControllerNode(SuiteNode):
         if core is None:
             return
         clock = self.get_clock().now()
-        now, stamp = clock.nanoseconds * 1e-9, clock.to_msg()
+        now = clock.nanoseconds * 1e-9
         step = core.step(self._q, now - self.state_stamp, now)
         for kind, problem in step.problems.items():
             self.problems.report(kind, problem)
-        self._publish(step.qd, stamp, step.result)
+        self._publish(step.qd, clock, step.result)
         if step.new_suspect:
             self.get_logger().warning(
                 f"task error not decreasing while joints are commanded: "
@@ -551,24 +558,31 @@ class ControllerNode(SuiteNode):
                 f"{core.channel.residuals[step.suspect]:.2f} of the unexplained motion); "
                 "suspected, for the monitor to decide", throttle_duration_sec=5.0)
         if step.announce:
-            self._suspect_pub.publish(JointState(header=Header(stamp=stamp),
+            self._suspect_pub.publish(JointState(header=Header(stamp=clock.to_msg()),
                                                  name=[self.robot.joint_names[step.suspect]]))
 
-    def _publish(self, qd_chain: np.ndarray, stamp: Time | None = None, result=None) -> None:
-        """The command (and with a cycle's result, the metrics), in preallocated messages.
+    def _publish(self, qd_chain: np.ndarray, clock: RosTime | None = None, result=None) -> None:
+        """The command at `clock` (default now), with a cycle's result the metrics too.
 
-        The metrics only while someone subscribes to them (a recorder, a plot).
+        In preallocated messages; the metrics only while someone subscribes to them (a
+        recorder, a plot). With a taker in this process (ft-stack) the command goes to it
+        as a call, and out on `ft/command_raw` only while someone else subscribes.
         """
+        clock = self.get_clock().now() if clock is None else clock
         msg = self._command_msg
-        msg.header.stamp = self.get_clock().now().to_msg() if stamp is None else stamp
-        msg.velocity = qd_chain[self._order].tolist()
+        msg.header.stamp = clock.to_msg()
         self.last_command = qd_chain
-        if self._command_taker is None or self._command_pub.get_subscription_count():
+        if self._command_taker is None:
+            msg.velocity = qd_chain[self._order].tolist()
             self._command_pub.publish(msg)
-        self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),
-                         msg.velocity)
-        if self._command_taker is not None:
-            self._command_taker(msg)
+            self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),
+                             msg.velocity)
+        else:
+            if self._command_pub.get_subscription_count():
+                msg.velocity = qd_chain[self._order].tolist()
+                self._command_pub.publish(msg)
+            self._command_taker(qd_chain, self.robot.joint_names, msg.header.stamp,
+                                clock.nanoseconds * 1e-9)
         if result is None:
             return
         self._last_result = result

@@ -882,8 +882,9 @@ class LockDetector:
             plausible = slopes[self._plausible]
         else:
             measured, plausible, error = _window_fit(*fit, self._plausible_models, best)
-        unlocked = np.array([e.locked_at is None for e in self.joints])
-        undeclared = np.array([e.swinging_at is None for e in self.joints])
+        joints = self.joints
+        unlocked = np.array([e.locked_at is None for e in joints])
+        undeclared = np.array([e.swinging_at is None for e in joints])
         latest = positions[-1]
         evidence_of = (measured, plausible, error, latest, self.lower, self.upper, unlocked,
                        undeclared)
@@ -901,26 +902,30 @@ class LockDetector:
             deficit = self._deficit(now, weakest, best)
             lost = deficit > cfg.confidence * self._mean_difference_error(error)
             candidates = candidates & (lost | ~undeclared)
-        for j, evidence in enumerate(self.joints):
-            evidence.observable, evidence.following = bool(observable[j]), bool(following[j])
-            evidence.measured, evidence.commanded = float(measured[j]), float(weakest[j])
-            evidence.standard_error = float(error[j])
-            evidence.at_limit = bool(stalled[j] and pushing[j])
-            evidence.candidate = bool(candidates[j])
-            evidence.deficit = float(deficit[j])
-        n_stalled, n_following = int(candidates.sum()), int(following.sum())
-        n_own = int(on_its_own.sum())
+        # Python lists from here on: per-joint bookkeeping on numpy scalars costs more
+        # than the fits.
+        measured_of, weakest_of, error_of = measured.tolist(), weakest.tolist(), error.tolist()
+        candidate_of, following_of = candidates.tolist(), following.tolist()
+        own_of = on_its_own.tolist()
+        for evidence, observes, follows, v, c, s, at_limit, candidate, lost_position in zip(
+                joints, observable.tolist(), following_of, measured_of, weakest_of, error_of,
+                (stalled & pushing).tolist(), candidate_of, deficit.tolist(), strict=True):
+            evidence.observable, evidence.following = observes, follows
+            evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
+            evidence.at_limit, evidence.candidate = at_limit, candidate
+            evidence.deficit = lost_position
+        n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
         if n_stalled == 0 and n_own == 0 and identify:
             self._identify(now, measured, slopes, error, unlocked & ~pushing)
-        odd = candidates if n_stalled >= 2 and n_stalled > n_following else (
-            on_its_own if n_own >= 2 and n_own > n_following else None)
+        odd = candidate_of if n_stalled >= 2 and n_stalled > n_following else (
+            own_of if n_own >= 2 and n_own > n_following else None)
         if odd is not None:
             self.plant_fault = "plant not following commands: " + ", ".join(
-                f"joint {j} measured {measured[j]:.3f} rad/s, expected {weakest[j]:.3f}"
-                for j in np.flatnonzero(odd))
+                f"joint {j} measured {measured_of[j]:.3f} rad/s, expected {weakest_of[j]:.3f}"
+                for j, is_odd in enumerate(odd) if is_odd)
             self._seen_following = 0.0
             self._clear_evidence()
-            for evidence in self.joints:
+            for evidence in joints:
                 evidence.candidate = False
             return Update()
         self.plant_fault = None
@@ -931,29 +936,20 @@ class LockDetector:
             self._clear_evidence()
             return Update()
         swinging = []
-        settling = float(self._model_latency[best] + 3 * self._model_response[best])
-        # A servo's transient (overshoot, the spring back after a stop, a joint dragged by
-        # the others) is no faster than twice the largest velocity commanded lately.
-        transient = 2 * float(np.abs(plausible).max(initial=0.0))
-        for j in np.flatnonzero(on_its_own).tolist():
-            evidence = self.joints[j]
-            if evidence.swinging_at is not None:
-                continue
-            if evidence.swing_since is None:
-                evidence.swing_since = now
-            # A transient dies within the plant's settling time; motion on its own that
-            # outlasts it, or outruns it, does not.
-            noise = max(cfg.confidence * float(error[j]), cfg.min_command)
-            wait = 0.0 if abs(measured[j]) > transient + noise else settling
-            if now - evidence.swing_since >= cfg.persistence + wait:
-                # A joint declared locked that moves was never locked: it swings.
-                evidence.swinging_at, evidence.locked_at = now, None
-                swinging.append(j)
-        for j in np.flatnonzero(~on_its_own).tolist():
-            self.joints[j].swing_since = None
+        for j, evidence in enumerate(joints):
+            if not own_of[j]:
+                evidence.swing_since = None
+            elif evidence.swinging_at is None:
+                if evidence.swing_since is None:
+                    evidence.swing_since = now
+                if now - evidence.swing_since >= cfg.persistence + self._swing_wait(
+                        measured_of[j], error_of[j], plausible, best):
+                    # A joint declared locked that moves was never locked: it swings.
+                    evidence.swinging_at, evidence.locked_at = now, None
+                    swinging.append(j)
         newly = []
-        for j, evidence in enumerate(self.joints):
-            supported = candidates[j] and n_following - following[j] >= 1
+        for j, evidence in enumerate(joints):
+            supported = candidate_of[j] and n_following - following_of[j] >= 1
             if not supported:
                 evidence.evidence_since = None
                 continue
@@ -965,6 +961,23 @@ class LockDetector:
                 evidence.swinging_at = None
                 newly.append(j)
         return Update(tuple(newly), tuple(swinging))
+
+    def _swing_wait(self, measured: float, error: float, plausible: np.ndarray,
+                    best: int) -> float:
+        """How long (s) motion on its own must last beyond `persistence` to be a swing.
+
+        A transient dies within the plant's (best model's) settling time; motion on its
+        own that outlasts it, or outruns it, does not. A servo's transient (overshoot,
+        the spring back after a stop, a joint dragged by the others) is no faster than
+        twice the largest velocity commanded lately (`plausible`, rad/s): a joint faster
+        than that beyond the noise need not wait.
+        """
+        cfg = self.config
+        transient = 2 * float(np.abs(plausible).max(initial=0.0))
+        noise = max(cfg.confidence * error, cfg.min_command)
+        if abs(measured) > transient + noise:
+            return 0.0
+        return float(self._model_latency[best] + 3 * self._model_response[best])
 
     def _identify(self, now: float, measured: np.ndarray, slopes: np.ndarray,
                   error: np.ndarray, usable: np.ndarray) -> None:

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -217,10 +217,26 @@ class MonitorNode(SuiteNode):
         return {} if self.core is None else self.core.announced
 
     # ------------------------------------------------------- one-process wiring
-    def take_commands_by_call(self) -> Callable[[JointState], None]:
-        """Stop subscribing to `ft/command_raw`; returns what to call with each command."""
+    def take_commands_by_call(
+            self) -> Callable[[np.ndarray, Sequence[str], Time, float], None]:
+        """Stop subscribing to `ft/command_raw`; returns what to call with each command.
+
+        The call takes the velocities (rad/s) of the given joints, the command's stamp and
+        the caller's clock time (s): a controller in the same process (ft-stack), whose
+        commands need no conversion and no stamp checks (they are made now, on the same
+        clock). Velocities for another chain than this model's go by name, as a message.
+        """
         self.destroy_subscription(self._command_subscription)
-        return self._on_command
+        return self._take_command
+
+    def _take_command(self, qd: np.ndarray, joints: Sequence[str], stamp: Time,
+                      now: float) -> None:
+        if self.core is None:
+            return
+        if tuple(joints) != self.core.robot.joint_names:
+            self._on_command(convert.joint_state(joints, stamp, velocity=qd))
+            return
+        self._forward("ft/command_raw", qd, stamp, now)
 
     def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
         """Give every command to `take` as a call too (a plant in the same process).
