@@ -9,7 +9,11 @@ process per core beside them (`ft_sim.cpu_load.busy_cores`):
 - separate: `ft-sim`, `ft-controller` and `ft-monitor`, one process each (the
   `ros2 run` / launch-file layout);
 - one process: `ft-sim` and `ft-stack` (controller and monitor on one executor,
-  connected by calls: `ft_sim.stack.compose`).
+  connected by calls: `ft_sim.stack.compose`);
+- the floor, at each rate (idle, normal scheduler): `ft-sim` and a bare rclpy node
+  (`rclpy_floor.py`) that takes `joint_states` and publishes a command from a timer,
+  nothing else: what any Python node exchanging those two messages pays, below which
+  `ft-stack` cannot go.
 
 These use the Panda's position task; at each of `--pose-rates` (250 and 1000 Hz) both
 layouts run once more with the pose task (idle, normal scheduler). The table also
@@ -47,10 +51,13 @@ from ft_msgs_py.spin import spin_for, spin_until
 from ft_sim.cpu_load import busy_cores
 from nodes import installed, percentiles
 
+FLOOR = "floor: a bare rclpy node (bench/rclpy_floor.py)"
 LAYOUTS = {
-    "separate processes": {"sim": "ft-sim", "controller": "ft-controller",
-                           "monitor": "ft-monitor"},
-    "one process (ft-stack)": {"sim": "ft-sim", "controller + monitor": "ft-stack"},
+    "separate processes": {"sim": ["ft-sim"], "controller": ["ft-controller"],
+                           "monitor": ["ft-monitor"]},
+    "one process (ft-stack)": {"sim": ["ft-sim"], "controller + monitor": ["ft-stack"]},
+    FLOOR: {"sim": ["ft-sim"], "bare node": ["python", str(Path(__file__).with_name(
+        "rclpy_floor.py"))]},
 }
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
@@ -70,7 +77,7 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
     """
     common = ["--ros-args", "-p", "robot_model:=panda", "-p", f"task_space:={task}",
               "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
-    commands = {name: [script, *common] for name, script in LAYOUTS[layout].items()}
+    commands = {name: [*script, *common] for name, script in LAYOUTS[layout].items()}
     for name, argv in commands.items():
         if name != "sim":
             argv += ["-p", f"thread_priority:={priority}"]
@@ -97,7 +104,8 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
             spin_for(executor, seconds)
             # The controller reports its rate with its diagnostics (DIAGNOSTICS_PERIOD): on
             # a busy machine a short window may hold none, so it is stretched to the first.
-            spin_until(executor, lambda: bool(rates), 10.0)
+            # (The floor's node reports none.)
+            spin_until(executor, lambda: bool(rates) or layout == FLOOR, 10.0)
             elapsed = time.monotonic() - began
             used = {name: cpu_seconds(p.pid) - start[name] for name, p in processes.items()}
             achieved = list(rates)
@@ -113,6 +121,21 @@ def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
             "controller_rate_hz": float(np.median(achieved)) if achieved else float("nan"),
             "arms_per_machine": int((os.cpu_count() or 1) // arm) if arm > 0 else 0,
             "state_to_command_ms": percentiles(latencies)}
+
+
+def above_floor(results: list[dict], cases: list[tuple]) -> list[str]:
+    """Per rate, ft-stack's CPU per cycle against the floor's (idle, normal scheduler)."""
+    idle = {(case[0], case[3]): r for r, case in zip(results, cases, strict=True)
+            if not case[2] and not case[1] and case[4] == "position"}
+    lines = []
+    for (rate, layout), floor in idle.items():
+        stack = idle.get((rate, "one process (ft-stack)"))
+        if layout == FLOOR and stack is not None:
+            mine, bare = stack["arm_cpu_ms_per_cycle"], floor["arm_cpu_ms_per_cycle"]
+            lines.append(f"- {rate:.0f} Hz: ft-stack {mine:.3f} ms of CPU per cycle, the floor "
+                         f"{bare:.3f} ms ({mine / bare:.2f} x): {mine - bare:.3f} ms is the "
+                         "controller's and the monitor's own work and wiring.")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -132,8 +155,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cases = [(rate, priority, busy, layout, "position")
              for busy, rates in ((False, args.rates), (True, args.busy_rates))
-             for rate in rates for priority in args.priorities for layout in LAYOUTS]
-    cases += [(rate, 0, False, layout, "pose") for rate in args.pose_rates for layout in LAYOUTS]
+             for rate in rates for priority in args.priorities for layout in LAYOUTS
+             if layout != FLOOR]
+    cases += [(rate, 0, False, FLOOR, "position") for rate in args.rates]
+    cases += [(rate, 0, False, layout, "pose") for rate in args.pose_rates for layout in LAYOUTS
+              if layout != FLOOR]
     results = [run(layout, rate, priority, args.seconds, args.warm_up, busy, task)
                for rate, priority, busy, layout, task in cases]
     info = machine()
@@ -152,13 +178,15 @@ def main(argv: list[str] | None = None) -> int:
         machine_load = "a busy process per core" if busy else "idle"
         controller = r["cpu_share"].get("controller")
         alone = "-" if controller is None else f"{1e3 * controller / r['rate_hz']:.3f}"
+        achieved = "-" if layout == FLOOR else f"{r['controller_rate_hz']:.1f}"
         lines.append(f"| {task} | {r['rate_hz']:.0f} Hz | {machine_load} | {scheduling} | "
-                     f"{layout} | {r['controller_rate_hz']:.1f} | "
+                     f"{layout} | {achieved} | "
                      f"{100 * r['arm_cpu_share']:.0f} % | {r['arm_cpu_ms_per_cycle']:.3f} | "
                      f"{alone} | "
                      f"{100 * r['cpu_share']['sim']:.0f} % | "
                      f"{'-' if busy else r['arms_per_machine']} | "
                      f"{shown} |")
+    lines += ["", *above_floor(results, cases)]
     lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up, then "
               f"{args.seconds:.0f} s of latency timing; {info['cpu']}, {info['cores']} cores, "
               f"Python {info['python']}, {info['date']}."]

@@ -1,0 +1,45 @@
+"""A bare rclpy node doing only what ft-stack must do with the plant: the floor of `layouts.py`.
+
+    python bench/rclpy_floor.py --ros-args -p control_rate:=1000.0
+
+It takes `joint_states` and, from a timer at `control_rate` (Hz), publishes a `JointState`
+of zero velocities for the joints it was last given on `ft/command`, on the suite's own
+executor loop (`ft_msgs_py.spin.run_node`: rclpy's EventsExecutor), with the suite's QoS.
+No control, no filtering, no detection: its CPU per cycle is what one message in, one
+message out and one timer cost a Python node at that rate, below which no Python
+controller and monitor can go (docs/benchmarks.md, issue 28). Other `-p` overrides
+(the layouts' common arguments) are ignored.
+"""
+
+from __future__ import annotations
+
+from ft_msgs_py import names, qos, spin
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+
+class FloorNode(Node):
+    """Joint states in, zero velocity commands out at `control_rate`."""
+
+    def __init__(self) -> None:
+        super().__init__("rclpy_floor")
+        rate = self.declare_parameter("control_rate", 1000.0).value
+        self._command = JointState()
+        self._publisher = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
+        self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
+                                 qos.SENSOR_INPUT)
+        self.create_timer(1.0 / rate, self._cycle)
+
+    def _on_state(self, msg: JointState) -> None:
+        if list(msg.name) != self._command.name:
+            self._command.name = list(msg.name)
+
+    def _cycle(self) -> None:
+        msg = self._command
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.velocity = [0.0] * len(msg.name)
+        self._publisher.publish(msg)
+
+
+if __name__ == "__main__":
+    spin.run_node(FloorNode)
