@@ -207,7 +207,9 @@ def test_extra_joints_in_states_are_ignored_and_future_stamps_rejected() -> None
 
 
 def test_errors_show_in_diagnostics() -> None:
-    with controller(state_timeout=0.05) as (_, plant):
+    # state_timeout is also the steady-time watchdog's: 0.2 s, so that a stall of the
+    # test's own process (another test worker beside it) is not what the status shows.
+    with controller(state_timeout=0.2) as (_, plant):
         plant.publish_states = False
         plant.run(60)  # 0.6 s of simulated time: diagnostics at 2 Hz
         status = controller_status(plant)
@@ -216,7 +218,7 @@ def test_errors_show_in_diagnostics() -> None:
         plant.run(60)
         assert controller_status(plant).level == diagnostics.OK
         plant.publish_states = False  # the driver goes quiet
-        plant.run(60)
+        plant.run(100)  # the last diagnostics at least 0.5 s after the last state
         status = controller_status(plant)
         assert status.level == diagnostics.ERROR and "joint_states" in status.message
         joints = [s for s in plant.diagnostics[-1].status if "joint" in s.name]

@@ -86,3 +86,27 @@ def test_a_command_by_call_for_another_chain_goes_by_name() -> None:
         np.testing.assert_allclose(sent[0][1], qd)
         np.testing.assert_allclose(sent[1][1], qd)  # by name: the same joints' velocities
         monitor.destroy_node()
+
+
+def test_a_joint_state_read_by_the_monitor_is_not_parsed_again() -> None:
+    """The controller takes the monitor's reading of its own chain; else the message."""
+    with ros_context() as (context, _executor):
+        controller = ControllerNode(context=context, parameter_overrides=[
+            Parameter("robot_model", value="panda")])
+        take = controller.use_shared_joint_states()
+        joints = controller.robot.joint_names
+        q = np.array(START)
+        # An empty message with a reading of the chain: the reading is what counts.
+        take(JointState(), (q, joints, 5.0))
+        assert controller._q is not None, "the reading was refused"
+        np.testing.assert_array_equal(controller._q, q)
+        assert controller.state_stamp == 5.0 and "joint_states" not in controller.problems.active
+        # A reading of another chain: the message is read, and this one lacks the joints.
+        take(JointState(), (q[::-1], joints[::-1], 6.0))
+        assert controller._q is None and controller.state_stamp == 5.0
+        assert "lacks" in controller.problems.active["joint_states"]
+        # A reading older than the last one is refused as going backwards.
+        take(JointState(), (q, joints, 7.0))
+        take(JointState(), (q, joints, 6.5))
+        assert controller._q is None and "backwards" in controller.problems.active["joint_states"]
+        controller.destroy_node()

@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from ft_core.detection import DetectorConfig, LockDetector, Samples, Update
+from ft_core.detection import DetectorConfig, LockDetector, Update
 from ft_core.plant import PlantConfig
 from paths import REPO
 
@@ -492,20 +492,37 @@ def test_window_sums_match_the_window(start: float) -> None:
     """Issue 28: the running sums the fits read equal sums over the window's entries.
 
     Through many windows, so that the entries move to the front of the arrays (and the
-    sums are made afresh) several times, with every model's predictions.
+    sums are made afresh) several times, with every model's predictions; and the
+    predictions stored are the command history's (computed here again in numpy).
     """
+
+    def predictions(history, times: np.ndarray) -> np.ndarray:
+        """(latencies x response times, n): U(t) - T y_T(t) from the entry in force at t."""
+        rows = []
+        for t in times:
+            k = history.start + max(int(np.searchsorted(
+                history.times[history.start:history.end], t, side="right")) - 1, 0)
+            h, u = max(t - history.times[k], 0.0), history.values[k]
+            for T, rate, lag in zip(history.response_times, history.rate, history.lagged[k],
+                                    strict=True):
+                rows.append(history.integrals[k] + h * u - T * (u + (lag - u) * np.exp(-h * rate)))
+        return np.array(rows)
+
     rng = np.random.default_rng(3)
-    samples = Samples(7, 128)
+    detector = LockDetector(np.full(7, -3.0), np.full(7, 3.0))
+    samples, history = detector._samples, detector.history
     compacted = 0
     for k in range(1000):
         time = start + 0.001 * k + 2e-4 * rng.random()
+        detector.command(time - 5e-4, rng.normal(scale=0.3, size=7))
         before = samples.start
-        samples.append(time, rng.normal(size=7), rng.normal(scale=3.0, size=(128, 7)))
+        detector.measure(time, rng.normal(size=7))
         compacted += samples.start < before
-        samples.drop_before(time - 0.08)
         times, _positions, predicted = samples.window()
         assert k < 100 or times.size >= 70
         np.testing.assert_allclose(samples.predicted_sum, predicted.sum(axis=0), atol=1e-10)
         timed = np.einsum("s,smj->mj", times - samples.base, predicted)
         np.testing.assert_allclose(samples.timed_sum, timed, atol=1e-10)
+        np.testing.assert_allclose(predicted[-1], predictions(history, time - detector._latencies),
+                                   rtol=1e-12, atol=1e-12)
     assert compacted >= 4  # summed afresh along the way

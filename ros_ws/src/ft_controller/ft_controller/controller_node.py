@@ -398,15 +398,29 @@ class ControllerNode(SuiteNode):
         self._command_taker = take
         self.destroy_subscription(self._echo_subscription)
 
-    def use_shared_joint_states(self) -> Callable[[JointState], None]:
-        """Stop taking `joint_states` here; returns what to call with each one instead."""
+    def use_shared_joint_states(
+            self) -> Callable[[JointState, tuple[np.ndarray, Sequence[str], float] | None],
+                              None]:
+        """Stop taking `joint_states` here; returns what to call with each one instead.
+
+        The call takes the message and, where a node of the same process parsed it
+        already, its reading (positions in rad, their joints, stamp in s), used when the
+        joints are this model's chain; else this node reads the message itself.
+        """
         self.destroy_subscription(self._state_subscription)
-        return self._on_state
+        return self._on_shared_state
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
         if self.robot is not None:
             self._q = self.read_joint_state(msg, self.robot.joint_names)
+
+    def _on_shared_state(self, msg: JointState,
+                         reading: tuple[np.ndarray, Sequence[str], float] | None) -> None:
+        if reading is None or self.robot is None or tuple(reading[1]) != self.robot.joint_names:
+            self._on_state(msg)
+            return
+        self._q = self.accept_joint_state(reading[0], reading[2])
 
     def _frame_ok(self, frame: str, kind: str) -> bool:
         if frame in ("", self.robot.base_link):

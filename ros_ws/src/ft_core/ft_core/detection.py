@@ -346,9 +346,10 @@ class _Buffers:
     def __len__(self) -> int:
         return self.end - self.start
 
-    def drop_before(self, time: float) -> None:
-        """Forget entries whose `times` are before `time` (sorted times)."""
-        self.start += int(np.searchsorted(self.times[self.start:self.end], time, side="left"))
+    def make_room_for_one(self) -> None:
+        """Room for one more entry at index `end`."""
+        if self.end == self.times.size:
+            self._make_room()
 
     def _make_room(self) -> None:
         size = len(self)
@@ -412,18 +413,33 @@ def _classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def _extend_history(times: np.ndarray, values: np.ndarray, integrals: np.ndarray,
-                    lagged: np.ndarray, rate: np.ndarray, k: int, time: float) -> None:
-    """Entry k's integral and lag states from entry k - 1's, for a command from `time`."""
-    h = time - times[k - 1]
+def _add_command(times: np.ndarray, values: np.ndarray, integrals: np.ndarray,
+                 lagged: np.ndarray, rate: np.ndarray, span: tuple[int, int], time: float,
+                 velocity: np.ndarray, forget_before: float) -> int:
+    """`CommandHistory.append`, compiled: entry `span[1]` from the one before it.
+
+    Its integral and lag states follow entry k - 1's command over the interval
+    (none before the first: zeros); then the entries no longer needed for times >=
+    `forget_before` are dropped (the one in force then stays). Returns the new start.
+    """
+    start, k = span
     n = values.shape[1]
-    for j in range(n):
-        integrals[k, j] = integrals[k - 1, j] + h * values[k - 1, j]
-    for t in range(rate.size):
-        decay = np.exp(-h * rate[t])
+    if k > start:
+        h = time - times[k - 1]
         for j in range(n):
-            u = values[k - 1, j]
-            lagged[k, t, j] = u + (lagged[k - 1, t, j] - u) * decay
+            integrals[k, j] = integrals[k - 1, j] + h * values[k - 1, j]
+        for t in range(rate.size):
+            decay = np.exp(-h * rate[t])
+            for j in range(n):
+                u = values[k - 1, j]
+                lagged[k, t, j] = u + (lagged[k - 1, t, j] - u) * decay
+    else:
+        integrals[k] = 0.0
+        lagged[k] = 0.0
+    times[k] = time
+    values[k] = velocity
+    keep = int(np.searchsorted(times[start:k + 1], forget_before, side="right")) - 1
+    return start + max(keep, 0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -439,7 +455,12 @@ def _largest_step(times: np.ndarray) -> float:
 def _predicted_positions(starts: np.ndarray, values: np.ndarray, integrals: np.ndarray,
                          lagged: np.ndarray, start: int, end: int, rate: np.ndarray,
                          response_times: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """`CommandHistory.positions`, compiled (one call per joint state)."""
+    """Predicted displacement since the first command at `times`, (len(times), nT, n) (rad).
+
+    Row i is U(t_i) - T y_T(t_i) for each response time T (`CommandHistory`'s entries
+    [start, end)): the plant at rest before the first command. Each t_i is already
+    shifted by its latency.
+    """
     n, models = values.shape[1], response_times.size
     out = np.empty((times.size, models, n))
     for i in range(times.size):
@@ -454,6 +475,49 @@ def _predicted_positions(starts: np.ndarray, values: np.ndarray, integrals: np.n
     return out
 
 
+@njit(cache=True, error_model="numpy")
+def _ingest(time: float, position: np.ndarray, latencies: np.ndarray,
+            history: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                           np.ndarray],
+            history_span: tuple[int, int],
+            times: np.ndarray, positions: np.ndarray, predicted: np.ndarray,
+            predicted_sum: np.ndarray, timed_sum: np.ndarray, span: tuple[int, int],
+            base: float, window_start: float,
+            offset_times: np.ndarray, offset_values: np.ndarray, offset_means: np.ndarray,
+            offset_span: tuple[int, int], keep_from: float) -> tuple[int, int]:
+    """One measurement into the window and the window's offsets, compiled (`measure`).
+
+    Stores the measurement at index `span[1]` of the samples with every model's
+    prediction (`_predicted_positions`; `history` is the command history's times,
+    values, integrals, lags, rates and response times), adds it to the running sums
+    (`_accumulate`), drops the samples before `window_start` from the window and the
+    sums, stores the window's offsets (`_window_offsets`) at index `offset_span[1]` and
+    drops the offsets before `keep_from`. The caller made room at both ends. Returns
+    the new starts of the samples and of the offsets.
+    """
+    starts, values, integrals, lagged, rate, response_times = history
+    start, end = span
+    prediction = _predicted_positions(starts, values, integrals, lagged, history_span[0],
+                                      history_span[1], rate, response_times, time - latencies)
+    times[end] = time
+    positions[end] = position
+    for i in range(latencies.size):
+        for t in range(response_times.size):
+            predicted[end, i * response_times.size + t] = prediction[i, t]
+    _accumulate(predicted_sum, timed_sum, times, predicted, end, end + 1, base, 1.0)
+    end += 1
+    first = start + int(np.searchsorted(times[start:end], window_start, side="left"))
+    _accumulate(predicted_sum, timed_sum, times, predicted, start, first, base, -1.0)
+    offsets, means = _window_offsets(positions[first:end], predicted_sum)
+    k = offset_span[1]
+    offset_times[k] = time
+    offset_values[k] = offsets
+    offset_means[k] = means
+    kept = offset_span[0] + int(np.searchsorted(offset_times[offset_span[0]:k + 1], keep_from,
+                                                side="left"))
+    return first, kept
+
+
 class CommandHistory(_Buffers):
     """Piecewise-constant commands, their running integral and their lagged versions.
 
@@ -465,8 +529,8 @@ class CommandHistory(_Buffers):
 
     def __init__(self, n: int, response_times: np.ndarray, capacity: int = 256):
         self.n, self.response_times = n, np.asarray(response_times, float)
-        self._rate = np.where(self.response_times > 0,
-                              1.0 / np.maximum(self.response_times, 1e-12), 1e12)
+        self.rate = np.where(self.response_times > 0,
+                             1.0 / np.maximum(self.response_times, 1e-12), 1e12)
         self.times = np.zeros(capacity)
         self.values = np.zeros((capacity, n))
         self.integrals = np.zeros((capacity, n))
@@ -478,37 +542,20 @@ class CommandHistory(_Buffers):
         """Start time (s) of the newest command; -inf before any."""
         return float(self.times[self.end - 1]) if len(self) else -math.inf
 
-    def append(self, time: float, velocity: np.ndarray) -> None:
-        """The command in force from `time` on; earlier than the newest: ignored."""
+    def append(self, time: float, velocity: np.ndarray, forget_before: float) -> None:
+        """The command in force from `time` on; earlier than the newest: ignored.
+
+        Then drops the entries no longer needed for times >= `forget_before` (the one in
+        force then stays).
+        """
         if len(self) and time < self.last_time:
             return
         if self.end == self.times.size:
             self._make_room()
-        k = self.end
-        if len(self):
-            _extend_history(self.times, self.values, self.integrals, self.lagged, self._rate,
-                            k, time)
-        else:
-            self.integrals[k] = 0.0
-            self.lagged[k] = 0.0
-        self.times[k], self.values[k] = time, velocity
+        self.start = _add_command(self.times, self.values, self.integrals, self.lagged,
+                                  self.rate, (self.start, self.end), time, velocity,
+                                  forget_before)
         self.end += 1
-
-    def forget_before(self, time: float) -> None:
-        """Drop entries no longer needed for times >= `time` (the one in force stays)."""
-        times = self.times[self.start:self.end]
-        keep = int(np.searchsorted(times, time, side="right")) - 1
-        self.start += max(keep, 0)
-
-    def positions(self, times: np.ndarray) -> np.ndarray:
-        """Predicted displacement since the first command, (len(times), nT, n) (rad).
-
-        Row i is U(t_i) - T y_T(t_i) for each response time T: the plant at rest
-        before the first command. Each t_i is already shifted by its latency.
-        """
-        return _predicted_positions(self.times, self.values, self.integrals, self.lagged,
-                                    self.start, self.end, self._rate, self.response_times,
-                                    np.asarray(times, dtype=float))
 
 
 class Samples(_Buffers):
@@ -532,26 +579,11 @@ class Samples(_Buffers):
         self.predicted_sum = np.zeros((models, n))
         self.timed_sum = np.zeros((models, n))
 
-    def append(self, time: float, position: np.ndarray, predicted: np.ndarray) -> None:
-        """One measurement and the models' predictions at its time."""
+    def make_room_for_one(self) -> None:
+        """Room for one more entry; the sums made afresh when the entries move."""
         if self.end == self.times.size:
             self._make_room()
             self._sum_afresh()
-        if not len(self):
-            self.base = time
-            self.predicted_sum[:] = self.timed_sum[:] = 0.0
-        k = self.end
-        self.times[k], self.positions[k], self.predicted[k] = time, position, predicted
-        self.end += 1
-        _accumulate(self.predicted_sum, self.timed_sum, self.times, self.predicted, k, k + 1,
-                    self.base, 1.0)
-
-    def drop_before(self, time: float) -> None:
-        """Forget entries whose times are before `time`, and take them out of the sums."""
-        first = self.start
-        super().drop_before(time)
-        _accumulate(self.predicted_sum, self.timed_sum, self.times, self.predicted, first,
-                    self.start, self.base, -1.0)
 
     def _sum_afresh(self) -> None:
         self.base = float(self.times[self.start]) if len(self) else 0.0
@@ -582,14 +614,6 @@ class Offsets(_Buffers):
         self.means = np.zeros((capacity, n))
         self.start = self.end = 0
 
-    def append(self, time: float, offsets: np.ndarray, means: np.ndarray) -> None:
-        """The offsets (models, n) and mean positions (n) of the window ending at `time`."""
-        if self.end == self.times.size:
-            self._make_room()
-        self.times[self.end], self.values[self.end] = time, offsets
-        self.means[self.end] = means
-        self.end += 1
-
     def between(self, start: float, end: float) -> np.ndarray:
         """The kept offsets of windows ending in [start, end], (k, models, n)."""
         times = self.times[self.start:self.end]
@@ -615,6 +639,7 @@ class LockDetector:
     def reset(self) -> None:
         """Forget every lock and all history (after a repair or a new configuration)."""
         self._latencies, self._response_times = self.config.grids()
+        self._longest_latency = float(self._latencies.max())
         models = np.array([(lat, rt) for lat in self._latencies for rt in self._response_times])
         self._model_latency, self._model_response = models[:, 0], models[:, 1]
         self.history = CommandHistory(self.n, self._response_times)
@@ -698,8 +723,8 @@ class LockDetector:
         if time - self.history.last_time > self.config.window / 2:
             self._resumed_at = time  # the first command, or the first after a gap
             self._seen_following = 0.0
-        self.history.append(time, np.asarray(velocity, dtype=float))
-        self.history.forget_before(time - 2 * self.config.window - self._latencies.max())
+        self.history.append(time, np.asarray(velocity, dtype=float),
+                            time - 2 * self.config.window - self._longest_latency)
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
                 falling: Callable[[], np.ndarray | None] | None = None) -> Update:
@@ -714,12 +739,7 @@ class LockDetector:
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
-        self._samples.append(time, np.asarray(position, dtype=float),
-                             self.history.positions(time - self._latencies).reshape(-1, self.n))
-        self._samples.drop_before(time - self.config.window)
-        samples = self._samples
-        self._offsets.append(time, *_window_offsets(samples.window()[1], samples.predicted_sum))
-        self._offsets.drop_before(time - max(self._horizon(), SLOW_SPAN))
+        self._ingest(time, np.asarray(position, dtype=float))
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
@@ -729,6 +749,25 @@ class LockDetector:
             self._clear_evidence()
             return Update()
         return self._update(time, dt, falling)
+
+    def _ingest(self, time: float, position: np.ndarray) -> None:
+        """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
+        samples, offsets, history = self._samples, self._offsets, self.history
+        samples.make_room_for_one()
+        offsets.make_room_for_one()
+        if not len(samples):
+            samples.base = time
+            samples.predicted_sum[:] = samples.timed_sum[:] = 0.0
+        samples.start, offsets.start = _ingest(
+            time, position, self._latencies,
+            (history.times, history.values, history.integrals, history.lagged, history.rate,
+             history.response_times), (history.start, history.end),
+            samples.times, samples.positions, samples.predicted, samples.predicted_sum,
+            samples.timed_sum, (samples.start, samples.end), samples.base,
+            time - self.config.window, offsets.times, offsets.values, offsets.means,
+            (offsets.start, offsets.end), time - max(self._horizon(), SLOW_SPAN))
+        samples.end += 1
+        offsets.end += 1
 
     def confirm(self, joint: int, position: float, time: float) -> Confirmation:
         """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.

@@ -53,6 +53,9 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayou
 from std_srvs.srv import Trigger
 
 DIAGNOSTICS_PERIOD = 0.5
+#: What is given each joint state (`share_joint_states`): the message, and its reading
+#: (positions in rad, their joints, stamp in s) or None.
+StateListener = Callable[[JointState, tuple[np.ndarray, Sequence[str], float] | None], None]
 #: s between checks for a written locked set while no joint state arrives (steady time).
 ANNOUNCE_PERIOD = 0.02
 #: s (steady) between two re-announcements of an unchanged locked set asked for on
@@ -131,7 +134,7 @@ class MonitorNode(SuiteNode):
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
                                  qos.SENSOR_INPUT)
         #: Also given each joint state (`share_joint_states`; ft-stack).
-        self._state_listeners: list[Callable[[JointState], None]] = []
+        self._state_listeners: list[StateListener] = []
         self._command_taker: Callable[[JointState], None] | None = None
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
@@ -245,17 +248,25 @@ class MonitorNode(SuiteNode):
         """
         self._command_taker = take
 
-    def share_joint_states(self, listener: Callable[[JointState], None]) -> None:
-        """Give `listener` every `joint_states` message this node takes."""
+    def share_joint_states(self, listener: StateListener) -> None:
+        """Give `listener` every `joint_states` message this node takes, with its reading.
+
+        The reading is (positions in rad, the joints they are of, stamp in s) where the
+        message passed this node's checks of the message itself (`parse_joint_state`),
+        else None: a node of the same process need not parse it again.
+        """
         self._state_listeners.append(listener)
 
     # ------------------------------------------------------------------ inputs
     def _on_state(self, msg: JointState) -> None:
+        core = self.core
+        reading = None if core is None else self.parse_joint_state(msg, core.robot.joint_names)
         for listener in self._state_listeners:
-            listener(msg)
-        if self.core is None:
+            listener(msg, None if reading is None else (reading[0], core.robot.joint_names,
+                                                        reading[1]))
+        if reading is None:
             return
-        q = self.read_joint_state(msg, self.core.robot.joint_names, self.core.absurd)
+        q = self.accept_joint_state(*reading, core.absurd)
         if q is None:
             return
         listeners = (self._command_taker is not None or self._command_pub.get_subscription_count()

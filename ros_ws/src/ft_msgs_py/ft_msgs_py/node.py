@@ -66,17 +66,33 @@ class SuiteNode(Node):
         `convert.joint_vector` rejects, and positions `absurd` gives a reason for. On
         success `state_stamp` is the message's time.
         """
+        reading = self.parse_joint_state(msg, joints)
+        return None if reading is None else self.accept_joint_state(*reading, absurd)
+
+    def parse_joint_state(self, msg: JointState, joints: Sequence[str],
+                          ) -> tuple[np.ndarray, float] | None:
+        """`read_joint_state`'s checks of the message alone: (positions, stamp in s) or None.
+
+        Nothing is accepted yet (`accept_joint_state`); what is rejected is reported.
+        """
         stamp = self.problems.message_time("joint_states", msg.header.stamp, self.now())
-        if stamp is None:
-            return None
-        if stamp < self.state_stamp:
-            self.problems.report("joint_states", f"stamp {stamp:.3f} s goes backwards "
-                                                 f"(last {self.state_stamp:.3f} s)")
+        if stamp is None or not self._in_order(stamp):
             return None
         try:
-            q = convert.joint_vector(msg, joints)
+            return convert.joint_vector(msg, joints), stamp
         except convert.MessageError as error:
             self.problems.report("joint_states", str(error))
+            return None
+
+    def accept_joint_state(self, q: np.ndarray, stamp: float,
+                           absurd: Callable[[np.ndarray], str | None] | None = None,
+                           ) -> np.ndarray | None:
+        """Positions parsed (here or by a node of the same process) at `stamp` (s), or None.
+
+        Rejected, and reported: a stamp before this node's `state_stamp`, positions
+        `absurd` gives a reason for. On success `state_stamp` is `stamp`.
+        """
+        if not self._in_order(stamp):
             return None
         reason = None if absurd is None else absurd(q)
         if reason is not None:
@@ -85,3 +101,10 @@ class SuiteNode(Node):
         self.problems.report("joint_states", None)
         self.state_stamp = stamp
         return q
+
+    def _in_order(self, stamp: float) -> bool:
+        if stamp < self.state_stamp:
+            self.problems.report("joint_states", f"stamp {stamp:.3f} s goes backwards "
+                                                 f"(last {self.state_stamp:.3f} s)")
+            return False
+        return True
