@@ -526,3 +526,26 @@ def test_window_sums_match_the_window(start: float) -> None:
         np.testing.assert_allclose(predicted[-1], predictions(history, time - detector._latencies),
                                    rtol=1e-12, atol=1e-12)
     assert compacted >= 4  # summed afresh along the way
+
+
+def test_odd_input_types_compile_nothing_in_the_control_loop() -> None:
+    """An integer time or a strided vector must not make numba compile a new version.
+
+    That takes seconds, inside the callback that took the joint state or the command.
+    """
+    from ft_core import detection
+
+    def feed(detector: LockDetector, times, commands, positions) -> None:
+        for t, u, q in zip(times, commands, positions, strict=True):
+            detector.command(t, u)
+            detector.measure(t + 0.5, q)
+
+    detector = LockDetector(np.full(7, -3.0), np.full(7, 3.0))
+    feed(detector, [0.0, 1.0], [np.full(7, 0.1)] * 2, [np.zeros(7)] * 2)
+    compiled = {kernel: len(kernel.signatures)
+                for kernel in (detection._ingest, detection._add_command)}
+    assert all(compiled.values()), "the kernels never ran"
+    strided = np.zeros((7, 3))
+    feed(detector, [2, 3], [strided[:, 1] + 0.1, strided[:, 1]], [strided[:, 2]] * 2)
+    assert {kernel: len(kernel.signatures) for kernel in compiled} == compiled
+    assert detector.latest_time == 3.5

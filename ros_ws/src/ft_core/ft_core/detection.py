@@ -723,7 +723,8 @@ class LockDetector:
         if time - self.history.last_time > self.config.window / 2:
             self._resumed_at = time  # the first command, or the first after a gap
             self._seen_following = 0.0
-        self.history.append(time, np.asarray(velocity, dtype=float),
+        # Floats and contiguous arrays: the types `compile_ahead` compiled for.
+        self.history.append(float(time), np.ascontiguousarray(velocity, dtype=float),
                             time - 2 * self.config.window - self._longest_latency)
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
@@ -739,7 +740,7 @@ class LockDetector:
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
-        self._ingest(time, np.asarray(position, dtype=float))
+        self._ingest(float(time), np.ascontiguousarray(position, dtype=float))
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
