@@ -10,10 +10,11 @@ EventsExecutor) spin the nodes, which keep their names (`controller`, `monitor`,
 command line sets it in every node.
 
 The controller and the monitor are connected by calls (`compose`), not through the
-middleware: the controller hands each command to the monitor's command filter
-(`ft/command_raw` is still published while anyone else subscribes to it, for
+middleware: the controller hands each command to the monitor's command filter as an
+array (`ft/command_raw` is still published while anyone else subscribes to it, for
 observers and recorders), and the monitor passes each `joint_states` message it
-takes to the controller, which no longer subscribes itself. A cycle then pays for
+takes to the controller with its reading of it, so the message is parsed once; the
+controller no longer subscribes itself. A cycle then pays for
 the messages exchanged with the plant and little else; the Python interpreter,
 Pinocchio and numba's code are loaded once (`make bench` measures both layouts:
 docs/benchmarks.md).
@@ -44,7 +45,10 @@ def main(args: list[str] | None = None) -> None:
 
 
 def compose(controller: ControllerNode, monitor: MonitorNode) -> None:
-    """Connect the two nodes by calls: commands to the monitor, joint states to both."""
+    """Connect the two nodes by calls: commands to the monitor, joint states to both.
+
+    The controller gets each joint state with the monitor's reading of it.
+    """
     controller.hand_commands_to(monitor.take_commands_by_call())
     monitor.share_joint_states(controller.use_shared_joint_states())
 
