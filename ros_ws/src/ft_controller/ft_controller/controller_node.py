@@ -586,17 +586,15 @@ class ControllerNode(SuiteNode):
         msg = self._command_msg
         msg.header.stamp = clock.to_msg()
         self.last_command = qd_chain
-        if self._command_taker is None:
+        taker = self._command_taker
+        if taker is None or self._command_pub.get_subscription_count():
             msg.velocity = qd_chain[self._order].tolist()
             self._command_pub.publish(msg)
+        if taker is None:
             self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),
                              msg.velocity)
         else:
-            if self._command_pub.get_subscription_count():
-                msg.velocity = qd_chain[self._order].tolist()
-                self._command_pub.publish(msg)
-            self._command_taker(qd_chain, self.robot.joint_names, msg.header.stamp,
-                                clock.nanoseconds * 1e-9)
+            taker(qd_chain, self.robot.joint_names, msg.header.stamp, clock.nanoseconds * 1e-9)
         if result is None:
             return
         self._last_result = result

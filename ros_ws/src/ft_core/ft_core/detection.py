@@ -550,8 +550,7 @@ class CommandHistory(_Buffers):
         """
         if len(self) and time < self.last_time:
             return
-        if self.end == self.times.size:
-            self._make_room()
+        self.make_room_for_one()
         self.start = _add_command(self.times, self.values, self.integrals, self.lagged,
                                   self.rate, (self.start, self.end), time, velocity,
                                   forget_before)
@@ -579,11 +578,18 @@ class Samples(_Buffers):
         self.predicted_sum = np.zeros((models, n))
         self.timed_sum = np.zeros((models, n))
 
-    def make_room_for_one(self) -> None:
-        """Room for one more entry; the sums made afresh when the entries move."""
+    def make_room_for(self, time: float) -> None:
+        """Room for one more entry, at `time`.
+
+        The sums are made afresh when the entries move, and start at `time` (`base`)
+        when the window is empty.
+        """
         if self.end == self.times.size:
             self._make_room()
             self._sum_afresh()
+        if not len(self):
+            self.base = time
+            self.predicted_sum[:] = self.timed_sum[:] = 0.0
 
     def _sum_afresh(self) -> None:
         self.base = float(self.times[self.start]) if len(self) else 0.0
@@ -740,7 +746,7 @@ class LockDetector:
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
-        self._ingest(float(time), np.ascontiguousarray(position, dtype=float))
+        self._into_window(float(time), np.ascontiguousarray(position, dtype=float))
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
@@ -751,14 +757,11 @@ class LockDetector:
             return Update()
         return self._update(time, dt, falling)
 
-    def _ingest(self, time: float, position: np.ndarray) -> None:
+    def _into_window(self, time: float, position: np.ndarray) -> None:
         """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
         samples, offsets, history = self._samples, self._offsets, self.history
-        samples.make_room_for_one()
+        samples.make_room_for(time)
         offsets.make_room_for_one()
-        if not len(samples):
-            samples.base = time
-            samples.predicted_sum[:] = samples.timed_sum[:] = 0.0
         samples.start, offsets.start = _ingest(
             time, position, self._latencies,
             (history.times, history.values, history.integrals, history.lagged, history.rate,
