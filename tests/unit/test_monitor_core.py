@@ -207,3 +207,27 @@ def test_joints_not_commanded_for_a_while_are_named_unseen() -> None:
     assert lp.monitor.unseen(lp.t) == []
     lp.monitor.declare([0], lp.t)
     assert lp.monitor.unseen(lp.t + 10.0) == [f"panda_joint{j}" for j in range(2, 8)]
+
+
+def test_a_new_monitor_has_loaded_the_detectors_compiled_code() -> None:
+    """The detector's compiled functions are loaded when the core is built, not in a callback.
+
+    In a fresh interpreter, so that nothing else loaded them: loaded lazily, one by one as
+    the detector first needed each, they held the monitor's joint-state and command
+    callbacks for 5-20 ms of CPU each during its first seconds (0.4 s in all), and on a
+    busy machine the controller's guard of a dead monitor fired on a live one.
+    """
+    import subprocess
+    import sys
+
+    kernels = ("_ingest", "_add_command", "_accumulate", "_window_fit", "_classify",
+               "_largest_step")
+    code = ("from ft_core import detection, robots\n"
+            "from ft_core.monitor import Monitor, MonitorConfig\n"
+            "Monitor(robots.load('panda'), detection.DetectorConfig(), MonitorConfig(), None)\n"
+            f"print(*[len(getattr(detection, k).signatures) for k in {kernels!r}])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert len(out.split()) == len(kernels), out
+    assert all(int(count) >= 1 for count in out.split()), dict(zip(kernels, out.split(),
+                                                                  strict=True))

@@ -102,6 +102,7 @@ shared by commands and measurements.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -357,7 +358,10 @@ class _Buffers:
             old = getattr(self, name)
             new = (np.zeros((2 * old.shape[0], *old.shape[1:])) if size > old.shape[0] // 2
                    else old)
-            new[:size] = old[self.start:self.end].copy()
+            # One copy, no temporary: numpy copies overlapping ranges (a move within
+            # `old`) correctly, and fresh pages cost time to touch (a growth of the
+            # offsets took 7-20 ms in the monitor's first seconds with a temporary).
+            new[:size] = old[self.start:self.end]
             setattr(self, name, new)
         self.start, self.end = 0, size
 
@@ -1052,11 +1056,18 @@ class LockDetector:
                             & (self._model_response >= low) & (self._model_response <= high))
 
 
+@functools.cache
 def compile_ahead() -> None:
     """Run the detector's compiled functions once, so numba compiles (or loads) them now.
 
-    `make build` calls it: otherwise the first monitor to take a joint state compiles
-    them inside that callback (about 5 s on 2 cores), with its commands held meanwhile.
+    Once per process. `make build` calls it, so that they are compiled and cached on
+    disk: otherwise the first monitor to take a joint state compiles them inside that
+    callback (about 5 s on 2 cores), with its commands held meanwhile. Every
+    `ft_core.monitor.Monitor` calls it on construction, so that they are loaded from
+    that cache before its first callback: loaded lazily, one by one as the detector
+    first needs each (0.4 s in all), they stalled the monitor's callbacks for 5-20 ms
+    of CPU each during its first seconds, and for up to 0.7 s of wall time on a busy
+    machine, long enough for the controller's guard of a dead monitor to fire.
     """
     detector = LockDetector(np.full(2, -1.0), np.full(2, 1.0))
     for k in range(300):  # 1.2 s: past the settling time, so that decisions run

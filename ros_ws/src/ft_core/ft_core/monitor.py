@@ -43,7 +43,13 @@ from pathlib import Path
 import numpy as np
 
 from ft_core import limits, locked_set, remap, swing
-from ft_core.detection import Confirmation, DetectorConfig, JointEvidence, LockDetector
+from ft_core.detection import (
+    Confirmation,
+    DetectorConfig,
+    JointEvidence,
+    LockDetector,
+    compile_ahead,
+)
 from ft_core.robots import Robot
 
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
@@ -120,6 +126,7 @@ class Monitor:
     def __init__(self, robot: Robot, detection: DetectorConfig, config: MonitorConfig,
                  store: Path | None, report: Report = lambda *_args, **_kwargs: None):
         self.robot = robot
+        compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.store = store
         self._report = report
