@@ -96,8 +96,13 @@ def _machine_share(request: FixtureRequest, tmp_path_factory: pytest.TempPathFac
     with `-n 2` the other worker runs simulated-time tests meanwhile: a separate-process
     graph judged on wall time beside a full CPU load *and* another graph measured how
     two graphs on two cores starve each other, not how the nodes hold up on a busy machine.
+    A `no_other_graph` test holds the exclusive lock too: it asserts that the controller's
+    guard of a dead monitor never fires on a live one, which a second graph starting on the
+    other core (its processes' imports, 0.1 s without joint states for the whole graph
+    measured) can falsify without any fault of the nodes.
     """
-    exclusive = request.node.get_closest_marker("busy_machine") is not None
+    exclusive = any(request.node.get_closest_marker(name) is not None
+                    for name in ("busy_machine", "no_other_graph"))
     if request.node.get_closest_marker("processes") is None and not exclusive:
         yield
         return
