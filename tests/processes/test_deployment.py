@@ -207,8 +207,11 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         g.kill("monitor")
         seen, heard = len(g.states), len(g.commands)
         g.spin(3.0)
+        # Right after the kill the sim and the controller sometimes stall (once in 9 runs on
+        # an idle machine, 0.3 s without joint states; once in CI, 9 joint states in 3 s):
+        # spin on until there is motion to judge. The stall is measured below, allowed for.
+        g.wait(lambda: len(g.states) - seen >= 10, 10.0, "10 joint states after the kill")
         states = g.states[seen:]
-        assert len(states) >= 10, f"{len(states)} joint states in the 3 s after the kill"
         after = np.array([m.position for m in states])
         travel = float(np.max(np.ptp(after, axis=0)))
         zeros = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
