@@ -360,7 +360,7 @@ class _Buffers:
                    else old)
             # One copy, no temporary: numpy copies overlapping ranges (a move within
             # `old`) correctly, and fresh pages cost time to touch (a growth of the
-            # offsets took 7-20 ms in the monitor's first seconds with a temporary).
+            # Panda's offsets at 250 Hz: 2-7 ms with a temporary, 1.1 ms without).
             new[:size] = old[self.start:self.end]
             setattr(self, name, new)
         self.start, self.end = 0, size
