@@ -46,7 +46,7 @@ from ft_msgs_py import (
 )
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.monitor_guard import MonitorGuard
-from ft_msgs_py.node import SuiteNode
+from ft_msgs_py.node import StateListener, StateReading, SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -398,9 +398,7 @@ class ControllerNode(SuiteNode):
         self._command_taker = take
         self.destroy_subscription(self._echo_subscription)
 
-    def use_shared_joint_states(
-            self) -> Callable[[JointState, tuple[np.ndarray, Sequence[str], float] | None],
-                              None]:
+    def use_shared_joint_states(self) -> StateListener:
         """Stop taking `joint_states` here; returns what to call with each one instead.
 
         The call takes the message and, where a node of the same process parsed it
@@ -415,9 +413,8 @@ class ControllerNode(SuiteNode):
         if self.robot is not None:
             self._q = self.read_joint_state(msg, self.robot.joint_names)
 
-    def _on_shared_state(self, msg: JointState,
-                         reading: tuple[np.ndarray, Sequence[str], float] | None) -> None:
-        if reading is None or self.robot is None or tuple(reading[1]) != self.robot.joint_names:
+    def _on_shared_state(self, msg: JointState, reading: StateReading | None) -> None:
+        if reading is None or self.robot is None or reading[1] != self.robot.joint_names:
             self._on_state(msg)
             return
         self._q = self.accept_joint_state(reading[0], reading[2])

@@ -46,16 +46,13 @@ from ft_core import locked_set, robots
 from ft_core.detection import DetectorConfig
 from ft_core.monitor import UNSEEN_AFTER, Change, Monitor, MonitorConfig
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
-from ft_msgs_py.node import SuiteNode
+from ft_msgs_py.node import StateListener, SuiteNode
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
 from std_srvs.srv import Trigger
 
 DIAGNOSTICS_PERIOD = 0.5
-#: What is given each joint state (`share_joint_states`): the message, and its reading
-#: (positions in rad, their joints, stamp in s) or None.
-StateListener = Callable[[JointState, tuple[np.ndarray, Sequence[str], float] | None], None]
 #: s between checks for a written locked set while no joint state arrives (steady time).
 ANNOUNCE_PERIOD = 0.02
 #: s (steady) between two re-announcements of an unchanged locked set asked for on

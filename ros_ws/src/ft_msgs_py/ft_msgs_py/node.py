@@ -12,6 +12,13 @@ from sensor_msgs.msg import JointState
 from ft_msgs_py import convert, diagnostics, parameters, thread_priority
 from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
 
+#: A joint state as a node of the same process read it: positions (rad), the joints they
+#: are of, stamp (s).
+StateReading = tuple[np.ndarray, tuple[str, ...], float]
+#: Given each joint state a node takes, with its reading (None: the message failed that
+#: node's checks of the message itself, `SuiteNode.parse_joint_state`).
+StateListener = Callable[[JointState, StateReading | None], None]
+
 
 class SuiteNode(Node):
     """A rclpy Node with the small helpers every suite node uses."""
