@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from ft_core.detection import DetectorConfig, LockDetector, Update
+from ft_core.detection import DECISION_PERIOD, DetectorConfig, LockDetector, Update
 from ft_core.plant import PlantConfig
 from paths import REPO
 
@@ -29,10 +29,10 @@ def old_detector() -> fixed_latency_detector.LockDetector:
 def run(commands, seconds: float, plant: PlantConfig | None = None,
         lock: tuple[tuple[int, ...], float] | None = None, noise: float = 1e-3,
         detector=None, pauses: tuple[tuple[float, float], ...] = (),
-        stop_at: float | None = None, seed: int = 0):
+        stop_at: float | None = None, seed: int = 0, dt: float = DT):
     """Record the plant under `commands(t)` and replay it: (detector, [(time, joints)])."""
     detector = detector or LockDetector(PANDA.lower, PANDA.upper)
-    data = record(commands, seconds, plant, lock, noise, pauses, stop_at, seed)
+    data = record(commands, seconds, plant, lock, noise, pauses, stop_at, seed, dt)
     return detector, replay(data, detector)
 
 
@@ -462,6 +462,42 @@ def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
         assert detector.measure(t, START) == Update()
     assert detector.measure(0.1, START) == Update()  # out of order: ignored
     assert detector.latest_time == 0.208
+
+
+@pytest.mark.parametrize(("dt", "every"), [(1 / 1000, 3), (1 / 500, 2), (1 / 250, 1)])
+def test_a_fast_stream_is_judged_at_most_every_decision_period(dt: float, every: int,
+                                                                 monkeypatch) -> None:
+    """Every measurement goes into the window; decisions come at most every 3 ms."""
+    decided = []
+    update = LockDetector._update
+
+    def counted(self, now, *args):
+        decided.append(now)
+        return update(self, now, *args)
+
+    monkeypatch.setattr(LockDetector, "_update", counted)
+    detector, events = run(moving_targets, 2.0, dt=dt)
+    assert len(decided) > 100 and events == [] and detector.not_observing is None
+    spacing = np.diff(decided)
+    assert spacing.min() >= DECISION_PERIOD
+    assert np.median(spacing) == pytest.approx(every * dt)
+
+
+@pytest.mark.parametrize("joint", [1, 3, 5])
+def test_a_lock_in_a_1_khz_stream_is_found_as_fast_as_at_250_hz(joint: int) -> None:
+    plant = PlantConfig(latency=0.01, response_time=0.02)
+
+    def commands(t: float) -> np.ndarray:
+        return moving_targets(t) if t < 2.5 else np.full(7, 0.2)
+
+    delays = {}
+    for dt in (1 / 250, 1 / 1000):
+        _, events = run(commands, 4.0, plant, lock=((joint,), 3.5), seed=joint, dt=dt)
+        assert events, f"joint {joint} not detected at {1 / dt:.0f} Hz"
+        time, joints = events[0]
+        assert joints == [joint]
+        delays[dt] = time - 3.5
+    assert delays[1 / 1000] <= delays[1 / 250] + DECISION_PERIOD
 
 
 def test_a_blind_caller_forbids_decisions() -> None:

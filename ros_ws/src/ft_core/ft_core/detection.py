@@ -87,6 +87,12 @@ gap longer than half a window, until the plant has been seen following commands
 for `follow_time` s (at start-up, after a command gap and after a plant fault), or
 while the caller says so (`measure(..., blind=reason)`).
 
+**Decision rate.** Every measurement enters the window; the fits and the rules above run
+at most every `DECISION_PERIOD` (2.5 ms): at every measurement up to 250 Hz, at every
+second one at 500 Hz, at every third at 1 kHz. A lock in a 1 kHz stream is then
+declared at most that period later than at every measurement, within the `persistence`
+it waits anyway.
+
 **A lock, not a plant fault.** A stalled joint's evidence counts only while at
 least one other commanded joint follows the model. When two or more joints stall
 and they outnumber those following, the plant as a whole is not following (a
@@ -115,6 +121,15 @@ LATENCY_GRID = np.round(np.arange(0.0, 0.1501, 0.01), 3)
 RESPONSE_TIME_GRID = np.array([0.0, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15])
 #: Shortest time (s) between two identification updates (each scores every model).
 IDENTIFY_PERIOD = 0.01
+#: Shortest time (s) between two decisions (`LockDetector.measure`). Every measurement
+#: goes into the window, but a 1 kHz stream is judged at every third one and a 500 Hz
+#: stream at every second: the window (80 ms by default) moves by 1 ms per measurement
+#: at 1 kHz, which changes its fit little, and deciding at each cost a 1 kHz monitor
+#: about a third of its CPU. Well short of 250 Hz's 4 ms, so that streams up to that
+#: rate, with up to 1.5 ms of jitter, are still judged at every measurement, and not an
+#: exact multiple of a common period, so that rounding in the stamps' differences
+#: (3 ms coming out as 2.9999 ms) cannot skip one more.
+DECISION_PERIOD = 0.0025
 #: Widening of the plausible set: latency below and above (s), response-time grid steps.
 LATENCY_MARGIN = (0.01, 0.02)
 RESPONSE_STEPS = 1
@@ -751,6 +766,8 @@ class LockDetector:
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
         self._into_window(float(time), np.ascontiguousarray(position, dtype=float))
+        if blind is None and time - self._last_update < DECISION_PERIOD:
+            return Update()  # in the window; judged at the next decision
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or self._gap_reason(time)
