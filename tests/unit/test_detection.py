@@ -467,7 +467,7 @@ def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
 @pytest.mark.parametrize(("dt", "every"), [(1 / 1000, 3), (1 / 500, 2), (1 / 250, 1)])
 def test_a_fast_stream_is_judged_at_most_every_decision_period(dt: float, every: int,
                                                                  monkeypatch) -> None:
-    """Every measurement goes into the window; decisions come at most every 3 ms."""
+    """Every measurement goes into the window; decisions come at most every 2.5 ms."""
     decided = []
     update = LockDetector._update
 
