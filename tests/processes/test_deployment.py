@@ -208,7 +208,8 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         seen, heard = len(g.states), len(g.commands)
         g.spin(3.0)
         # Right after the kill the sim and the controller sometimes stall (once in 9 runs on
-        # an idle machine, 0.3 s without joint states; once in CI, 9 joint states in 3 s):
+        # an idle machine, 0.3 s without joint states; once in CI, 9 joint states in 3 s),
+        # waiting in publish on the killed reader's shared-memory lock (docs/controller.md):
         # spin on until there is motion to judge. The stall is measured below, allowed for.
         g.wait(lambda: len(g.states) - seen >= 10, 10.0, "10 joint states after the kill")
         states = g.states[seen:]

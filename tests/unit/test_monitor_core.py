@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -217,9 +219,6 @@ def test_a_new_monitor_has_loaded_the_detectors_compiled_code() -> None:
     callbacks for 5-20 ms of CPU each during its first seconds (0.4 s in all), and on a
     busy machine the controller's guard of a dead monitor fired on a live one.
     """
-    import subprocess
-    import sys
-
     kernels = ("_ingest", "_add_command", "_accumulate", "_window_fit", "_classify",
                "_largest_step")
     code = ("from ft_core import detection, robots\n"
