@@ -2,7 +2,9 @@
 
 Property-based messages (NaN, infinities, 1e300 and 1e306, wrong lengths, unknown
 and duplicate names, huge arrays, stamps from 1970 or the future, odd frames) go
-straight into the nodes' callbacks, in-process. After each: no exception escaped,
+straight into the nodes' callbacks, in-process; the JointStates the nodes take as
+bytes (`ft_msgs_py.wire`) go in serialized, cut short, with a byte changed, or as
+random bytes. After each: no exception escaped,
 no callback used more than 50 ms of CPU, every command published is finite and within
 the velocity limits, and commands are explicit zeros while the input is bad; then
 good input returns and the node commands motion again.
@@ -27,6 +29,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message, serialize_message
 from rosutil import ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -69,13 +72,36 @@ def joint_state(data, node, field: str) -> JointState:
     return msg
 
 
+def wire_bytes(data, node, field: str) -> bytes:
+    """A hostile JointState as the middleware hands it over: serialized, or not one at all."""
+    kind = data.draw(st.sampled_from(["message", "cut", "changed", "random"]))
+    if kind == "random":
+        return data.draw(st.binary(max_size=600))
+    raw = serialize_message(joint_state(data, node, field))
+    if kind == "cut":
+        return raw[:data.draw(st.integers(0, len(raw) - 1))]
+    if kind == "changed":
+        at = data.draw(st.integers(0, len(raw) - 1))
+        return raw[:at] + bytes([raw[at] ^ data.draw(st.integers(1, 255))]) + raw[at + 1:]
+    return raw
+
+
+def taker(node, topic: str):
+    """The callback of the node's subscription to `topic`: what the executor hands bytes to."""
+    [subscription] = [s for s in node.subscriptions if s.topic_name == f"/{topic}"]
+    assert subscription.raw, f"{topic} is taken as a message, not as bytes"
+    return subscription.callback
+
+
 @contextmanager
 def recorded(node, publisher_attribute: str) -> Iterator[list]:
-    """Every message the node publishes through that publisher."""
+    """Every message the node publishes through that publisher (bytes deserialized)."""
     publisher = getattr(node, publisher_attribute)
     sent: list = []
     original = publisher.publish
-    publisher.publish = lambda msg: (sent.append(msg), original(msg))
+    publisher.publish = lambda msg: (sent.append(deserialize_message(msg, JointState) if
+                                                 isinstance(msg, bytes) else msg),
+                                     original(msg))
     try:
         yield sent
     finally:
@@ -142,7 +168,7 @@ def test_controller_survives_hostile_input(controller, data) -> None:
     with recorded(node, "_command_pub") as commands:
         kind = data.draw(st.sampled_from(["state", "twist", "pose", "locked"]))
         if kind == "state":
-            timed(node._on_state, joint_state(data, node, "position"))
+            timed(taker(node, "joint_states"), wire_bytes(data, node, "position"))
         elif kind == "locked":
             timed(node._on_locked, joint_state(data, node, "position"))
         elif kind == "twist":
@@ -178,12 +204,12 @@ def test_monitor_survives_hostile_input(monitor, data) -> None:
     with recorded(node, "_command_pub") as commands:
         kind = data.draw(st.sampled_from(["state", "command", "array", "declare"]))
         if kind == "state":
-            timed(node._on_state, joint_state(data, node, "position"))
+            timed(taker(node, "joint_states"), wire_bytes(data, node, "position"))
         elif kind == "declare":
             timed(node._on_declare, joint_state(data, node, "position"))
             node._on_reset(None, type("Response", (), {})())
         elif kind == "command":
-            timed(node._on_command, joint_state(data, node, "velocity"))
+            timed(taker(node, "ft/command_raw"), wire_bytes(data, node, "velocity"))
             assert commands, "no command out"
             if "ft/command_raw" in node.problems.active:  # refused: explicit zeros
                 assert np.all(np.array(commands[-1].velocity) == 0.0)
@@ -215,7 +241,7 @@ def sim():
 def test_sim_survives_hostile_input(sim, data) -> None:
     node = sim
     if data.draw(st.booleans()):
-        timed(node._on_command, joint_state(data, node, "velocity"))
+        timed(taker(node, "ft/command"), wire_bytes(data, node, "velocity"))
     else:
         timed(node._on_inject, JointState(name=data.draw(names)))
         node._on_reset(None, type("Response", (), {})())

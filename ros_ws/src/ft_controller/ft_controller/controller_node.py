@@ -24,7 +24,6 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import limits, robots, selfmotion
 from ft_core.controller import Controller, ControllerConfig
@@ -43,15 +42,15 @@ from ft_msgs_py import (
     publishers,
     qos,
     spin,
+    wire,
 )
 from ft_msgs_py.loop import LoopAccounting
 from ft_msgs_py.monitor_guard import MonitorGuard
-from ft_msgs_py.node import StateListener, StateReading, SuiteNode
+from ft_msgs_py.node import JointStateLike, StateListener, StateReading, SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
-from rclpy.time import Time as RosTime
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header
 from std_srvs.srv import Trigger
@@ -67,7 +66,7 @@ WATCHDOG_PERIOD = 0.05
 MONITOR_TIMEOUT = 0.05
 #: What takes each command by a call (`hand_commands_to`): (velocities in rad/s, the
 #: joints they are for, the stamp, the node clock's time in s).
-CommandTaker = Callable[[np.ndarray, Sequence[str], Time, float], None]
+CommandTaker = Callable[[np.ndarray, Sequence[str], wire.Stamp, float], None]
 
 #: The defaults of every parameter that configures the core: its dataclasses' own.
 _ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
@@ -151,7 +150,7 @@ class ControllerNode(SuiteNode):
         self.command_joints: list[str] = []  #: joint names in command order
         self._labels: list[str] = []
         # Built once per model, refilled each cycle (`_publish`).
-        self._command_msg = JointState()
+        self._command_writer = wire.CommandWriter([])
         self._metrics_msg = Float64MultiArray()
         self._last_result = None  # the last cycle's engine result (its metrics)
         self._q: np.ndarray | None = None
@@ -171,16 +170,16 @@ class ControllerNode(SuiteNode):
         self._plant_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._plant_array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                       qos.RELIABLE)
-        self._echo_subscription = self.create_subscription(
-            JointState, names.COMMAND, self._on_plant_command, qos.SENSOR_INPUT)
+        self._echo_subscription = self.subscribe_joint_states(
+            names.COMMAND, self._on_plant_command, qos.SENSOR_INPUT)
         self._metrics_pub = self.create_publisher(Float64MultiArray, names.METRICS, qos.RELIABLE)
         self._suspect_pub = self.create_publisher(JointState, names.SUSPECTED_FAILURE,
                                                   qos.RELIABLE)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
         self._markers_pub = self.create_publisher(MarkerArray, names.MARKERS, qos.RELIABLE)
-        self._state_subscription = self.create_subscription(
-            JointState, names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
+        self._state_subscription = self.subscribe_joint_states(
+            names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
         #: Takes each command as a call (`hand_commands_to`; ft-stack), or None.
         self._command_taker: CommandTaker | None = None
         self.create_subscription(TwistStamped, names.TARGET_TWIST, self._on_twist, qos.RELIABLE)
@@ -222,7 +221,7 @@ class ControllerNode(SuiteNode):
         self.robot, self._order, self.core = robot, order, core
         self.command_joints = [robot.joint_names[i] for i in order]
         self._labels = metrics.labels(self.command_joints)
-        self._command_msg = convert.joint_state(self.command_joints, Time())
+        self._command_writer = wire.CommandWriter(self.command_joints)
         self._metrics_msg = metrics.template(self._labels)
         self._last_result = None
         if self.param("critical_points"):
@@ -409,11 +408,11 @@ class ControllerNode(SuiteNode):
         return self._on_shared_state
 
     # ------------------------------------------------------------------ inputs
-    def _on_state(self, msg: JointState) -> None:
+    def _on_state(self, msg: JointStateLike) -> None:
         if self.robot is not None:
             self._q = self.read_joint_state(msg, self.robot.joint_names)
 
-    def _on_shared_state(self, msg: JointState, reading: StateReading | None) -> None:
+    def _on_shared_state(self, msg: JointStateLike, reading: StateReading | None) -> None:
         if reading is None or self.robot is None or reading[1] != self.robot.joint_names:
             self._on_state(msg)
             return
@@ -485,7 +484,7 @@ class ControllerNode(SuiteNode):
                              self.now())
 
     # ------------------------------------------------------------------- cycle
-    def _on_plant_command(self, msg: JointState) -> None:
+    def _on_plant_command(self, msg: JointStateLike) -> None:
         """What the plant is told (`ft/command`): the monitor's echo of a command, or not."""
         if self._guard.received((msg.header.stamp.sec, msg.header.stamp.nanosec),
                                 msg.velocity):
@@ -556,12 +555,12 @@ class ControllerNode(SuiteNode):
         core = self.core
         if core is None:
             return
-        clock = self.get_clock().now()
-        now = clock.nanoseconds * 1e-9
+        nanoseconds = self.now_ns()
+        now = nanoseconds * 1e-9
         step = core.step(self._q, now - self.state_stamp, now)
         for kind, problem in step.problems.items():
             self.problems.report(kind, problem)
-        self._publish(step.qd, clock, step.result)
+        self._publish(step.qd, nanoseconds, step.result)
         if step.new_suspect:
             self.get_logger().warning(
                 f"task error not decreasing while joints are commanded: "
@@ -569,29 +568,32 @@ class ControllerNode(SuiteNode):
                 f"{core.channel.residuals[step.suspect]:.2f} of the unexplained motion); "
                 "suspected, for the monitor to decide", throttle_duration_sec=5.0)
         if step.announce:
-            self._suspect_pub.publish(JointState(header=Header(stamp=clock.to_msg()),
+            self._suspect_pub.publish(JointState(header=Header(
+                stamp=convert.stamp_from_nanoseconds(nanoseconds)),
                                                  name=[self.robot.joint_names[step.suspect]]))
 
-    def _publish(self, qd_chain: np.ndarray, clock: RosTime | None = None, result=None) -> None:
-        """The command at `clock` (default now), with a cycle's result the metrics too.
+    def _publish(self, qd_chain: np.ndarray, nanoseconds: int | None = None,
+                 result=None) -> None:
+        """The command stamped `nanoseconds` (default now), with a cycle's result the metrics too.
 
-        In preallocated messages; the metrics only while someone subscribes to them (a
-        recorder, a plot). With a taker in this process (ft-stack) the command goes to it
-        as a call, and out on `ft/command_raw` only while someone else subscribes.
+        The command as bytes (`wire.CommandWriter`), the metrics in a preallocated
+        message and only while someone subscribes to them (a recorder, a plot). With a
+        taker in this process (ft-stack) the command goes to it as a call, and out on
+        `ft/command_raw` only while someone else subscribes.
         """
-        clock = self.get_clock().now() if clock is None else clock
-        msg = self._command_msg
-        msg.header.stamp = clock.to_msg()
+        nanoseconds = self.now_ns() if nanoseconds is None else nanoseconds
+        stamp = wire.Stamp(*divmod(nanoseconds, 1_000_000_000))
         self.last_command = qd_chain
         taker = self._command_taker
-        if taker is None or self._command_pub.get_subscription_count():
-            msg.velocity = qd_chain[self._order].tolist()
-            self._command_pub.publish(msg)
         if taker is None:
-            self._guard.sent((msg.header.stamp.sec, msg.header.stamp.nanosec), time.monotonic(),
-                             msg.velocity)
+            velocity = qd_chain[self._order]
+            self._command_pub.publish(self._command_writer.serialize(*stamp, velocity))
+            self._guard.sent(stamp, time.monotonic(), velocity)
         else:
-            taker(qd_chain, self.robot.joint_names, msg.header.stamp, clock.nanoseconds * 1e-9)
+            if self._command_pub.get_subscription_count():
+                self._command_pub.publish(self._command_writer.serialize(
+                    *stamp, qd_chain[self._order]))
+            taker(qd_chain, self.robot.joint_names, stamp, nanoseconds * 1e-9)
         if result is None:
             return
         self._last_result = result

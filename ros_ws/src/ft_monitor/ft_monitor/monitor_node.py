@@ -45,8 +45,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import locked_set, robots
 from ft_core.detection import DetectorConfig
 from ft_core.monitor import UNSEEN_AFTER, Change, Monitor, MonitorConfig
-from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin
-from ft_msgs_py.node import StateListener, SuiteNode
+from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin, wire
+from ft_msgs_py.node import JointStateLike, StateListener, SuiteNode
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
@@ -114,7 +114,7 @@ class MonitorNode(SuiteNode):
         self._order: list[int] = []
         self.command_joints: list[str] = []  #: joint names in command order
         # Built once per model, refilled for every command (`_publish_command`).
-        self._command_msg = JointState()
+        self._command_writer = wire.CommandWriter([])
         self._array_msg = Float64MultiArray()
         self._last_command = -math.inf
         self._unseen: list[str] = []  #: joints last reported unseen (`Monitor.unseen`)
@@ -124,15 +124,14 @@ class MonitorNode(SuiteNode):
         self._locked_pub = self.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
-        self._command_subscription = self.create_subscription(
-            JointState, names.COMMAND_RAW, self._on_command, qos.SENSOR_INPUT)
+        self._command_subscription = self.subscribe_joint_states(
+            names.COMMAND_RAW, self._on_command, qos.SENSOR_INPUT, self._on_malformed_command)
         self.create_subscription(Float64MultiArray, names.COMMAND_RAW_ARRAY, self._on_array,
                                  qos.SENSOR_INPUT)
-        self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
-                                 qos.SENSOR_INPUT)
+        self.subscribe_joint_states(names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
         #: Also given each joint state (`share_joint_states`; ft-stack).
         self._state_listeners: list[StateListener] = []
-        self._command_taker: Callable[[JointState], None] | None = None
+        self._command_taker: Callable[[JointStateLike], None] | None = None
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
@@ -183,7 +182,7 @@ class MonitorNode(SuiteNode):
             return
         self._order = order.tolist()
         joints = self.command_joints = [robot.joint_names[i] for i in self._order]
-        self._command_msg = convert.joint_state(joints, Time())
+        self._command_writer = wire.CommandWriter(joints)
         self._array_msg = Float64MultiArray(layout=MultiArrayLayout(dim=[MultiArrayDimension(
             label="joints", size=len(joints), stride=len(joints))]))
         directory, name = self.param("state_directory"), self.get_fully_qualified_name()
@@ -218,7 +217,7 @@ class MonitorNode(SuiteNode):
 
     # ------------------------------------------------------- one-process wiring
     def take_commands_by_call(
-            self) -> Callable[[np.ndarray, Sequence[str], Time, float], None]:
+            self) -> Callable[[np.ndarray, Sequence[str], wire.Stamp, float], None]:
         """Stop subscribing to `ft/command_raw`; returns what to call with each command.
 
         The call takes the velocities (rad/s) of the given joints, the command's stamp and
@@ -229,16 +228,17 @@ class MonitorNode(SuiteNode):
         self.destroy_subscription(self._command_subscription)
         return self._take_command
 
-    def _take_command(self, qd: np.ndarray, joints: Sequence[str], stamp: Time,
+    def _take_command(self, qd: np.ndarray, joints: Sequence[str], stamp: wire.Stamp,
                       now: float) -> None:
         if self.core is None:
             return
         if tuple(joints) != self.core.robot.joint_names:
-            self._on_command(convert.joint_state(joints, stamp, velocity=qd))
+            self._on_command(convert.joint_state(joints, Time(sec=stamp.sec, nanosec=stamp.nanosec),
+                                                 velocity=qd))
             return
         self._forward("ft/command_raw", qd, stamp, now)
 
-    def hand_commands_to(self, take: Callable[[JointState], None]) -> None:
+    def hand_commands_to(self, take: Callable[[JointStateLike], None]) -> None:
         """Give every command to `take` as a call too (a plant in the same process).
 
         `ft/command` is then published only while someone subscribes to it.
@@ -255,7 +255,7 @@ class MonitorNode(SuiteNode):
         self._state_listeners.append(listener)
 
     # ------------------------------------------------------------------ inputs
-    def _on_state(self, msg: JointState) -> None:
+    def _on_state(self, msg: JointStateLike) -> None:
         core = self.core
         reading = None if core is None else self.parse_joint_state(msg, core.robot.joint_names)
         for listener in self._state_listeners:
@@ -332,7 +332,7 @@ class MonitorNode(SuiteNode):
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: JointStateLike) -> None:
         if self.core is None:
             return
         now = self.now()
@@ -348,6 +348,12 @@ class MonitorNode(SuiteNode):
             return
         self._forward("ft/command_raw", qd, msg.header.stamp, now)
 
+    def _on_malformed_command(self, error: convert.MessageError) -> None:
+        """Bytes on `ft/command_raw` that are not a JointState: refused, zeros sent instead."""
+        if self.core is not None:
+            self._refuse("ft/command_raw", error,
+                         convert.stamp_from_nanoseconds(self.now_ns()), self.now())
+
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
         if self.core is None:
@@ -360,12 +366,14 @@ class MonitorNode(SuiteNode):
             return
         self._forward("ft/command_raw_array", qd, stamp, self.now())
 
-    def _refuse(self, topic: str, error: Exception | str, stamp: Time, now: float) -> None:
+    def _refuse(self, topic: str, error: Exception | str, stamp: Time | wire.Stamp,
+                now: float) -> None:
         """A malformed command: reported, and replaced by explicit zeros."""
         self.problems.report(topic, f"{error}: commanding zeros")
         self._publish_command(self.core.zeros(now), stamp)
 
-    def _forward(self, source: str, qd: np.ndarray, stamp: Time, now: float) -> None:
+    def _forward(self, source: str, qd: np.ndarray, stamp: Time | wire.Stamp,
+                 now: float) -> None:
         """A well-formed command from `source` (chain order, rad/s), published.
 
         Filtered by the core; an absurd one (`Monitor.absurd_command`) is refused instead.
@@ -380,16 +388,19 @@ class MonitorNode(SuiteNode):
         self._publish_command(self.core.command(qd, now), stamp)
 
     # ----------------------------------------------------------------- outputs
-    def _publish_command(self, qd_chain: np.ndarray, stamp: Time) -> None:
-        ordered = qd_chain[self._order].tolist()
-        self._command_msg.header.stamp = stamp
-        self._command_msg.velocity = ordered
+    def _publish_command(self, qd_chain: np.ndarray, stamp: Time | wire.Stamp) -> None:
+        """The command (chain order, rad/s) out on `ft/command` as bytes (`wire.CommandWriter`).
+
+        Also as a Float64MultiArray while someone subscribes to `ft/command_array`.
+        """
+        ordered = qd_chain[self._order]
+        serialized = self._command_writer.serialize(stamp.sec, stamp.nanosec, ordered)
         if self._command_taker is None or self._command_pub.get_subscription_count():
-            self._command_pub.publish(self._command_msg)
+            self._command_pub.publish(serialized)
         if self._command_taker is not None:
-            self._command_taker(self._command_msg)
+            self._command_taker(wire.read(serialized))
         if self._array_pub.get_subscription_count():  # a JointGroupVelocityController
-            self._array_msg.data = ordered
+            self._array_msg.data = ordered.tolist()
             self._array_pub.publish(self._array_msg)
 
     def destroy_node(self) -> None:

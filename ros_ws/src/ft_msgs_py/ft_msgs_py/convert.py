@@ -11,12 +11,16 @@ import functools
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, Twist
 from sensor_msgs.msg import JointState
+
+if TYPE_CHECKING:  # wire reads messages with this module's checks: no import at run time
+    from ft_msgs_py.wire import JointStateView, Stamp
 
 #: Most joint names a message may carry: a whole robot's joint_state_broadcaster has
 #: tens; more is an attack or a bug, refused before any per-name work.
@@ -27,7 +31,7 @@ class MessageError(ValueError):
     """A message that cannot be used; the text says why."""
 
 
-def stamp_seconds(stamp: Time) -> float:
+def stamp_seconds(stamp: Time | Stamp) -> float:
     """A message stamp in seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
 
@@ -73,7 +77,8 @@ def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> tuple[int, ..
     return tuple(position[j] for j in joints)
 
 
-def joint_vector(msg: JointState, joints: Sequence[str], field: str = "position") -> np.ndarray:
+def joint_vector(msg: JointState | JointStateView, joints: Sequence[str],
+                 field: str = "position") -> np.ndarray:
     """The `field` values of `joints`, in that order, from a JointState.
 
     Raises MessageError for duplicate names, a field whose length differs from
@@ -181,7 +186,7 @@ def pose_message(matrix: np.ndarray) -> Pose:
     return msg
 
 
-def message_time(stamp: Time, now: float, future_tolerance: float) -> float | None:
+def message_time(stamp: Time | Stamp, now: float, future_tolerance: float) -> float | None:
     """Seconds of a message stamp; 0 means `now`; None when it is ahead of `now`.
 
     `future_tolerance` (s) allows for clock skew between machines.

@@ -10,11 +10,15 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from typing import TYPE_CHECKING
 
 from builtin_interfaces.msg import Time
 from rclpy.impl.rcutils_logger import RcutilsLogger
 
 from ft_msgs_py import convert
+
+if TYPE_CHECKING:
+    from ft_msgs_py.wire import Stamp
 
 #: Stamps up to this far (s) ahead of the node's clock are accepted: clock skew, and
 #: with simulated time the node's /clock lagging the publisher's (0.1-0.6 s measured
@@ -64,7 +68,7 @@ class Episodes:
         """'kind: text; ...' of the active problems, sorted."""
         return "; ".join(f"{k}: {v}" for k, v in sorted(self.active.items()))
 
-    def message_time(self, kind: str, stamp: Time, now: float) -> float | None:
+    def message_time(self, kind: str, stamp: Time | Stamp, now: float) -> float | None:
         """Seconds of a message stamp (0: `now`); None, reported as a problem, if ahead."""
         seconds = convert.message_time(stamp, now, self.future_tolerance)
         if seconds is None:

@@ -4,20 +4,27 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import TypeAlias
 
 import numpy as np
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py import convert, diagnostics, parameters, thread_priority
+from ft_msgs_py import convert, diagnostics, parameters, thread_priority, wire
 from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
+
+#: A joint state as a callback gets it: read from its bytes (`SuiteNode.subscribe_joint_states`)
+#: or, from a harness calling the callback, the message itself.
+JointStateLike: TypeAlias = JointState | wire.JointStateView
 
 #: A joint state as a node of the same process read it: positions (rad), the joints they
 #: are of, stamp (s).
 StateReading = tuple[np.ndarray, tuple[str, ...], float]
 #: Given each joint state a node takes, with its reading (None: the message failed that
 #: node's checks of the message itself, `SuiteNode.parse_joint_state`).
-StateListener = Callable[[JointState, StateReading | None], None]
+StateListener = Callable[[JointStateLike, StateReading | None], None]
 
 
 class SuiteNode(Node):
@@ -29,6 +36,7 @@ class SuiteNode(Node):
         self.problems = Episodes(self.get_logger(), FUTURE_TOLERANCE_SIM_TIME if sim_time
                                  else FUTURE_TOLERANCE)
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
+        self._clock_handle = self.get_clock().handle  # rcl's clock: `now_ns` reads it
 
     def apply_thread_priority(self) -> str:
         """Apply the `thread_priority` parameter to the calling thread; how it is scheduled.
@@ -62,9 +70,39 @@ class SuiteNode(Node):
 
     def now(self) -> float:
         """The node clock (wall or simulated) in seconds."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self.now_ns() * 1e-9
 
-    def read_joint_state(self, msg: JointState, joints: Sequence[str],
+    def now_ns(self) -> int:
+        """The node clock (wall or simulated) in nanoseconds.
+
+        rcl's clock read without building an `rclpy.time.Time` (which checks its
+        arguments in Python): the same value `get_clock().now()` has, in a control
+        cycle's budget.
+        """
+        return self._clock_handle.get_now().nanoseconds
+
+    def subscribe_joint_states(
+            self, topic: str, callback: Callable[[JointStateLike], None],
+            qos_profile: QoSProfile,
+            malformed: Callable[[convert.MessageError], None] | None = None) -> Subscription:
+        """Take `topic`'s JointStates as bytes, read by `wire.read`: what `callback` gets.
+
+        Bytes that are not a JointState go to `malformed`, or by default are reported
+        under `topic` and go no further.
+        """
+        def take(raw: bytes) -> None:
+            try:
+                msg = wire.read(raw)
+            except convert.MessageError as error:
+                if malformed is not None:
+                    malformed(error)
+                else:
+                    self.problems.report(topic, f"{error}: message ignored")
+                return
+            callback(msg)
+        return self.create_subscription(JointState, topic, take, qos_profile, raw=True)
+
+    def read_joint_state(self, msg: JointStateLike, joints: Sequence[str],
                          absurd: Callable[[np.ndarray], str | None] | None = None,
                          ) -> np.ndarray | None:
         """Positions of `joints` from a joint state, or None (reported under `joint_states`).
@@ -76,7 +114,7 @@ class SuiteNode(Node):
         reading = self.parse_joint_state(msg, joints)
         return None if reading is None else self.accept_joint_state(*reading, absurd)
 
-    def parse_joint_state(self, msg: JointState, joints: Sequence[str],
+    def parse_joint_state(self, msg: JointStateLike, joints: Sequence[str],
                           ) -> tuple[np.ndarray, float] | None:
         """`read_joint_state`'s checks of the message alone: (positions, stamp in s) or None.
 

@@ -47,7 +47,7 @@ from ft_core import robots, swing
 from ft_core.physics import PhysicsPlant
 from ft_core.plant import CommandPath, Plant, PlantConfig
 from ft_msgs_py import convert, markers, names, parameters, qos, spin
-from ft_msgs_py.node import SuiteNode
+from ft_msgs_py.node import JointStateLike, SuiteNode
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import Executor
 from rclpy.parameter import Parameter
@@ -109,8 +109,8 @@ class SimNode(SuiteNode):
         self._steps = 0
         self._clock_pub = (self.create_publisher(ClockMessage, names.CLOCK, 10)
                            if self._own_clock else None)
-        self._command_subscription = self.create_subscription(
-            JointState, names.COMMAND, self._on_command, qos.SENSOR_INPUT)
+        self._command_subscription = self.subscribe_joint_states(
+            names.COMMAND, self._on_command, qos.SENSOR_INPUT)
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
         self.create_subscription(JointState, names.INJECT_FREE_SWING, self._on_free_swing,
                                  qos.RELIABLE)
@@ -196,7 +196,7 @@ class SimNode(SuiteNode):
         plant.free_swing_acceleration = lambda q, qd: swing.pendulum_acceleration(robot, q, qd)
         return plant
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: JointStateLike) -> None:
         if self.robot is None:
             return
         try:
@@ -206,7 +206,7 @@ class SimNode(SuiteNode):
             return
         self.plant.command(self.t, velocity)
 
-    def take_commands_by_call(self) -> Callable[[JointState], None]:
+    def take_commands_by_call(self) -> Callable[[JointStateLike], None]:
         """Stop subscribing to `ft/command`; returns what to call with each command instead.
 
         For a harness with the monitor in the same process (`ft_sim.scenario`).

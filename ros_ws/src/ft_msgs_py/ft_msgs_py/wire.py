@@ -1,0 +1,193 @@
+"""`sensor_msgs/JointState` as it travels: read from, and written to, its serialized bytes.
+
+rclpy turns every message it takes into a Python object field by field (each
+string, each array, each setter's type checks) and every message it publishes
+back again. For the one message a cycle takes and the one it sends, at 1 kHz, that
+was a tenth of the one-process stack's CPU (`make bench`, docs/benchmarks.md). The
+nodes take and send `JointState` as bytes (rclpy's `raw=True` subscriptions and
+publishing of `bytes`) through this module instead:
+
+- `read` gives a `JointStateView` that reads like the message (`header.stamp`,
+  `name`, `position`, `velocity`, `effort`), its arrays numpy views of the bytes;
+- `CommandWriter` keeps the serialized command of a fixed set of joints and writes
+  only its stamp and velocities into it each cycle.
+
+The layout is plain little-endian CDR (OMG CDR version 1, the encapsulation
+`CDR_LE` that rmw_fastrtps, rmw_cyclonedds and rosbag2 use for ROS 2 messages):
+after a 4-byte encapsulation header, each primitive is aligned to its size (at
+most 8) from the start of the payload, a string is a uint32 length (with its
+terminating NUL) and its bytes, a sequence a uint32 count and its elements.
+Another encapsulation goes to rclpy's own deserializer. Bytes that do not parse
+raise `convert.MessageError` saying why, like any other message the suite refuses;
+every length is checked against the bytes left before anything is read or
+allocated, so a hostile count costs nothing.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState
+
+from ft_msgs_py.convert import MAX_NAMES, MessageError
+
+#: The encapsulation header of little-endian plain CDR (representation id CDR_LE).
+CDR_LE = b"\x00\x01"
+_HEADER = 4  # bytes before the payload; alignment counts from its end
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+
+
+class Stamp(NamedTuple):
+    """A message stamp as `builtin_interfaces/Time` has it (s, ns)."""
+
+    sec: int
+    nanosec: int
+
+
+class Header(NamedTuple):
+    """`std_msgs/Header`: stamp and frame."""
+
+    stamp: Stamp
+    frame_id: str
+
+
+class JointStateView(NamedTuple):
+    """A `JointState` read from its bytes: the message's fields, its arrays read-only.
+
+    Reads like the message where the suite reads one (`convert.joint_vector`,
+    `Episodes.message_time`): `header.stamp.sec` / `.nanosec`, `name` (a tuple),
+    `position`, `velocity`, `effort` (float64 arrays, rad, rad/s, N m).
+    """
+
+    header: Header
+    name: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+class _Reader:
+    """A cursor over CDR_LE bytes; a read past the end raises MessageError.
+
+    `arrays`: where each float64 array read so far starts (bytes from the start).
+    """
+
+    def __init__(self, raw: bytes) -> None:
+        self.raw, self.at = raw, _HEADER
+        self.arrays: list[int] = []
+
+    def u32(self) -> int:
+        self.at += -(self.at - _HEADER) % 4
+        if self.at + 4 > len(self.raw):
+            raise MessageError(f"{len(self.raw)} bytes end inside a length")
+        (value,) = _U32.unpack_from(self.raw, self.at)
+        self.at += 4
+        return value
+
+    def string(self) -> str:
+        size = self.u32()
+        end = self.at + size
+        if size == 0 or end > len(self.raw) or self.raw[end - 1] != 0:
+            raise MessageError("a string runs past the end or lacks its NUL")
+        try:
+            text = self.raw[self.at:end - 1].decode()
+        except UnicodeDecodeError as error:
+            raise MessageError(f"a string is not UTF-8 ({error.reason})") from None
+        self.at = end
+        return text
+
+    def doubles(self) -> np.ndarray:
+        count = self.u32()
+        if count:
+            self.at += -(self.at - _HEADER) % 8
+        if 8 * count > len(self.raw) - self.at:
+            raise MessageError(f"{count} values run past the end")
+        self.arrays.append(self.at)
+        values = np.frombuffer(self.raw, "<f8", count, self.at)
+        self.at += 8 * count
+        return values
+
+
+#: The names of the last joint state read, as bytes (from their count) and as strings: a
+#: driver sends the same names in every message, and bytes equal to these read as these.
+_last_names: tuple[bytes, tuple[str, ...]] = (b"", ())
+
+
+def _parse(reader: _Reader) -> JointStateView:
+    """A JointState from CDR_LE bytes (MessageError if they are not one)."""
+    global _last_names
+    raw = reader.raw
+    if len(raw) < _HEADER + 8:
+        raise MessageError(f"{len(raw)} bytes: too short")
+    stamp = Stamp(*_STAMP.unpack_from(raw, _HEADER))
+    reader.at = _HEADER + 8
+    frame_id = reader.string()
+    reader.at += -(reader.at - _HEADER) % 4
+    start = reader.at
+    blob, names = _last_names
+    if blob and raw.startswith(blob, start):
+        reader.at += len(blob)
+    else:
+        count = reader.u32()
+        if count > MAX_NAMES:
+            raise MessageError(f"{count} joint names (more than {MAX_NAMES})")
+        names = tuple(reader.string() for _ in range(count))
+        _last_names = (raw[start:reader.at], names)
+    return JointStateView(Header(stamp, frame_id), names, reader.doubles(), reader.doubles(),
+                          reader.doubles())
+
+
+def read(raw: bytes) -> JointStateView:
+    """The joint state in `raw` (a `raw=True` subscription's bytes).
+
+    Plain little-endian CDR is read here; another CDR encapsulation goes to rclpy's
+    deserializer. Raises MessageError, saying why, for bytes that are not a
+    JointState (not CDR, truncated, a length past the end, a name that is not
+    UTF-8, more than `convert.MAX_NAMES` names).
+    """
+    if raw[:2] == CDR_LE:
+        return _parse(_Reader(raw))
+    if raw[:1] != b"\x00":  # every CDR representation identifier starts so
+        raise MessageError(f"{len(raw)} bytes that are not CDR (header {raw[:2].hex()})")
+    try:
+        msg = deserialize_message(raw, JointState)
+    except Exception as error:  # whatever rclpy raises for bytes it cannot read
+        raise MessageError(f"{len(raw)} bytes rclpy cannot read ({error})") from None
+    return JointStateView(Header(Stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                                 msg.header.frame_id), tuple(msg.name),
+                          np.asarray(msg.position, dtype=float),
+                          np.asarray(msg.velocity, dtype=float),
+                          np.asarray(msg.effort, dtype=float))
+
+
+class CommandWriter:
+    """The serialized velocity command (a `JointState`) of fixed joints, rewritten in place.
+
+    rclpy's serializer runs once, for the names; `serialize` writes the stamp and the
+    velocities into those bytes and returns a copy to publish.
+    """
+
+    def __init__(self, joints: Sequence[str]) -> None:
+        template = serialize_message(JointState(name=list(joints),
+                                                velocity=[0.0] * len(joints)))
+        reader = _Reader(template)
+        _parse(reader)
+        # Up to where the message ends: rclpy's buffer may hold a few bytes more, which
+        # readers as strict as rosbags' refuse.
+        self._bytes = bytearray(template[:reader.at])
+        self._count = len(joints)
+        self._velocity_at = reader.arrays[1]
+
+    def serialize(self, sec: int, nanosec: int, velocity: np.ndarray) -> bytes:
+        """The command's bytes with stamp `sec`, `nanosec` and `velocity` (rad/s, one per joint)."""
+        if len(velocity) != self._count:
+            raise ValueError(f"{len(velocity)} velocities for {self._count} joints")
+        _STAMP.pack_into(self._bytes, _HEADER, sec, nanosec)
+        start = self._velocity_at
+        self._bytes[start:start + 8 * self._count] = np.asarray(velocity, "<f8").tobytes()
+        return bytes(self._bytes)
