@@ -4,7 +4,8 @@
 
 It takes `joint_states` and, from a timer at `control_rate` (Hz), publishes a `JointState`
 of zero velocities for the joints it was last given on `ft/command`, on the suite's own
-executor loop (`ft_msgs_py.spin.run_node`: rclpy's EventsExecutor), with the suite's QoS.
+executor loop (`ft_msgs_py.spin.run_node`: rclpy's EventsExecutor), with the suite's QoS,
+both messages as bytes read and written as the suite's nodes do (`ft_msgs_py.wire`).
 No control, no filtering, no detection: its CPU per cycle is what one message in, one
 message out and one timer cost a Python node at that rate, below which no Python
 controller and monitor can go (docs/benchmarks.md, issue 28). Other `-p` overrides
@@ -13,7 +14,8 @@ controller and monitor can go (docs/benchmarks.md, issue 28). Other `-p` overrid
 
 from __future__ import annotations
 
-from ft_msgs_py import names, qos, spin
+import numpy as np
+from ft_msgs_py import names, qos, spin, wire
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -24,21 +26,24 @@ class FloorNode(Node):
     def __init__(self) -> None:
         super().__init__("rclpy_floor")
         rate = self.declare_parameter("control_rate", 1000.0).value
-        self._command = JointState()
+        self._joints: tuple[str, ...] = ()
+        self._writer = wire.CommandWriter([])
+        self._reader = wire.JointStateReader()
+        self._clock_handle = self.get_clock().handle
         self._publisher = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
-                                 qos.SENSOR_INPUT)
+                                 qos.SENSOR_INPUT, raw=True)
         self.create_timer(1.0 / rate, self._cycle)
 
-    def _on_state(self, msg: JointState) -> None:
-        if list(msg.name) != self._command.name:
-            self._command.name = list(msg.name)
+    def _on_state(self, raw: bytes) -> None:
+        joints = self._reader.read(raw).name
+        if joints != self._joints:
+            self._joints, self._writer = joints, wire.CommandWriter(joints)
 
     def _cycle(self) -> None:
-        msg = self._command
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.velocity = [0.0] * len(msg.name)
-        self._publisher.publish(msg)
+        sec, nanosec = divmod(self._clock_handle.get_now().nanoseconds, 1_000_000_000)
+        self._publisher.publish(self._writer.serialize(sec, nanosec,
+                                                       np.zeros(len(self._joints))))
 
 
 if __name__ == "__main__":

@@ -71,3 +71,45 @@ def test_a_harness_node_offers_no_services() -> None:
         plain_services = len(list(spin.rclpy.create_node("plain", context=context).services))
         assert plain_services >= 7  # six parameter services and the type description
         node.destroy_node()
+
+
+def test_a_teardown_that_hangs_ends_the_process_after_the_timeout(tmp_path) -> None:
+    """The middleware's teardown may deadlock (Fast DDS, `spin` docstring): the process still ends.
+
+    A node whose `destroy_node` never returns stands in for it, in a process of its own
+    stopped by SIGTERM as a launch system stops it.
+    """
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "hang.py"
+    script.write_text(
+        "import threading, time\n"
+        "from ft_msgs_py import spin\n"
+        "from rclpy.node import Node\n"
+        "class Hang(Node):\n"
+        "    def __init__(self):\n"
+        "        super().__init__('hang_on_teardown')\n"
+        "        print('spinning', flush=True)\n"
+        "    def stop(self):\n"
+        "        print('stopped', flush=True)\n"
+        "    def destroy_node(self):\n"
+        "        threading.Event().wait()\n"
+        "spin.TEARDOWN_TIMEOUT = 1.0\n"
+        "spin.run_node(Hang, [])\n")
+    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout.readline() == "spinning\n"
+        process.send_signal(signal.SIGTERM)
+        start = time.monotonic()
+        status = process.wait(timeout=30)
+        took = time.monotonic() - start
+    finally:
+        process.kill()
+    out, err = process.communicate()
+    assert status == 0, err
+    assert out == "stopped\n"  # the node's stop() (its zeros) ran before the teardown
+    assert "teardown took more than 1 s" in err
+    assert 1.0 <= took < 20.0

@@ -132,6 +132,7 @@ class MonitorNode(SuiteNode):
         #: Also given each joint state (`share_joint_states`; ft-stack).
         self._state_listeners: list[StateListener] = []
         self._command_taker: Callable[[JointStateLike], None] | None = None
+        self._taker_reader = wire.JointStateReader()  # the commands it is given, as read
         self.create_subscription(JointState, names.DECLARE_FAILURE, self._on_declare,
                                  qos.RELIABLE)
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
@@ -398,7 +399,7 @@ class MonitorNode(SuiteNode):
         if self._command_taker is None or self._command_pub.get_subscription_count():
             self._command_pub.publish(serialized)
         if self._command_taker is not None:
-            self._command_taker(wire.read(serialized))
+            self._command_taker(self._taker_reader.read(serialized))
         if self._array_pub.get_subscription_count():  # a JointGroupVelocityController
             self._array_msg.data = ordered.tolist()
             self._array_pub.publish(self._array_msg)

@@ -85,14 +85,16 @@ class SuiteNode(Node):
             self, topic: str, callback: Callable[[JointStateLike], None],
             qos_profile: QoSProfile,
             malformed: Callable[[convert.MessageError], None] | None = None) -> Subscription:
-        """Take `topic`'s JointStates as bytes, read by `wire.read`: what `callback` gets.
+        """Take `topic`'s JointStates as bytes: `callback` gets what a JointStateReader reads.
 
         Bytes that are not a JointState go to `malformed`, or by default are reported
         under `topic` and go no further.
         """
+        reader = wire.JointStateReader()
+
         def take(raw: bytes) -> None:
             try:
-                msg = wire.read(raw)
+                msg = reader.read(raw)
             except convert.MessageError as error:
                 if malformed is not None:
                     malformed(error)

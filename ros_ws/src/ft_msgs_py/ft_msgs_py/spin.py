@@ -12,6 +12,13 @@ every spin, which at 500 Hz is the difference between keeping the control rate a
 losing some 2 % of the cycles (`make bench`, docs/benchmarks.md). Timers on simulated time
 (`use_sim_time`) fire as with the SingleThreadedExecutor: node tests run on both.
 
+Once every node has stopped (its zeros sent and acknowledged), the middleware's
+teardown gets TEARDOWN_TIMEOUT s; after that the process exits anyway, saying so on
+stderr. Fast DDS 2.14 can deadlock destroying a participant while its discovery thread
+handles a remote endpoint going away (seen in `make bench`: the main thread waiting in
+`DomainParticipant::set_listener` for a listener blocked on a mutex it holds, at
+most of a core, forever): a process asked to stop must not outlive its work.
+
 Before spinning, the objects built at start-up (the robot model, numba's compiled
 code, rclpy's entities: some 140 000 in the one-process bench) are frozen out of
 the cyclic garbage collector's sight (`settle_heap`). Otherwise every full
@@ -22,7 +29,9 @@ cycles at 500 Hz), about once every one or two minutes.
 from __future__ import annotations
 
 import gc
+import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -45,6 +54,8 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 CHECK_PERIOD = 0.1
 #: s each reliable publisher waits, on shutdown, for its last messages to be acknowledged.
 DELIVERY_TIMEOUT = 1.0
+#: s the middleware's teardown may take once the nodes stopped; then the process exits.
+TEARDOWN_TIMEOUT = 5.0
 
 
 def settle_heap() -> None:
@@ -152,7 +163,8 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     interpreter, one heap, no context switch between them. On SIGINT or SIGTERM every
     node's `stop()` runs, in order, and its reliable publishers get up to
     DELIVERY_TIMEOUT s each for their subscribers to acknowledge what it sent (the zeros:
-    a driver that holds its last command must have them before the process is gone).
+    a driver that holds its last command must have them before the process is gone);
+    the teardown that follows is bounded by TEARDOWN_TIMEOUT (`exit_if_stuck`).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
@@ -174,9 +186,29 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
                 stop()
                 for publisher in node.publishers:
                     publisher.wait_for_all_acked(Duration(seconds=DELIVERY_TIMEOUT))
+        guard = exit_if_stuck(TEARDOWN_TIMEOUT)
         executor.shutdown()
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
+        guard.cancel()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def exit_if_stuck(seconds: float) -> threading.Timer:
+    """A started timer that ends the process (status 0) unless cancelled within `seconds`.
+
+    For a teardown that may hang in the middleware after the work is done; the
+    process says on stderr that it gave up waiting.
+    """
+    def give_up() -> None:
+        sys.stderr.write(f"[ft] the middleware's teardown took more than {seconds:g} s "
+                         "(nodes already stopped): exiting without it\n")
+        sys.stderr.flush()
+        os._exit(0)
+
+    timer = threading.Timer(seconds, give_up)
+    timer.daemon = True
+    timer.start()
+    return timer

@@ -7,8 +7,9 @@ was a tenth of the one-process stack's CPU (`make bench`, docs/benchmarks.md). T
 nodes take and send `JointState` as bytes (rclpy's `raw=True` subscriptions and
 publishing of `bytes`) through this module instead:
 
-- `read` gives a `JointStateView` that reads like the message (`header.stamp`,
-  `name`, `position`, `velocity`, `effort`), its arrays numpy views of the bytes;
+- `JointStateReader.read` gives a `JointStateView` that reads like the message
+  (`header.stamp`, `name`, `position`, `velocity`, `effort`), its arrays numpy views of
+  the bytes;
 - `CommandWriter` keeps the serialized command of a fixed set of joints and writes
   only its stamp and velocities into it each cycle.
 
@@ -113,14 +114,13 @@ class _Reader:
         return values
 
 
-#: The names of the last joint state read, as bytes (from their count) and as strings: a
-#: driver sends the same names in every message, and bytes equal to these read as these.
-_last_names: tuple[bytes, tuple[str, ...]] = (b"", ())
+def _parse(reader: _Reader, known: tuple[bytes, tuple[str, ...]] = (b"", ()),
+           ) -> tuple[JointStateView, bytes]:
+    """A JointState from CDR_LE bytes, and the bytes of its names (from their count).
 
-
-def _parse(reader: _Reader) -> JointStateView:
-    """A JointState from CDR_LE bytes (MessageError if they are not one)."""
-    global _last_names
+    Names whose bytes equal `known`'s are `known`'s strings, not decoded again.
+    MessageError if the bytes are not a JointState.
+    """
     raw = reader.raw
     if len(raw) < _HEADER + 8:
         raise MessageError(f"{len(raw)} bytes: too short")
@@ -129,7 +129,7 @@ def _parse(reader: _Reader) -> JointStateView:
     frame_id = reader.string()
     reader.at += -(reader.at - _HEADER) % 4
     start = reader.at
-    blob, names = _last_names
+    blob, names = known
     if blob and raw.startswith(blob, start):
         reader.at += len(blob)
     else:
@@ -137,32 +137,44 @@ def _parse(reader: _Reader) -> JointStateView:
         if count > MAX_NAMES:
             raise MessageError(f"{count} joint names (more than {MAX_NAMES})")
         names = tuple(reader.string() for _ in range(count))
-        _last_names = (raw[start:reader.at], names)
-    return JointStateView(Header(stamp, frame_id), names, reader.doubles(), reader.doubles(),
-                          reader.doubles())
+        blob = raw[start:reader.at]
+    return (JointStateView(Header(stamp, frame_id), names, reader.doubles(), reader.doubles(),
+                           reader.doubles()), blob)
 
 
-def read(raw: bytes) -> JointStateView:
-    """The joint state in `raw` (a `raw=True` subscription's bytes).
+class JointStateReader:
+    """Reads the JointStates of one stream from their bytes (a `raw=True` subscription's).
 
-    Plain little-endian CDR is read here; another CDR encapsulation goes to rclpy's
-    deserializer. Raises MessageError, saying why, for bytes that are not a
-    JointState (not CDR, truncated, a length past the end, a name that is not
-    UTF-8, more than `convert.MAX_NAMES` names).
+    Keeps the names of the last message read: a driver sends the same names in every
+    message, and bytes equal to those read as those, undecoded.
     """
-    if raw[:2] == CDR_LE:
-        return _parse(_Reader(raw))
-    if raw[:1] != b"\x00":  # every CDR representation identifier starts so
-        raise MessageError(f"{len(raw)} bytes that are not CDR (header {raw[:2].hex()})")
-    try:
-        msg = deserialize_message(raw, JointState)
-    except Exception as error:  # whatever rclpy raises for bytes it cannot read
-        raise MessageError(f"{len(raw)} bytes rclpy cannot read ({error})") from None
-    return JointStateView(Header(Stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
-                                 msg.header.frame_id), tuple(msg.name),
-                          np.asarray(msg.position, dtype=float),
-                          np.asarray(msg.velocity, dtype=float),
-                          np.asarray(msg.effort, dtype=float))
+
+    def __init__(self) -> None:
+        self._names: tuple[bytes, tuple[str, ...]] = (b"", ())
+
+    def read(self, raw: bytes) -> JointStateView:
+        """The joint state in `raw`.
+
+        Plain little-endian CDR is read here; another CDR encapsulation goes to rclpy's
+        deserializer. Raises MessageError, saying why, for bytes that are not a
+        JointState (not CDR, truncated, a length past the end, a name that is not
+        UTF-8, more than `convert.MAX_NAMES` names).
+        """
+        if raw[:2] == CDR_LE:
+            view, blob = _parse(_Reader(raw), self._names)
+            self._names = (blob, view.name)
+            return view
+        if raw[:1] != b"\x00":  # every CDR representation identifier starts so
+            raise MessageError(f"{len(raw)} bytes that are not CDR (header {raw[:2].hex()})")
+        try:
+            msg = deserialize_message(raw, JointState)
+        except Exception as error:  # whatever rclpy raises for bytes it cannot read
+            raise MessageError(f"{len(raw)} bytes rclpy cannot read ({error})") from None
+        return JointStateView(Header(Stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                                     msg.header.frame_id), tuple(msg.name),
+                              np.asarray(msg.position, dtype=float),
+                              np.asarray(msg.velocity, dtype=float),
+                              np.asarray(msg.effort, dtype=float))
 
 
 class CommandWriter:
