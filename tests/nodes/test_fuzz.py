@@ -287,3 +287,16 @@ def test_parameter_services_refuse_hostile_values_without_crashing(request, whic
         with recorded(node, "_command_pub") as commands:
             node._control()
         assert_safe(commands)
+
+
+def test_bytes_that_are_not_a_command_give_zeros_saying_why(monitor) -> None:
+    node = monitor
+    take = taker(node, "ft/command_raw")
+    with recorded(node, "_command_pub") as commands:
+        take(serialize_message(convert.joint_state(NAMES, node.get_clock().now().to_msg(),
+                                                   velocity=[0.1] * 7)))
+        assert commands and np.allclose(commands[-1].velocity, 0.1)
+        take(b"\x00\x01\x00\x00\x00\x00")
+    assert len(commands) == 2, "no command out for the malformed bytes"
+    assert np.all(np.array(commands[-1].velocity) == 0.0)
+    assert "too short" in node.problems.active["ft/command_raw"]

@@ -352,8 +352,9 @@ class MonitorNode(SuiteNode):
     def _on_malformed_command(self, error: convert.MessageError) -> None:
         """Bytes on `ft/command_raw` that are not a JointState: refused, zeros sent instead."""
         if self.core is not None:
-            self._refuse("ft/command_raw", error,
-                         convert.stamp_from_nanoseconds(self.now_ns()), self.now())
+            nanoseconds = self.now_ns()
+            self._refuse("ft/command_raw", error, convert.stamp_from_nanoseconds(nanoseconds),
+                         nanoseconds * 1e-9)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
