@@ -3,7 +3,7 @@
 rclpy turns every message it takes into a Python object field by field (each
 string, each array, each setter's type checks) and every message it publishes
 back again. For the one message a cycle takes and the one it sends, at 1 kHz, that
-was a tenth of the one-process stack's CPU (`make bench`, docs/benchmarks.md). The
+was some 7 % of the one-process stack's CPU (`make bench`, docs/benchmarks.md). The
 nodes take and send `JointState` as bytes (rclpy's `raw=True` subscriptions and
 publishing of `bytes`) through this module instead:
 
@@ -14,7 +14,7 @@ publishing of `bytes`) through this module instead:
   only its stamp and velocities into it each cycle.
 
 The layout is plain little-endian CDR (OMG CDR version 1, the encapsulation
-`CDR_LE` that rmw_fastrtps, rmw_cyclonedds and rosbag2 use for ROS 2 messages):
+`CDR_LE` that rmw_fastrtps writes for ROS 2 messages and rosbag2 records):
 after a 4-byte encapsulation header, each primitive is aligned to its size (at
 most 8) from the start of the payload, a string is a uint32 length (with its
 terminating NUL) and its bytes, a sequence a uint32 count and its elements.
