@@ -41,9 +41,8 @@ class FloorNode(Node):
             self._joints, self._writer = joints, wire.CommandWriter(joints)
 
     def _cycle(self) -> None:
-        sec, nanosec = divmod(self._clock_handle.get_now().nanoseconds, 1_000_000_000)
-        self._publisher.publish(self._writer.serialize(sec, nanosec,
-                                                       np.zeros(len(self._joints))))
+        stamp = wire.Stamp.of(self._clock_handle.get_now().nanoseconds)
+        self._publisher.publish(self._writer.serialize(*stamp, np.zeros(len(self._joints))))
 
 
 if __name__ == "__main__":

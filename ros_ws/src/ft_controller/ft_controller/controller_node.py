@@ -582,17 +582,15 @@ class ControllerNode(SuiteNode):
         `ft/command_raw` only while someone else subscribes.
         """
         nanoseconds = self.now_ns() if nanoseconds is None else nanoseconds
-        stamp = wire.Stamp(*divmod(nanoseconds, 1_000_000_000))
+        stamp = wire.Stamp.of(nanoseconds)
         self.last_command = qd_chain
         taker = self._command_taker
-        if taker is None:
+        if taker is None or self._command_pub.get_subscription_count():
             velocity = qd_chain[self._order]
             self._command_pub.publish(self._command_writer.serialize(*stamp, velocity))
+        if taker is None:
             self._guard.sent(stamp, time.monotonic(), velocity)
         else:
-            if self._command_pub.get_subscription_count():
-                self._command_pub.publish(self._command_writer.serialize(
-                    *stamp, qd_chain[self._order]))
             taker(qd_chain, self.robot.joint_names, stamp, nanoseconds * 1e-9)
         if result is None:
             return

@@ -353,8 +353,7 @@ class MonitorNode(SuiteNode):
         """Bytes on `ft/command_raw` that are not a JointState: refused, zeros sent instead."""
         if self.core is not None:
             nanoseconds = self.now_ns()
-            self._refuse("ft/command_raw", error, convert.stamp_from_nanoseconds(nanoseconds),
-                         nanoseconds * 1e-9)
+            self._refuse("ft/command_raw", error, wire.Stamp.of(nanoseconds), nanoseconds * 1e-9)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
         """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""

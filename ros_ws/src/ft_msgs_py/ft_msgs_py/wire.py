@@ -49,6 +49,11 @@ class Stamp(NamedTuple):
     sec: int
     nanosec: int
 
+    @classmethod
+    def of(cls, nanoseconds: int) -> Stamp:
+        """The stamp of a clock reading in integer nanoseconds (`SuiteNode.now_ns`)."""
+        return cls(*divmod(nanoseconds, 1_000_000_000))
+
 
 class Header(NamedTuple):
     """`std_msgs/Header`: stamp and frame."""
@@ -73,14 +78,10 @@ class JointStateView(NamedTuple):
 
 
 class _Reader:
-    """A cursor over CDR_LE bytes; a read past the end raises MessageError.
-
-    `arrays`: where each float64 array read so far starts (bytes from the start).
-    """
+    """A cursor over CDR_LE bytes; a read past the end raises MessageError."""
 
     def __init__(self, raw: bytes) -> None:
         self.raw, self.at = raw, _HEADER
-        self.arrays: list[int] = []
 
     def u32(self) -> int:
         self.at += -(self.at - _HEADER) % 4
@@ -108,7 +109,6 @@ class _Reader:
             self.at += -(self.at - _HEADER) % 8
         if 8 * count > len(self.raw) - self.at:
             raise MessageError(f"{count} values run past the end")
-        self.arrays.append(self.at)
         values = np.frombuffer(self.raw, "<f8", count, self.at)
         self.at += 8 * count
         return values
@@ -193,7 +193,8 @@ class CommandWriter:
         # readers as strict as rosbags' refuse.
         self._bytes = bytearray(template[:reader.at])
         self._count = len(joints)
-        self._velocity_at = reader.arrays[1]
+        # The velocities end where the last field, the empty efforts' count, begins.
+        self._velocity_at = reader.at - 4 - 8 * self._count
 
     def serialize(self, sec: int, nanosec: int, velocity: np.ndarray) -> bytes:
         """The command's bytes with stamp `sec`, `nanosec` and `velocity` (rad/s, one per joint)."""
