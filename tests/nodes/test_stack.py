@@ -13,6 +13,7 @@ from ft_sim import stack
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rosutil import ros_context
 from sensor_msgs.msg import JointState
 
@@ -110,3 +111,70 @@ def test_a_joint_state_read_by_the_monitor_is_not_parsed_again() -> None:
         take(JointState(), (q, joints, 6.5))
         assert controller._q is None and "backwards" in controller.problems.active["joint_states"]
         controller.destroy_node()
+
+
+def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
+    """ft-stack cycles on joint states: at once, after the monitor, at most two a period.
+
+    When the states stop, the control timer cycles again: zeros once they are stale.
+    """
+    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
+        common = {"robot_model": "panda", "task_space": "position", "control_rate": 10.0}
+        controller = ControllerNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in common.items()])
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**common, "state_directory": state}.items()])
+        stack.compose(controller, monitor)
+        take = next(s.callback for s in monitor.subscriptions
+                    if s.topic_name == "/" + names.JOINT_STATES)
+        calls: list[str] = []
+        observe, step = monitor.core.observe, controller.core.step
+        monitor.core.observe = lambda *a: calls.append("observe") or observe(*a)
+        controller.core.step = lambda *a: calls.append("step") or step(*a)
+        joints = controller.robot.joint_names
+
+        def state() -> bytes:
+            stamp = convert.stamp_from_nanoseconds(controller.now_ns())
+            return serialize_message(convert.joint_state(joints, stamp, position=START))
+
+        cycles = controller.accounting.cycles
+        take(state())  # no executor spins: the call itself runs the cycle
+        assert calls == ["observe", "step"], calls
+        assert controller.accounting.cycles == cycles + 1
+        # Back to back within one control period (0.1 s): one more cycle, then none.
+        for _ in range(4):
+            take(state())
+        assert controller.accounting.cycles == cycles + 2, controller.accounting.cycles
+        assert calls.count("observe") == 5, "the monitor missed states"
+        # The states stop: the control timer cycles, and commands zeros once they are stale.
+        executor.add_node(controller)
+        executor.add_node(monitor)
+        before = controller.accounting.cycles
+        assert spin_until(executor, lambda: controller.accounting.cycles >= before + 3, 10.0), \
+            "no cycle from the control timer after the states stopped"
+        assert "joint_states" in controller.problems.active
+        assert not np.any(controller.last_command), controller.last_command
+        controller.destroy_node()
+        monitor.destroy_node()
+
+
+def test_with_simulated_time_the_clock_still_drives_the_cycles() -> None:
+    """A state may come before the /clock of its instant: the timer ticks as before."""
+    with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
+        common = {"robot_model": "panda", "use_sim_time": True}
+        controller = ControllerNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in common.items()])
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**common, "state_directory": state}.items()])
+        stack.compose(controller, monitor)
+        take = next(s.callback for s in monitor.subscriptions
+                    if s.topic_name == "/" + names.JOINT_STATES)
+        observed = monitor.core.detector.latest_time
+        stamp = convert.stamp_from_nanoseconds(1_000_000)
+        take(serialize_message(convert.joint_state(controller.robot.joint_names, stamp,
+                                                   position=START)))
+        assert monitor.core.detector.latest_time > observed, "the monitor never took the state"
+        assert controller.accounting.cycles == 0
+        assert controller._timer.timer_period_ns == round(1e9 / controller.param("control_rate"))
+        controller.destroy_node()
+        monitor.destroy_node()

@@ -249,8 +249,10 @@ class MonitorNode(SuiteNode):
     def share_joint_states(self, listener: StateListener) -> None:
         """Give `listener` every `joint_states` message this node takes, with its reading.
 
-        The reading is (positions in rad, the joints they are of, stamp in s) where the
-        message passed this node's checks of the message itself (`parse_joint_state`),
+        Called after this node has observed the state, so a control cycle the listener
+        runs (ft-stack) is filtered with the locks that state revealed. The reading is
+        (positions in rad, the joints they are of, stamp in s) where the message passed
+        this node's checks of the message itself (`parse_joint_state`),
         else None: a node of the same process need not parse it again.
         """
         self._state_listeners.append(listener)
@@ -259,12 +261,15 @@ class MonitorNode(SuiteNode):
     def _on_state(self, msg: JointStateLike) -> None:
         core = self.core
         reading = None if core is None else self.parse_joint_state(msg, core.robot.joint_names)
-        for listener in self._state_listeners:
+        if reading is not None:
+            self._observe(reading)
+        for listener in self._state_listeners:  # after: a cycle they run sees this update
             listener(msg, None if reading is None else (reading[0], core.robot.joint_names,
                                                         reading[1]))
-        if reading is None:
-            return
-        q = self.accept_joint_state(*reading, core.absurd)
+
+    def _observe(self, reading: tuple[np.ndarray, float]) -> None:
+        """A joint state that passed `parse_joint_state`, to the detector if accepted."""
+        q = self.accept_joint_state(*reading, self.core.absurd)
         if q is None:
             return
         listeners = (self._command_taker is not None or self._command_pub.get_subscription_count()
