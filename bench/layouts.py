@@ -11,9 +11,9 @@ process per core beside them (`ft_sim.cpu_load.busy_cores`):
 - one process: `ft-sim` and `ft-stack` (controller and monitor on one executor,
   connected by calls: `ft_sim.stack.compose`);
 - the floor, at each rate (idle, normal scheduler): `ft-sim` and a bare rclpy node
-  (`rclpy_floor.py`) that takes `joint_states` and publishes a command from a timer,
-  nothing else: what any Python node exchanging those two messages pays, below which
-  `ft-stack` cannot go.
+  (`rclpy_floor.py`) that takes `joint_states` and publishes a command for each (as
+  `ft-stack` cycles on each joint state), nothing else: what any Python node exchanging
+  those two messages pays, below which `ft-stack` cannot go.
 
 These use the Panda's position task; at each of `--pose-rates` (250 and 1000 Hz) both
 layouts run once more with the pose task (idle, normal scheduler). The table also

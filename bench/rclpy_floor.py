@@ -1,15 +1,16 @@
 """A bare rclpy node doing only what ft-stack must do with the plant: the floor of `layouts.py`.
 
-    python bench/rclpy_floor.py --ros-args -p control_rate:=1000.0
+    python bench/rclpy_floor.py
 
-It takes `joint_states` and, from a timer at `control_rate` (Hz), publishes a `JointState`
-of zero velocities for the joints it was last given on `ft/command`, on the suite's own
-executor loop (`ft_msgs_py.spin.run_node`: rclpy's EventsExecutor), with the suite's QoS,
-both messages as bytes read and written as the suite's nodes do (`ft_msgs_py.wire`).
-No control, no filtering, no detection: its CPU per cycle is what one message in, one
-message out and one timer cost a Python node at that rate, below which no Python
-controller and monitor can go (docs/benchmarks.md, issue 28). Other `-p` overrides
-(the layouts' common arguments) are ignored.
+It takes `joint_states` and, on each, publishes a `JointState` of zero velocities for its
+joints on `ft/command` (as `ft-stack` runs its control cycle on each joint state), on the
+suite's own executor loop (`ft_msgs_py.spin.run_node`: rclpy's EventsExecutor), with the
+suite's QoS, both messages as bytes read and written as the suite's nodes do
+(`ft_msgs_py.wire`).
+No control, no filtering, no detection: its CPU per cycle is what one message in and one
+message out cost a Python node at the sim's rate, below which no Python controller and
+monitor can go (docs/benchmarks.md, issue 28). `-p` overrides (the layouts' common
+arguments) are ignored.
 """
 
 from __future__ import annotations
@@ -21,11 +22,10 @@ from sensor_msgs.msg import JointState
 
 
 class FloorNode(Node):
-    """Joint states in, zero velocity commands out at `control_rate`."""
+    """Joint states in, a zero velocity command out for each."""
 
     def __init__(self) -> None:
         super().__init__("rclpy_floor")
-        rate = self.declare_parameter("control_rate", 1000.0).value
         self._joints: tuple[str, ...] = ()
         self._writer = wire.CommandWriter([])
         self._reader = wire.JointStateReader()
@@ -33,14 +33,11 @@ class FloorNode(Node):
         self._publisher = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self.create_subscription(JointState, names.JOINT_STATES, self._on_state,
                                  qos.SENSOR_INPUT, raw=True)
-        self.create_timer(1.0 / rate, self._cycle)
 
     def _on_state(self, raw: bytes) -> None:
         joints = self._reader.read(raw).name
         if joints != self._joints:
             self._joints, self._writer = joints, wire.CommandWriter(joints)
-
-    def _cycle(self) -> None:
         stamp = wire.Stamp.of(self._clock_handle.get_now().nanoseconds)
         self._publisher.publish(self._writer.serialize(*stamp, np.zeros(len(self._joints))))
 

@@ -53,9 +53,10 @@ def absurd_command(qd: np.ndarray, names: Sequence[str]) -> str | None:
     sender (1e308 was forwarded at the velocity limit), so it is refused like a
     non-finite one; a command merely above a joint's velocity limit is scaled into it.
     """
-    beyond = np.flatnonzero(np.abs(qd) > ABSURD_SPEED)
-    if beyond.size == 0:
+    speeds = np.abs(qd)
+    if speeds.max(initial=0.0) <= ABSURD_SPEED:  # every cycle: one reduction
         return None
+    beyond = np.flatnonzero(speeds > ABSURD_SPEED)
     j = int(beyond[0])
     return f"{names[j]} commanded {qd[j]:.4g} rad/s (beyond {ABSURD_SPEED:g})"
 

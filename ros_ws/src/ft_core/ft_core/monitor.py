@@ -196,7 +196,8 @@ class Monitor:
             qd = remap.remap(self.robot, self.q, qd, locked, self._limits)
         else:
             qd = np.array(qd, dtype=float)
-            qd[locked] = 0.0
+            if locked:
+                qd[locked] = 0.0
             qd = remap.within_limits(qd, self._limits)
         if not np.isfinite(qd).all():
             qd = np.zeros(self.robot.n)

@@ -27,7 +27,7 @@ from ft_core.robots import Robot
 
 def within_limits(qd: np.ndarray, velocity_limits: np.ndarray) -> np.ndarray:
     """Qd scaled down as a whole (direction kept) so that |qd_i| <= velocity_limits_i."""
-    excess = float(np.max(np.abs(qd) / velocity_limits, initial=0.0))
+    excess = float((np.abs(qd) / velocity_limits).max(initial=0.0))
     return qd / excess if excess > 1 else qd
 
 

@@ -62,10 +62,11 @@ def _few(names: Sequence[str], most: int = 10) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> tuple[int, ...]:
+def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> np.ndarray:
     """Where each of `joints` is in `names` (MessageError for duplicates or missing joints).
 
-    Cached: a driver sends the same names in every message.
+    Cached: a driver sends the same names in every message. Read-only, an index array
+    (numpy's `take` uses it as it is; a tuple would be converted at every message).
     """
     found = names_to_indices(names, joints)
     missing = [j for j in joints if j not in found]
@@ -74,7 +75,9 @@ def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> tuple[int, ..
         raise MessageError(f"joint state lacks {missing}" + (f" (it has {_few(unknown)})" if unknown
                                                             else ""))
     position = {name: i for i, name in enumerate(names)}
-    return tuple(position[j] for j in joints)
+    index = np.array([position[j] for j in joints], dtype=np.intp)
+    index.flags.writeable = False
+    return index
 
 
 def joint_vector(msg: JointState | JointStateView, joints: Sequence[str],
@@ -90,7 +93,7 @@ def joint_vector(msg: JointState | JointStateView, joints: Sequence[str],
         raise MessageError(f"joint state has {len(names)} names but {values.size} {field} values")
     if len(names) > MAX_NAMES:
         raise MessageError(f"{len(names)} joint names (more than {MAX_NAMES})")
-    vector = values[list(_positions(tuple(names), tuple(joints)))]
+    vector = values.take(_positions(tuple(names), tuple(joints)))
     if not np.isfinite(vector).all():
         bad = [j for j, v in zip(joints, vector, strict=True) if not np.isfinite(v)]
         raise MessageError(f"non-finite {field} for {bad}")
