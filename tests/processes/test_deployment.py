@@ -50,8 +50,9 @@ def parameters(tmp_path: Path, sim: dict, **common) -> dict[str, dict]:
             "monitor": {"state_directory": str(tmp_path / "state"), **common}}
 
 
-def assert_observed_healthy_motion(g: Graph, saturated: bool = False) -> None:
-    """No lock ever, and evidence that the monitor watched a moving arm.
+def assert_observed_healthy_motion(g: Graph, saturated: bool = False,
+                                   process: str = "monitor") -> None:
+    """No lock ever, and evidence that the monitor (run by `process`) watched a moving arm.
 
     And the controller's guard of a dead monitor never fired, unless the machine was
     `saturated`: there the monitor's process is starved of the CPU for 0.4 to 1.4 s at a
@@ -59,7 +60,7 @@ def assert_observed_healthy_motion(g: Graph, saturated: bool = False) -> None:
     `saturated` are marked `no_other_graph`: a second graph starting on the other core
     stalls this one's processes too (tests/conftest.py).
     """
-    assert g.ever_locked() == set(), g.log("monitor")[-3000:]
+    assert g.ever_locked() == set(), g.log(process)[-3000:]
     assert g.travelled() > 5.0, "the arm hardly moved"
     monitor = g.values("/monitor")
     assert monitor, "no diagnostics from the monitor"
@@ -569,6 +570,33 @@ def test_controller_and_monitor_as_one_process_find_a_lock(tmp_path: Path) -> No
         stack = g.processes["stack"]
         g.close()
         assert stack.returncode == 0, g.log("stack")[-3000:]
+
+
+@pytest.mark.slow
+@pytest.mark.busy_machine
+def test_one_process_under_full_cpu_load_locks_nothing(tmp_path: Path) -> None:
+    """`ft-stack`, which cycles on each joint state, with a busy process per core.
+
+    Behind the plant that holds the last command, from an observing monitor: under the
+    load its cycles go on (the controller's rate in every diagnostics), nothing is locked
+    and the monitor still observes.
+    """
+    settings = parameters(tmp_path, HOLDING_PLANT)
+    settings["stack"] = {**settings.pop("controller"), **settings.pop("monitor")}
+    with graph(tmp_path, settings, processes=("sim", "stack")) as g:
+        g.spin(2.0, goal_period=1.5)
+        observing(g)
+        loaded = time.monotonic()
+        with busy_cores():
+            g.spin(15.0, goal_period=1.5)
+        assert_observed_healthy_motion(g, saturated=True, process="stack")
+        rates = [float({kv.key: kv.value for kv in status.values}["loop_rate_hz"])
+                 for stamp, status in g.diagnostics["/controller"] if stamp > loaded]
+        assert rates, "no diagnostics from the controller under load"
+        assert min(rates) > 0.0, f"the control cycles stopped under load: {rates}"
+        under_load = [{kv.key: kv.value for kv in status.values}
+                      for stamp, status in g.diagnostics["/monitor"] if stamp > loaded]
+        assert any(v.get("observing") == "yes" for v in under_load), under_load[-3:]
 
 
 def _tracing_workers(pid: int) -> list[int]:

@@ -40,3 +40,44 @@ def test_simulated_time_counts_no_missed_cycles(monkeypatch: pytest.MonkeyPatch)
         accounting.start()
         accounting.end()
     assert accounting.missed == 0
+
+
+def test_a_state_schedule_passes_a_jittery_stream_and_thins_a_fast_one() -> None:
+    period = 1_000_000  # 1 kHz, ns
+    jitter = [0, 400_000, -600_000, 700_000, -300_000, 0, 650_000, -700_000]
+    schedule = loop.StateSchedule(period)
+    ran = 0
+    for k, shift in enumerate(jitter * 25):  # 200 states at the control rate, jittered
+        if schedule.ready(k * period + shift):
+            schedule.ran(k * period + shift)
+            ran += 1
+    assert ran == 200, "states at the control rate within the slack lost cycles"
+    # Three times the rate: the long-run rate is the control rate.
+    schedule, ran = loop.StateSchedule(period), 0
+    for k in range(3000):
+        now = k * period // 3
+        if schedule.ready(now):
+            schedule.ran(now)
+            ran += 1
+    assert 999 <= ran <= 1002, ran
+    # A burst of states at one instant: one cycle.
+    schedule = loop.StateSchedule(period)
+    assert [schedule.ready(5 * period) and (schedule.ran(5 * period) or True)
+            for _ in range(5)] == [True, False, False, False, False]
+
+
+def test_a_state_schedule_follows_a_pause_and_a_clock_that_went_back() -> None:
+    period = 4_000_000
+    schedule = loop.StateSchedule(period)
+    assert schedule.quiet(0)
+    schedule.ran(0)
+    assert not schedule.quiet(period - 1) and schedule.quiet(period)
+    # A pause of 10 periods, then the stream again: its phase, not the old slots'.
+    schedule.ran(10 * period + 3_500_000)
+    assert not schedule.ready(11 * period)  # 0.5 periods after: not yet
+    assert schedule.ready(11 * period + 3_500_000)
+    # The clock jumps back by a minute: the schedule starts again.
+    back = -60 * 10**9
+    assert schedule.ready(back) and schedule.quiet(back)
+    schedule.ran(back)
+    assert not schedule.ready(back + period // 10) and schedule.ready(back + period)

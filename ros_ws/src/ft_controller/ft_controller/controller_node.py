@@ -44,7 +44,7 @@ from ft_msgs_py import (
     spin,
     wire,
 )
-from ft_msgs_py.loop import LoopAccounting
+from ft_msgs_py.loop import LoopAccounting, StateSchedule
 from ft_msgs_py.monitor_guard import MonitorGuard
 from ft_msgs_py.node import JointStateLike, StateListener, StateReading, SuiteNode
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -194,8 +194,6 @@ class ControllerNode(SuiteNode):
         self._load_model()
         #: Whether each joint state runs a cycle (`cycle_on_joint_states`; ft-stack).
         self._states_drive = False
-        #: The node clock's times (ns) of the last two cycles, the latest last.
-        self._cycles_ns = (-(1 << 62), -(1 << 62))
         self._timer = self._control_timer()
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
         self.create_timer(markers.PERIOD, self._publish_markers)
@@ -411,12 +409,13 @@ class ControllerNode(SuiteNode):
         For ft-stack, whose monitor hands this node each state after observing it: the
         command follows the freshest state at once instead of at the next tick, and the
         executor wakes once per cycle instead of twice (the timer's thread and the main
-        thread; `make bench` measures the saving). Never three cycles within one control
-        period, whatever the rate of the states (two: states taken back to back after a
-        delay each get their cycle). The control timer then runs every
-        `STATE_WAIT` s (or control period if longer) and cycles only where no cycle ran
-        for a control period: when states stop, commands go on as they would from the
-        timer (zeros once the last state is older than `state_timeout`).
+        thread; `make bench` measures the saving). At most `control_rate` cycles a second
+        whatever the rate of the states (`loop.StateSchedule`: a faster stream is thinned,
+        one at the control rate passes whole through 3/4 of a period of jitter). The
+        control timer then runs every `STATE_WAIT` s (or control period if longer) and
+        cycles only where no cycle ran for a control period: when states stop, commands
+        go on as they would from the timer (zeros once the last state is older than
+        `state_timeout`).
 
         Not with `use_sim_time`: there the simulated clock's ticks drive the cycles as
         before, since a state can be taken before the /clock message of its instant (the
@@ -432,14 +431,14 @@ class ControllerNode(SuiteNode):
     def _control_timer(self) -> Timer:
         """The control timer for the current `control_rate` and way of cycling."""
         period = 1.0 / self.param("control_rate")
-        self._period_ns = period * 1e9
+        self._schedule = StateSchedule(period * 1e9)
         if self._states_drive:
             return self.create_timer(max(period, STATE_WAIT), self._cycle_if_states_stopped)
         return self.create_timer(period, self._cycle)
 
     def _cycle_if_states_stopped(self) -> None:
         nanoseconds = self.now_ns()
-        if not 0 <= nanoseconds - self._cycles_ns[1] < self._period_ns:  # or the clock went back
+        if self._schedule.quiet(nanoseconds):
             self._cycle(nanoseconds)
 
     def use_shared_joint_states(self) -> StateListener:
@@ -464,7 +463,7 @@ class ControllerNode(SuiteNode):
             self._q = self.accept_joint_state(reading[0], reading[2])
         if self._states_drive:
             nanoseconds = self.now_ns()
-            if not 0 <= nanoseconds - self._cycles_ns[0] < self._period_ns:
+            if self._schedule.ready(nanoseconds):
                 self._cycle(nanoseconds)
 
     def _frame_ok(self, frame: str, kind: str) -> bool:
@@ -595,7 +594,7 @@ class ControllerNode(SuiteNode):
         """One control cycle at the node clock's `nanoseconds` (default now)."""
         self._last_cycle, self._cycled = time.monotonic(), True
         nanoseconds = self.now_ns() if nanoseconds is None else nanoseconds
-        self._cycles_ns = (self._cycles_ns[1], nanoseconds)
+        self._schedule.ran(nanoseconds)
         self.accounting.start()
         try:
             self._control(nanoseconds)

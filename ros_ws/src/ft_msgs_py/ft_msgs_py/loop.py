@@ -1,4 +1,8 @@
-"""A periodic loop's own accounting: compute time per cycle and missed cycles (wall clock)."""
+"""A control loop's timing: its own accounting, and the schedule of one run by messages.
+
+`LoopAccounting`: compute time per cycle and missed cycles (wall clock) of a periodic
+loop; `StateSchedule`: when a cycle run on each joint state is due.
+"""
 
 from __future__ import annotations
 
@@ -50,3 +54,43 @@ class LoopAccounting:
     def samples(self) -> np.ndarray:
         """The recent compute times (s), at most `window` of them (not in time order)."""
         return self._compute[:min(self.cycles, self._compute.size)].copy()
+
+
+class StateSchedule:
+    """When a cycle run on an incoming message (a joint state) is due: at most one a period.
+
+    Slots `period` ns apart. A message at t runs a cycle when t is no earlier than
+    3/4 of a period before the next slot (`SLACK`): a stream at the control rate passes
+    whole through that much jitter; a faster one is thinned to the control rate (a
+    stream at twice the rate gets every other message); the long-run rate never exceeds
+    one cycle a period. The slots keep their phase while messages come within
+    `SLACK` of them, and take the phase of a message later than that (a stream that
+    paused). `quiet` says when no cycle ran for a whole period, for a timer to take
+    over. The clock is the node's (wall time); one that jumps back more than two
+    periods starts the schedule again.
+    """
+
+    SLACK = 0.75
+
+    def __init__(self, period_ns: float) -> None:
+        self.period = period_ns
+        self._due: float | None = None  # the next slot (ns)
+        self._last: float | None = None  # the last cycle (ns)
+
+    def ready(self, now: int) -> bool:
+        """Whether a message taken at `now` (ns) runs a cycle."""
+        due = self._due
+        return (due is None or now >= due - self.SLACK * self.period
+                or now < due - 2 * self.period)
+
+    def quiet(self, now: int) -> bool:
+        """Whether no cycle ran in the period before `now` (ns), or the clock went back."""
+        return self._last is None or not 0 <= now - self._last < self.period
+
+    def ran(self, now: int) -> None:
+        """A cycle ran at `now` (ns), on a message or not."""
+        due, period = self._due, self.period
+        if due is None or now > due + self.SLACK * period or now < due - 2 * period:
+            due = now  # the first cycle, a stream that paused, a clock that went back
+        self._due = due + period
+        self._last = now
