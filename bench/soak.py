@@ -2,7 +2,9 @@
 
 The installed executables (`sim_node`, `controller_node`, `monitor_node` from the colcon
 install space ros_ws/install, as `ros2 run` starts them) run as separate processes at
-their default parameters on each of the sim's plants:
+their default parameters (with `--layout stack`: `sim_node` and `stack`, the controller
+and the monitor in one process, which cycles on each joint state) on each of the sim's
+plants:
 - kinematic: the Panda (`panda`, position task) behind a driver with a command watchdog
   (30 ms latency, 30 ms response time, 0.1 s command timeout, 1e-3 rad position noise);
 - physics: the Panda with its inertias (`panda_inertial`, flange `panda_link8`, position
@@ -72,9 +74,12 @@ from std_srvs.srv import Trigger
 REPO = Path(__file__).resolve().parents[1]
 INSTALL = REPO / "ros_ws" / "install"
 PACKAGES = ("ft_core", "ft_msgs_py", "ft_controller", "ft_monitor", "ft_sim")
-#: name -> (package, executable) in the install space, started in this order.
-EXECUTABLES = {"sim": ("ft_sim", "sim_node"), "monitor": ("ft_monitor", "monitor_node"),
-               "controller": ("ft_controller", "controller_node")}
+#: Per layout: name -> (package, executable) in the install space, started in this order.
+LAYOUTS = {
+    "separate": {"sim": ("ft_sim", "sim_node"), "monitor": ("ft_monitor", "monitor_node"),
+                 "controller": ("ft_controller", "controller_node")},
+    "stack": {"sim": ("ft_sim", "sim_node"), "stack": ("ft_sim", "stack")},
+}
 #: Pose goals visited in turn (m, Panda position task): reachable from the home pose.
 GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
 #: Per plant: the parameters of all three nodes, and the sim's own.
@@ -331,8 +336,9 @@ def cpu_use(start: dict[str, float], end: dict[str, float], seconds: float,
 
 
 @contextmanager
-def deployed(plant: str, domain: int, log_dir: Path) -> Iterator[dict[str, subprocess.Popen]]:
-    """The three installed executables of `plant` on `domain`; SIGINT (then kill) after.
+def deployed(plant: str, domain: int, log_dir: Path, layout: str,
+             ) -> Iterator[dict[str, subprocess.Popen]]:
+    """The installed executables of `layout` for `plant` on `domain`; SIGINT (then kill) after.
 
     Their stdout and stderr go to `<log_dir>/<name>.log`; the monitor keeps its locked set
     in a fresh temporary directory.
@@ -346,9 +352,9 @@ def deployed(plant: str, domain: int, log_dir: Path) -> Iterator[dict[str, subpr
     processes: dict[str, subprocess.Popen] = {}
     with tempfile.TemporaryDirectory(prefix="ft_soak_state_") as state:
         values = {"sim": PLANTS[plant]["sim"], "controller": {},
-                  "monitor": {"state_directory": state}}
+                  "monitor": {"state_directory": state}, "stack": {"state_directory": state}}
         try:
-            for name, (package, executable) in EXECUTABLES.items():
+            for name, (package, executable) in LAYOUTS[layout].items():
                 script = INSTALL / package / "lib" / package / executable
                 if not script.is_file():
                     raise SystemExit(f"{script} is missing: run `make build`")
@@ -417,7 +423,7 @@ def monitor_log(path: Path, phases: list[Phase], context: int = 4) -> dict[str, 
 
 
 def run_plant(plant: str, minutes: float, domain: int, out: Path, goal_period: float,
-              cycle: float, pause: float, warm_up: float) -> dict:
+              cycle: float, pause: float, warm_up: float, layout: str) -> dict:
     """One plant: start-up, warm-up until observing, idle half, loaded half."""
     log_dir = out / "soak_logs" / plant
     context = Context()
@@ -429,7 +435,7 @@ def run_plant(plant: str, minutes: float, domain: int, out: Path, goal_period: f
     phases: list[Phase] = []
     alive: dict[str, dict[str, int | None]] = {}
     try:
-        with deployed(plant, domain, log_dir) as processes:
+        with deployed(plant, domain, log_dir, layout) as processes:
             start = time.monotonic()
             while probe.phase.states < 10 and time.monotonic() - start < 60.0:
                 executor.spin_once(timeout_sec=0.01)
@@ -461,7 +467,8 @@ def run_plant(plant: str, minutes: float, domain: int, out: Path, goal_period: f
     finally:
         executor.shutdown()
         rclpy.shutdown(context=context)
-    logged = monitor_log(log_dir / "monitor.log", phases)
+    logged = monitor_log(log_dir / ("stack.log" if layout == "stack" else "monitor.log"),
+                         phases)
     return {"warm_up": {"seconds": warm.seconds, "observing": observed,
                         "not_observing": dict(warm.not_observing.most_common(5))},
             "phases": {p.name: summary(p, logged[p.name], alive[p.name]) for p in phases}}
@@ -529,16 +536,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--pause", type=float, default=4.0, help="s without goals per cycle")
     parser.add_argument("--warm-up", type=float, default=90.0,
                         help="s of goals at most, until the monitor observes")
+    parser.add_argument("--layout", choices=list(LAYOUTS), default="separate",
+                        help="the nodes as separate processes, or ft-stack")
     args = parser.parse_args(argv)
     domain = int(os.environ.get("FT_BENCH_DOMAIN_SOAK", "63"))
     # The probe discovers the nodes the way they discover each other.
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     results = {plant: run_plant(plant, args.minutes, domain, args.out, args.goal_period,
-                                args.cycle, args.pause, args.warm_up)
+                                args.cycle, args.pause, args.warm_up, args.layout)
                for plant in args.plants}
     info = machine()
     lines = [*table(results), "",
-             f"Pose goals every {args.goal_period:g} s, paused {args.pause:g} s every "
+             f"Layout: {args.layout}. Pose goals every {args.goal_period:g} s, paused "
+             f"{args.pause:g} s every "
              f"{args.cycle:g} s; loaded: {os.cpu_count()} busy processes (one per core). "
              + "; ".join(f"{plant} warm-up {r['warm_up']['seconds']:.0f} s"
                          for plant, r in results.items()) + ". Locks the controller "
@@ -548,8 +558,9 @@ def main(argv: list[str] | None = None) -> int:
                  for plant, r in results.items()) + ".",
              f"{info['cpu']}, {info['cores']} cores, Python {info['python']}, {info['date']}."]
     report(args.out, "soak", lines, {
-        "machine": info, "minutes_per_plant": args.minutes, "goal_period_s": args.goal_period,
-        "cycle_s": args.cycle, "pause_s": args.pause, "domain": domain,
+        "machine": info, "layout": args.layout, "minutes_per_plant": args.minutes,
+        "goal_period_s": args.goal_period, "cycle_s": args.cycle, "pause_s": args.pause,
+        "domain": domain,
         "plants": {plant: {"parameters": PLANTS[plant], **r} for plant, r in results.items()}})
     return 0
 

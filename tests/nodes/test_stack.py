@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import tempfile
 import time
+from collections.abc import Callable
 
 import numpy as np
 from ft_controller.controller_node import ControllerNode
@@ -13,6 +14,7 @@ from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim import stack
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
+from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rosutil import ros_context
@@ -114,20 +116,29 @@ def test_a_joint_state_read_by_the_monitor_is_not_parsed_again() -> None:
         controller.destroy_node()
 
 
+def composed(context: Context, state: str, common: dict,
+             ) -> tuple[ControllerNode, MonitorNode, Callable[[bytes], None]]:
+    """A controller and a monitor with `common` parameters, composed as in ft-stack.
+
+    Also the monitor's `joint_states` callback, to hand it bytes without an executor.
+    """
+    controller = ControllerNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in common.items()])
+    monitor = MonitorNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {**common, "state_directory": state}.items()])
+    stack.compose(controller, monitor)
+    take = next(s.callback for s in monitor.subscriptions
+                if s.topic_name == "/" + names.JOINT_STATES)
+    return controller, monitor, take
+
 def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
     """ft-stack cycles on joint states: at once, after the monitor, one a control period.
 
     When the states stop, the control timer cycles again: zeros once they are stale.
     """
     with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
-        common = {"robot_model": "panda", "task_space": "position", "control_rate": 10.0}
-        controller = ControllerNode(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in common.items()])
-        monitor = MonitorNode(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in {**common, "state_directory": state}.items()])
-        stack.compose(controller, monitor)
-        take = next(s.callback for s in monitor.subscriptions
-                    if s.topic_name == "/" + names.JOINT_STATES)
+        controller, monitor, take = composed(context, state, {
+            "robot_model": "panda", "task_space": "position", "control_rate": 10.0})
         calls: list[str] = []
         observe, step = monitor.core.observe, controller.core.step
         monitor.core.observe = lambda *a: calls.append("observe") or observe(*a)
@@ -166,14 +177,8 @@ def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
 def test_with_simulated_time_the_clock_still_drives_the_cycles() -> None:
     """A state may come before the /clock of its instant: the timer ticks as before."""
     with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
-        common = {"robot_model": "panda", "use_sim_time": True}
-        controller = ControllerNode(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in common.items()])
-        monitor = MonitorNode(context=context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in {**common, "state_directory": state}.items()])
-        stack.compose(controller, monitor)
-        take = next(s.callback for s in monitor.subscriptions
-                    if s.topic_name == "/" + names.JOINT_STATES)
+        controller, monitor, take = composed(context, state, {"robot_model": "panda",
+                                                              "use_sim_time": True})
         observed = monitor.core.detector.latest_time
         stamp = convert.stamp_from_nanoseconds(1_000_000)
         take(serialize_message(convert.joint_state(controller.robot.joint_names, stamp,
