@@ -192,9 +192,7 @@ class ControllerNode(SuiteNode):
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self._load_model()
-        #: Whether each joint state runs a cycle (`cycle_on_joint_states`; ft-stack).
-        self._states_drive = False
-        self._timer = self._control_timer()
+        self._timer = self._control_timer(states_drive=False)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
         self.create_timer(markers.PERIOD, self._publish_markers)
         self.create_service(Trigger, names.OPTIMIZE_START, self._on_optimize_start)
@@ -308,7 +306,7 @@ class ControllerNode(SuiteNode):
             self.accounting.period = 1.0 / self.param("control_rate")
             self._timer.cancel()
             self.destroy_timer(self._timer)
-            self._timer = self._control_timer()
+            self._timer = self._control_timer(states_drive=self._schedule is not None)
         if self.core is None:
             return
         self.core.configure(self._engine_config(self.robot, self._order, {}),
@@ -423,22 +421,26 @@ class ControllerNode(SuiteNode):
         """
         if self.param("use_sim_time"):
             return
-        self._states_drive = True
         self._timer.cancel()
         self.destroy_timer(self._timer)
-        self._timer = self._control_timer()
+        self._timer = self._control_timer(states_drive=True)
 
-    def _control_timer(self) -> Timer:
-        """The control timer for the current `control_rate` and way of cycling."""
+    def _control_timer(self, states_drive: bool) -> Timer:
+        """The control timer for the current `control_rate`, with the joint states' schedule.
+
+        `_schedule` says when a joint state runs a cycle where states drive the cycles
+        (`cycle_on_joint_states`; ft-stack); None where the timer drives them.
+        """
         period = 1.0 / self.param("control_rate")
-        self._schedule = StateSchedule(period * 1e9)
-        if self._states_drive:
+        self._schedule: StateSchedule | None = (StateSchedule(period * 1e9) if states_drive
+                                                else None)
+        if states_drive:
             return self.create_timer(max(period, STATE_WAIT), self._cycle_if_states_stopped)
         return self.create_timer(period, self._cycle)
 
     def _cycle_if_states_stopped(self) -> None:
         nanoseconds = self.now_ns()
-        if self._schedule.quiet(nanoseconds):
+        if self._schedule is not None and self._schedule.quiet(nanoseconds):
             self._cycle(nanoseconds)
 
     def use_shared_joint_states(self) -> StateListener:
@@ -461,7 +463,7 @@ class ControllerNode(SuiteNode):
             self._on_state(msg)
         else:
             self._q = self.accept_joint_state(reading[0], reading[2])
-        if self._states_drive:
+        if self._schedule is not None:
             nanoseconds = self.now_ns()
             if self._schedule.ready(nanoseconds):
                 self._cycle(nanoseconds)
@@ -594,7 +596,8 @@ class ControllerNode(SuiteNode):
         """One control cycle at the node clock's `nanoseconds` (default now)."""
         self._last_cycle, self._cycled = time.monotonic(), True
         nanoseconds = self.now_ns() if nanoseconds is None else nanoseconds
-        self._schedule.ran(nanoseconds)
+        if self._schedule is not None:
+            self._schedule.ran(nanoseconds)
         self.accounting.start()
         try:
             self._control(nanoseconds)

@@ -50,7 +50,9 @@ def main(args: list[str] | None = None) -> None:
 def compose(controller: ControllerNode, monitor: MonitorNode) -> None:
     """Connect the two nodes by calls: commands to the monitor, joint states to both.
 
-    The controller gets each joint state with the monitor's reading of it.
+    The controller gets each joint state with the monitor's reading of it, once the
+    monitor has observed it, and runs its cycle on it (wall time; with `use_sim_time` the
+    clock's ticks drive the cycles: `ControllerNode.cycle_on_joint_states`).
     """
     controller.hand_commands_to(monitor.take_commands_by_call())
     monitor.share_joint_states(controller.use_shared_joint_states())
