@@ -5,6 +5,7 @@ from __future__ import annotations
 import gc
 import signal
 
+import pytest
 from ft_msgs_py import spin
 from rclpy.node import Node
 
@@ -59,6 +60,40 @@ def test_the_lock_step_executor_drops_qos_event_handlers_and_still_delivers() ->
         assert spin.spin_until(executor, lambda: heard == ["step"], 5.0), heard
         executor.remove_node(node)
         assert node.destroy_publisher(publisher)
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("events", [False, True], ids=["lock-step", "events"])
+def test_an_audience_counts_subscribers_as_they_come_and_go(events: bool) -> None:
+    """`SuiteNode.create_counted_publisher`: the count of the matched events, as rmw's.
+
+    Under the executables' EventsExecutor and under the lock-step executor, which drops
+    rclpy's default event handlers but keeps these.
+    """
+    import rclpy
+    from ft_msgs_py.node import SuiteNode
+    from rclpy.experimental import EventsExecutor
+    from rosutil import ros_context
+    from std_msgs.msg import String
+
+    with ros_context(executor_type=EventsExecutor if events else spin.LockStepExecutor) as (
+            context, executor):
+        node = SuiteNode("counted", context=context)
+        publisher, audience = node.create_counted_publisher(String, "counted", 10)
+        executor.add_node(node)
+        other = rclpy.create_node("listener", context=context)
+        executor.add_node(other)
+        subscriptions = []
+        for expected in (1, 2):
+            subscriptions.append(other.create_subscription(String, "counted", print, 10))
+            assert spin.spin_until(executor, lambda e=expected: audience.count == e, 5.0), (
+                audience.count)
+            assert publisher.get_subscription_count() == expected
+        other.destroy_subscription(subscriptions.pop())
+        assert spin.spin_until(executor, lambda: audience.count == 1, 5.0), audience.count
+        executor.remove_node(other)
+        executor.remove_node(node)
+        other.destroy_node()
         node.destroy_node()
 
 

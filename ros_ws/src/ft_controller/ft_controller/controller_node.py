@@ -165,7 +165,8 @@ class ControllerNode(SuiteNode):
         self._rate_window = (0, self.now())
         self._rate = 0.0
 
-        self._command_pub = self.create_publisher(JointState, names.COMMAND_RAW, qos.RELIABLE)
+        self._command_pub, self._command_audience = self.create_counted_publisher(
+            JointState, names.COMMAND_RAW, qos.RELIABLE)
         # The plant's own topics, for the guard's zeros when the monitor is gone.
         self._guard = MonitorGuard(self.param("monitor_timeout"))
         #: A locked set heard while a stranger publishes too: its new locks wait for the
@@ -176,7 +177,8 @@ class ControllerNode(SuiteNode):
                                                       qos.RELIABLE)
         self._echo_subscription = self.subscribe_joint_states(
             names.COMMAND, self._on_plant_command, qos.SENSOR_INPUT)
-        self._metrics_pub = self.create_publisher(Float64MultiArray, names.METRICS, qos.RELIABLE)
+        self._metrics_pub, self._metrics_audience = self.create_counted_publisher(
+            Float64MultiArray, names.METRICS, qos.RELIABLE)
         self._suspect_pub = self.create_publisher(JointState, names.SUSPECTED_FAILURE,
                                                   qos.RELIABLE)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
@@ -559,7 +561,12 @@ class ControllerNode(SuiteNode):
         self._contested -= confirmed
 
     def _check_monitor(self) -> None:
-        """Zeros on the plant's topics (and an ERROR) while the monitor does not answer."""
+        """Zeros on the plant's topics (and an ERROR) while the monitor does not answer.
+
+        Not where the monitor takes the commands by a call (`hand_commands_to`).
+        """
+        if self._command_taker is not None:
+            return
         silent = self._guard.silent(time.monotonic())
         if silent is None:
             self.problems.report("monitor", None)
@@ -639,7 +646,7 @@ class ControllerNode(SuiteNode):
         stamp = wire.Stamp.of(nanoseconds)
         self.last_command = qd_chain
         taker = self._command_taker
-        if taker is None or self._command_pub.get_subscription_count():
+        if taker is None or self._command_audience.count:
             velocity = qd_chain[self._order]
             self._command_pub.publish(self._command_writer.serialize(*stamp, velocity))
         if taker is None:
@@ -649,7 +656,7 @@ class ControllerNode(SuiteNode):
         if result is None:
             return
         self._last_result = result
-        if self._metrics_pub.get_subscription_count():
+        if self._metrics_audience.count:
             metrics.fill(self._metrics_msg, self._metric_values(result))
             self._metrics_pub.publish(self._metrics_msg)
 

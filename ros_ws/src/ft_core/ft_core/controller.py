@@ -39,11 +39,12 @@ import numpy as np
 
 from ft_core import limits, recovery, selfmotion, start_configuration, workers
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
+from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot, RobotModelError
 from ft_core.start_configuration import StartPhase
-from ft_core.targets import PoseTracking, pose_velocity, staleness_scale
+from ft_core.targets import PoseTracking, norm, pose_velocity, staleness_scale
 from ft_core.task_channel import TaskChannel
 
 #: How the start-configuration path moves and how long its plan may take: as a recovery
@@ -301,11 +302,11 @@ class Controller:
             qd = self._start(kinematics, qd, now)
         error = None
         if task_error is not None:
-            error = float(np.linalg.norm(task_error))
+            error = norm(task_error)
             if self.recovery is not None and self.target:
                 qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked,
                                    now, task_error, error, idle)
-        if not np.isfinite(qd).all():
+        if not all_finite(qd):
             qd = np.zeros(robot.n)
         self.last = result
         step = Step(qd, result, {"engine": None})

@@ -53,11 +53,10 @@ def absurd_command(qd: np.ndarray, names: Sequence[str]) -> str | None:
     sender (1e308 was forwarded at the velocity limit), so it is refused like a
     non-finite one; a command merely above a joint's velocity limit is scaled into it.
     """
-    speeds = np.abs(qd)
-    if speeds.max(initial=0.0) <= ABSURD_SPEED:  # every cycle: one reduction
+    speeds = [abs(v) for v in qd.tolist()]  # every cycle: Python floats, no numpy call
+    if max(speeds, default=0.0) <= ABSURD_SPEED:
         return None
-    beyond = np.flatnonzero(speeds > ABSURD_SPEED)
-    j = int(beyond[0])
+    j = next(j for j, speed in enumerate(speeds) if speed > ABSURD_SPEED)
     return f"{names[j]} commanded {qd[j]:.4g} rad/s (beyond {ABSURD_SPEED:g})"
 
 

@@ -50,6 +50,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
+from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
 
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
@@ -138,6 +139,7 @@ class Monitor:
         #: steady or ROS time (s) each joint was last observable (commanded fast enough for
         #: the detector to judge it); None before the first joint state
         self._observed_at: np.ndarray | None = None
+        self._observed_latest = -math.inf  #: the largest of `_observed_at` (s)
         self.configure(detection, config)
 
     def configure(self, detection: DetectorConfig, config: MonitorConfig) -> None:
@@ -199,7 +201,7 @@ class Monitor:
             if locked:
                 qd[locked] = 0.0
             qd = remap.within_limits(qd, self._limits)
-        if not np.isfinite(qd).all():
+        if not all_finite(qd):
             qd = np.zeros(self.robot.n)
         self.detector.command(now, qd)
         return qd
@@ -254,10 +256,13 @@ class Monitor:
         # A swing of an unlocked joint leaves the set as it is: reported without a write
         # (a swing that takes a lock back, or the brake, changes it).
         change.changed |= set(self.detector.locked) != before
-        if self._observed_at is None or now < self._observed_at.max():
+        if self._observed_at is None or now < self._observed_latest:
             self._observed_at = np.full(self.robot.n, now)  # the first state, or time reset
+            self._observed_latest = now
         if self.detector.not_observing is None:  # else the evidence is the last update's
-            self._observed_at[[e.observable for e in joints]] = now
+            observable = [e.observable for e in joints]
+            if any(observable):
+                self._observed_at[observable] = self._observed_latest = now
         self._hold(change, now)
         return self.settled()
 

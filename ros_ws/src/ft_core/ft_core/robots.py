@@ -442,6 +442,8 @@ class Robot:
         base_pose = self._data.oMf[model.getFrameId(self.base_link, pin.FrameType.BODY)]
         # The base is above every chain joint, so its placement is constant.
         self._base_inverse = base_pose.inverse()
+        #: the base link is the model's root: placements need no change of frame
+        self._base_at_root = bool(self._base_inverse.isIdentity(0.0))
         rotation = base_pose.rotation.T
         self._rotate = np.zeros((6, 6))
         self._rotate[:3, :3] = self._rotate[3:, 3:] = rotation
@@ -533,9 +535,11 @@ class Robot:
         model, data, tip = self._model, self._data, self._tip
         q = self._check(q)
         pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, tip)
+        placement = pin.updateFramePlacement(model, data, tip)
         J = pin.getFrameJacobian(model, data, tip, pin.LOCAL_WORLD_ALIGNED)
-        return Kinematics(q, (self._base_inverse * data.oMf[tip]).homogeneous,
+        if not self._base_at_root:
+            placement = self._base_inverse * placement
+        return Kinematics(q, placement.homogeneous,
                           self._rotate @ J if not self._base_aligned
                           else np.ascontiguousarray(J))
 

@@ -54,9 +54,17 @@ def goal_from_transform(robot: Robot, transform: np.ndarray) -> np.ndarray:
     return np.asarray(transform, dtype=float)[: robot.m, 3].copy()
 
 
+def norm(vector: np.ndarray) -> float:
+    """The Euclidean norm of a vector: `np.linalg.norm`'s arithmetic (the root of x . x).
+
+    Without its argument handling, several times a cycle.
+    """
+    return math.sqrt(vector.dot(vector))
+
+
 def _cap(vector: np.ndarray, limit: float) -> np.ndarray:
-    norm = float(np.linalg.norm(vector))
-    return vector if norm <= limit else vector * (limit / norm)
+    size = norm(vector)
+    return vector if size <= limit else vector * (limit / size)
 
 
 def pose_velocity(robot: Robot, error: np.ndarray,
@@ -67,8 +75,8 @@ def pose_velocity(robot: Robot, error: np.ndarray,
     watches its norm too).
     """
     linear, angular = error[: min(3, robot.m)], error[3:]
-    reached = (np.linalg.norm(linear) < tracking.position_tolerance
-               and np.linalg.norm(angular) < tracking.angle_tolerance)
+    reached = (norm(linear) < tracking.position_tolerance
+               and norm(angular) < tracking.angle_tolerance)
     if reached:
         return np.zeros(robot.m), True
     return np.concatenate([_cap(tracking.gain * linear, tracking.max_linear),

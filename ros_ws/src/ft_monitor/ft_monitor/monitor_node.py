@@ -112,15 +112,18 @@ class MonitorNode(SuiteNode):
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.core: Monitor | None = None  #: the logic, once the model is known
         self._order: list[int] = []
+        #: `_order` as an index array, None where it is the chain's own (the command as is)
+        self._reorder: np.ndarray | None = None
         self.command_joints: list[str] = []  #: joint names in command order
         # Built once per model, refilled for every command (`_publish_command`).
         self._command_writer = wire.CommandWriter([])
         self._array_msg = Float64MultiArray()
         self._last_command = -math.inf
         self._unseen: list[str] = []  #: joints last reported unseen (`Monitor.unseen`)
-        self._command_pub = self.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
-        self._array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
-                                                qos.RELIABLE)
+        self._command_pub, self._command_audience = self.create_counted_publisher(
+            JointState, names.COMMAND, qos.RELIABLE)
+        self._array_pub, self._array_audience = self.create_counted_publisher(
+            Float64MultiArray, names.COMMAND_ARRAY, qos.RELIABLE)
         self._locked_pub = self.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
@@ -182,6 +185,7 @@ class MonitorNode(SuiteNode):
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
         self._order = order.tolist()
+        self._reorder = None if self._order == list(range(robot.n)) else order
         joints = self.command_joints = [robot.joint_names[i] for i in self._order]
         self._command_writer = wire.CommandWriter(joints)
         self._array_msg = Float64MultiArray(layout=MultiArrayLayout(dim=[MultiArrayDimension(
@@ -272,8 +276,8 @@ class MonitorNode(SuiteNode):
         q = self.accept_joint_state(*reading, self.core.absurd)
         if q is None:
             return
-        listeners = (self._command_taker is not None or self._command_pub.get_subscription_count()
-                     or self._array_pub.get_subscription_count())
+        listeners = (self._command_taker is not None or self._command_audience.count
+                     or self._array_audience.count)
         stamp = self.state_stamp
         self._announce(self.core.observe(
             q, stamp, None if listeners else "nobody subscribes to ft/command(_array)"))
@@ -399,13 +403,13 @@ class MonitorNode(SuiteNode):
 
         Also as a Float64MultiArray while someone subscribes to `ft/command_array`.
         """
-        ordered = qd_chain[self._order]
+        ordered = qd_chain if self._reorder is None else qd_chain[self._reorder]
         serialized = self._command_writer.serialize(stamp.sec, stamp.nanosec, ordered)
-        if self._command_taker is None or self._command_pub.get_subscription_count():
+        if self._command_taker is None or self._command_audience.count:
             self._command_pub.publish(serialized)
         if self._command_taker is not None:
             self._command_taker(self._taker_reader.read(serialized))
-        if self._array_pub.get_subscription_count():  # a JointGroupVelocityController
+        if self._array_audience.count:  # a JointGroupVelocityController
             self._array_msg.data = ordered.tolist()
             self._array_pub.publish(self._array_msg)
 

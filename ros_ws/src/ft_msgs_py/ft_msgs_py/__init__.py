@@ -9,5 +9,6 @@ Modules:
     parameters: the model-selection parameters every node shares.
     episodes: problems logged once per episode; stamp checks.
     node: the suite's node base (parameters, clock seconds, problems).
+    audience: a publisher's subscription count, kept from its matched events.
     spin: the executables' entry point (spin until SIGINT, stop, shut down).
 """

@@ -7,12 +7,15 @@ from collections.abc import Callable, Sequence
 from typing import TypeAlias
 
 import numpy as np
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from ft_msgs_py import convert, diagnostics, parameters, thread_priority, wire
+from ft_msgs_py.audience import Audience
 from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
 
 #: A joint state as a callback gets it: read from its bytes (`SuiteNode.subscribe_joint_states`)
@@ -80,6 +83,15 @@ class SuiteNode(Node):
         cycle's budget.
         """
         return self._clock_handle.get_now().nanoseconds
+
+    def create_counted_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile,
+                                 ) -> tuple[Publisher, Audience]:
+        """A publisher and its `Audience`: its subscription count without a middleware call."""
+        audience = Audience()
+        publisher = self.create_publisher(
+            msg_type, topic, qos_profile,
+            event_callbacks=PublisherEventCallbacks(matched=audience.matched))
+        return publisher, audience
 
     def subscribe_joint_states(
             self, topic: str, callback: Callable[[JointStateLike], None],

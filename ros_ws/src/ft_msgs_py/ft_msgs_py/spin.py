@@ -40,7 +40,7 @@ from typing import cast
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
-from rclpy.event_handler import EventHandler
+from rclpy.event_handler import EventHandler, QoSPublisherEventType
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
@@ -81,28 +81,36 @@ class LockStepExecutor(SingleThreadedExecutor):
     (incompatible QoS or type): in one process, on topics whose QoS the harness chose,
     they never fire, and they were 68 of the wait set's entities: a step took 4.6 ms
     with them, 2.8 ms without (one core, the demo's scenario). Entities created after
-    `add_node` lose theirs at the next spin.
+    `add_node` lose theirs at the next spin. A publisher's matched events stay: a node
+    asked for them, to count its subscribers (`ft_msgs_py.audience`).
     """
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
         """Spin once (as rclpy does), after dropping the event handlers of new entities."""
         nodes = self.get_nodes()
-        if any(True for node in nodes for _ in node.waitables):
+        if any(not _asked_for(waitable) for node in nodes for waitable in node.waitables):
             for node in nodes:
                 _drop_event_handlers(node)
         super().spin_once(timeout_sec)
 
 
+def _asked_for(waitable: object) -> bool:
+    """Whether a node's waitable is a publisher's matched event, which a node asks for."""
+    kind = getattr(waitable, "event_type", None)  # pybind11 enums of two types compare
+    return (isinstance(kind, QoSPublisherEventType)  # by value: the type first
+            and kind == QoSPublisherEventType.RCL_PUBLISHER_MATCHED)
+
+
 def _drop_event_handlers(node: Node) -> None:
-    """Remove the QoS-event handlers of the node's publishers and subscriptions."""
+    """Remove the QoS-event handlers rclpy gives the node's publishers and subscriptions."""
     entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
     for entity in entities:
         # A list of handlers, whatever rclpy's annotation (one EventHandler) says.
         handlers = cast("list[EventHandler]", entity.event_handlers)
-        for handler in handlers:
+        for handler in [h for h in handlers if not _asked_for(h)]:
             node.remove_waitable(handler)
             handler.destroy()
-        handlers.clear()  # so destroy_publisher/subscription skips them too
+            handlers.remove(handler)  # so destroy_publisher/subscription skips it too
 
 
 def harness_node(name: str, context: Context) -> Node:
