@@ -81,6 +81,14 @@ def test_without_remapping_locked_joints_are_only_zeroed_and_all_is_scaled(tmp_p
     assert not np.any(lp.monitor.command(np.full(7, np.nan), 0.0))
 
 
+@pytest.mark.parametrize("scale", [0.0, -0.5, 1.5, math.nan])
+def test_a_velocity_scale_outside_0_1_is_refused(scale: float) -> None:
+    """Commands are scaled into the scale times the URDF limits: 0 would divide by zero."""
+    with pytest.raises(ValueError, match="velocity_scale"):
+        MonitorConfig(velocity_scale=scale)
+    assert MonitorConfig(velocity_scale=0.01).velocity_scale == 0.01
+
+
 def test_declare_restore_and_reset_go_through_the_file(tmp_path: Path) -> None:
     store = tmp_path / "monitor--panda.json"
     first = Loop(store)

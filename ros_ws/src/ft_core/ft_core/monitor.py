@@ -76,6 +76,10 @@ class MonitorConfig:
     velocity_scale: float = 1.0
     brake_free_swinging: bool = False
 
+    def __post_init__(self) -> None:
+        if not 0 < self.velocity_scale <= 1:
+            raise ValueError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}")
+
 
 @dataclass
 class Change:

@@ -26,8 +26,14 @@ from ft_core.robots import Robot
 
 
 def within_limits(qd: np.ndarray, velocity_limits: np.ndarray) -> np.ndarray:
-    """Qd scaled down as a whole (direction kept) so that |qd_i| <= velocity_limits_i."""
-    excess = float((np.abs(qd) / velocity_limits).max(initial=0.0))
+    """Qd scaled down as a whole (direction kept) so that |qd_i| <= velocity_limits_i.
+
+    The limits are positive (inf for none). Python floats (every command passes here):
+    numpy's calls cost more on a 7-joint arm. A nan in qd gives a nan in the result either
+    way (the callers then command zeros).
+    """
+    excess = max((abs(v) / limit for v, limit in zip(qd.tolist(), velocity_limits.tolist(),
+                                                     strict=True)), default=0.0)
     return qd / excess if excess > 1 else qd
 
 
