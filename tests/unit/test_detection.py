@@ -159,6 +159,38 @@ def test_a_joint_moving_on_its_own_is_free_swinging_not_locked(holding: bool) ->
     assert detector.swinging == {} and list(detector.locked) == [2]
 
 
+def test_a_swing_takes_a_declared_lock_back_and_the_update_says_so() -> None:
+    """Joint 3, declared locked, moves on its own: the update names the lock it releases.
+
+    The monitor writes the locked set on that (`Update.released`). Undeclared, the joint
+    may pass through a stall against its command first (a lock, taken back once it
+    moves): the update releases what was locked just before it, nothing else.
+    """
+    plant = PlantConfig(latency=0.02, response_time=0.03)
+    data = record(moving_targets, 5.0, plant)
+    for kind, t, values in data.events:
+        if kind == "measure" and t >= 4.0:
+            values[2] += 0.3 * (1 - np.cos(np.pi * (t - 4.0)))
+    for declared in (True, False):
+        detector = LockDetector(PANDA.lower, PANDA.upper)
+        if declared:
+            detector.lock(2, 0.0, 0.0)
+        swings = []
+        for kind, t, values in data.events:
+            if kind == "command":
+                detector.command(t, values)
+                continue
+            before = tuple(detector.locked)
+            update = detector.measure(t, values)
+            if update.swinging:
+                swings.append((before, update))
+        assert [u.swinging for _, u in swings] == [(2,)], swings
+        before, update = swings[0]
+        assert update.released == before
+        assert before == (2,) or not declared  # declared: locked until the swing
+        assert detector.locked == {} and list(detector.swinging) == [2]
+
+
 def test_a_joint_falling_faster_than_any_transient_is_named_before_the_settling_time() -> None:
     """Joint 2 falls from rest at 3 s (10 rad/s^2) behind a slow servo while the arm holds.
 

@@ -221,10 +221,14 @@ class JointEvidence:
 
 @dataclass(frozen=True)
 class Update:
-    """What one measurement decided: joints newly declared locked and free-swinging."""
+    """What one measurement decided: joints newly declared locked and free-swinging.
+
+    `released`: those of `swinging` that were declared locked (a swing takes the lock back).
+    """
 
     locked: tuple[int, ...] = ()
     swinging: tuple[int, ...] = ()
+    released: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -743,9 +747,10 @@ class LockDetector:
     # ---------------------------------------------------------------- inputs
     def command(self, time: float, velocity: np.ndarray) -> None:
         """The velocity sent to the plant from `time` on (rad/s)."""
-        if len(self.history) and time < self.history.last_time:
+        last = self.history.last_time  # -inf before any command
+        if time < last:
             return  # out of order: ignored
-        if time - self.history.last_time > self.config.window / 2:
+        if time - last > self.config.window / 2:
             self._resumed_at = time  # the first command, or the first after a gap
             self._seen_following = 0.0
         # Floats and contiguous arrays: the types `compile_ahead` compiled for.
@@ -999,7 +1004,7 @@ class LockDetector:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return Update()
-        swinging = []
+        swinging, released = [], []
         for j, evidence in enumerate(joints):
             if not own_of[j]:
                 evidence.swing_since = None
@@ -1009,6 +1014,8 @@ class LockDetector:
                 if now - evidence.swing_since >= cfg.persistence + self._swing_wait(
                         measured_of[j], error_of[j], plausible, best):
                     # A joint declared locked that moves was never locked: it swings.
+                    if evidence.locked_at is not None:
+                        released.append(j)
                     evidence.swinging_at, evidence.locked_at = now, None
                     swinging.append(j)
         newly = []
@@ -1024,7 +1031,7 @@ class LockDetector:
                 # Seen swinging before: should it move on its own again, it swings again.
                 evidence.swinging_at = None
                 newly.append(j)
-        return Update(tuple(newly), tuple(swinging))
+        return Update(tuple(newly), tuple(swinging), tuple(released))
 
     def _swing_wait(self, measured: float, error: float, plausible: np.ndarray,
                     best: int) -> float:

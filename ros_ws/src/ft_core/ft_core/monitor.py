@@ -236,7 +236,6 @@ class Monitor:
     def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
         self.q = q
-        before = set(self.detector.locked)
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q))
@@ -257,9 +256,11 @@ class Monitor:
                 f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
                 f"measured {evidence.measured:.4f} rad/s against at least "
                 f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad behind")
-        # A swing of an unlocked joint leaves the set as it is: reported without a write
-        # (a swing that takes a lock back, or the brake, changes it).
-        change.changed |= set(self.detector.locked) != before
+        # A swing of an unlocked joint leaves the set as it is: reported without a write.
+        # A swing that takes a lock back changes it, unless the brake locks it again; the
+        # brake on a joint that was not locked changes it. (New locks were not locked.)
+        change.changed |= bool(update.locked) or any(
+            (j in update.released) != brake for j in update.swinging)
         if self._observed_at is None or now < self._observed_latest:
             self._observed_at = np.full(self.robot.n, now)  # the first state, or time reset
             self._observed_latest = now
