@@ -325,7 +325,8 @@ class Controller:
             xd, reached = pose_velocity(robot, error, self.config.tracking)
             return xd, reached, error
         scale = staleness_scale(now - target.stamp, self.config.target_timeout)
-        return scale * target.value, scale == 0.0, None
+        # The twist itself while fresh (the cycle only reads it): no product each cycle.
+        return target.value if scale == 1.0 else scale * target.value, scale == 0.0, None
 
     def _excite(self, kinematics: Kinematics, qd: np.ndarray, locked: list[int], now: float,
                 ) -> np.ndarray:

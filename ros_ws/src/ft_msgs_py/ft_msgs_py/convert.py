@@ -62,12 +62,15 @@ def _few(names: Sequence[str], most: int = 10) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> np.ndarray:
+def _positions(names: tuple[str, ...], joints: tuple[str, ...]) -> np.ndarray | None:
     """Where each of `joints` is in `names` (MessageError for duplicates or missing joints).
 
+    None where `names` are `joints`, in order (the values are taken as they are).
     Cached: a driver sends the same names in every message. Read-only, an index array
     (numpy's `take` uses it as it is; a tuple would be converted at every message).
     """
+    if names == joints:
+        return None
     found = names_to_indices(names, joints)
     missing = [j for j in joints if j not in found]
     if missing:
@@ -93,7 +96,8 @@ def joint_vector(msg: JointState | JointStateView, joints: Sequence[str],
         raise MessageError(f"joint state has {len(names)} names but {values.size} {field} values")
     if len(names) > MAX_NAMES:
         raise MessageError(f"{len(names)} joint names (more than {MAX_NAMES})")
-    vector = values.take(_positions(tuple(names), tuple(joints)))
+    positions = _positions(tuple(names), tuple(joints))
+    vector = values.copy() if positions is None else values.take(positions)
     if not all(map(math.isfinite, vector.tolist())):  # each cycle: cheaper than numpy's
         bad = [j for j, v in zip(joints, vector, strict=True) if not np.isfinite(v)]
         raise MessageError(f"non-finite {field} for {bad}")
