@@ -134,7 +134,8 @@ def composed(context: Context, state: str, common: dict,
 def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
     """ft-stack cycles on joint states: at once, after the monitor, one a control period.
 
-    When the states stop, the control timer cycles again: zeros once they are stale.
+    The control timer is off meanwhile. When the states stop, the steady watchdog starts
+    it again and it cycles: zeros once they are stale.
     """
     with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
         controller, monitor, take = composed(context, state, {
@@ -150,9 +151,11 @@ def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
             return serialize_message(convert.joint_state(joints, stamp, position=START))
 
         cycles = controller.accounting.cycles
+        assert not controller._timer.is_canceled()  # no state yet: the timer cycles
         take(state())  # no executor spins: the call itself runs the cycle
         assert calls == ["observe", "step"], calls
         assert controller.accounting.cycles == cycles + 1
+        assert controller._timer.is_canceled(), "the timer ticks while the states drive"
         # Back to back within a quarter of the control period (0.1 s): no more cycles,
         # the next one a control period after the first.
         for _ in range(4):
