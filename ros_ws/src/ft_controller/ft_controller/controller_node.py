@@ -440,7 +440,9 @@ class ControllerNode(SuiteNode):
         period = 1.0 / self.param("control_rate")
         self._schedule: StateSchedule | None = (StateSchedule(period * 1e9) if states_drive
                                                 else None)
-        self._waiting_for_states = states_drive  # the timer on until a state drives a cycle
+        #: whether the timer runs; where states drive the cycles, it stops at the first
+        #: state-driven cycle and the watchdog starts it once the states stop
+        self._timer_runs = True
         if states_drive:
             return self.create_timer(max(period, STATE_WAIT), self._cycle_if_states_stopped)
         return self.create_timer(period, self._cycle)
@@ -474,9 +476,9 @@ class ControllerNode(SuiteNode):
             nanoseconds = self.now_ns()
             if self._schedule.ready(nanoseconds):
                 self._cycle(nanoseconds)
-                if self._waiting_for_states:  # the states drive the cycles again
+                if self._timer_runs:  # the states drive the cycles again
                     self._timer.cancel()
-                    self._waiting_for_states = False
+                    self._timer_runs = False
 
     def _frame_ok(self, frame: str, kind: str) -> bool:
         if frame in ("", self.robot.base_link):
@@ -595,10 +597,10 @@ class ControllerNode(SuiteNode):
         the cycles, the control timer started again once they stopped.
         """
         self._check_monitor()
-        if (self._schedule is not None and not self._waiting_for_states
+        if (self._schedule is not None and not self._timer_runs
                 and self._schedule.quiet(self.now_ns())):
             self._timer.reset()
-            self._waiting_for_states = True
+            self._timer_runs = True
         silent = time.monotonic() - self._last_cycle
         if silent <= max(self.param("state_timeout"), 2.0 / self.param("control_rate")):
             self.problems.report("control loop", None)
