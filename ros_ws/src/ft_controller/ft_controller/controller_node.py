@@ -417,7 +417,8 @@ class ControllerNode(SuiteNode):
         cycles only where no cycle ran for a control period: when states stop, commands
         go on as they would from the timer (zeros once the last state is older than
         `state_timeout`). While the states drive the cycles it is off: its ticks woke the
-        executor between states, 6 % of ft-stack's CPU at 1 kHz (`make bench`). The steady
+        executor between states, 6 % of ft-stack's CPU at 1 kHz (measured back to back,
+        docs/benchmarks.md). The steady
         watchdog starts it again once no cycle ran for a control period, so it takes over
         within `WATCHDOG_PERIOD` + `STATE_WAIT` s of the last state.
 
@@ -441,7 +442,8 @@ class ControllerNode(SuiteNode):
         self._schedule: StateSchedule | None = (StateSchedule(period * 1e9) if states_drive
                                                 else None)
         #: whether the timer runs; where states drive the cycles, it stops at the first
-        #: state-driven cycle and the watchdog starts it once the states stop
+        #: state-driven cycle and the watchdog starts it once the states stop (kept here,
+        #: since every timer is made here, so no cycle asks rclpy's `is_canceled`)
         self._timer_runs = True
         if states_drive:
             return self.create_timer(max(period, STATE_WAIT), self._cycle_if_states_stopped)
