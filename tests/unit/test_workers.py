@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import pytest
@@ -67,3 +68,26 @@ def test_a_worker_runs_nicer_than_its_parent() -> None:
     finally:
         pool.shutdown()
     assert worker_niceness == min(19, os.nice(0) + workers.NICENESS)
+
+
+def test_a_stopped_pool_leaves_nothing_running_even_mid_job() -> None:
+    """`stop` ends the worker and the pool's manager thread before it returns.
+
+    Python 3.11's exit handler races a manager thread still closing its pipe (the
+    "Bad file descriptor" a Ctrl-C printed): after `stop` there is no such thread.
+    """
+    pool = workers.pool()
+    worker = pool.submit(os.getpid).result(timeout=60)
+    job = pool.submit(time.sleep, 30.0)
+    deadline = time.monotonic() + 10.0
+    while not job.running():
+        assert time.monotonic() < deadline, "the job never started"
+        time.sleep(0.01)
+    manager = pool._executor_manager_thread
+    assert manager is not None and manager.is_alive()
+    workers.stop(pool)
+    assert not manager.is_alive()
+    assert not running(worker)
+    assert job.done() and not job.cancelled()  # ended by the worker's end, not by a cancel
+    with pytest.raises(BrokenProcessPool):
+        job.result(timeout=0)

@@ -477,4 +477,4 @@ class Controller:
     def close(self) -> None:
         """Stop the background work."""
         if self._background is not None and self._owns_background:
-            self._background.shutdown(wait=False, cancel_futures=True)
+            workers.stop(self._background)

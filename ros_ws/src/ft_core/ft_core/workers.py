@@ -25,11 +25,14 @@ from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from multiprocessing.context import SpawnContext, SpawnProcess
+from typing import cast
 
 #: How often (s) a worker checks that its parent still runs.
 PERIOD = 0.5
 #: How much nicer (lower priority) a worker runs than the process that starts it.
 NICENESS = 10
+#: Longest wait (s) for a stopped pool's manager thread to end (`stop`).
+STOP_TIMEOUT = 5.0
 
 
 def exit_with_parent(parent: int) -> None:
@@ -96,6 +99,29 @@ def pool() -> ProcessPoolExecutor:
     """
     return ProcessPoolExecutor(max_workers=1, mp_context=SPAWN,
                                initializer=_start_worker, initargs=(os.getpid(),))
+
+
+def stop(pool: ProcessPoolExecutor) -> None:
+    """End `pool` now, its work thrown away: worker processes terminated, then waited for.
+
+    For a node's background work at the node's end, and for a worker that no longer
+    answers. Shutting a pool down without waiting leaves its manager thread to close the
+    pool's wake-up pipe while the interpreter may be exiting, and Python 3.11's exit
+    handler writes to that pipe without the lock that would order the two (CPython issue
+    gh-125451, fixed in 3.12.8 and 3.13.1): "Exception ignored ... Bad file descriptor"
+    at a Ctrl-C. Waiting for the manager thread closes that window; terminating the
+    workers first keeps the wait short while a job runs (a self-motion trace takes
+    seconds), and bounded (`STOP_TIMEOUT`). The workers and the manager thread are the
+    pool's private attributes in 3.11 (3.14 adds `terminate_workers` for the first half).
+    """
+    processes = list((pool._processes or {}).values())
+    # typeshed has this attribute as a _ThreadWakeup; it holds the manager thread.
+    manager = cast("threading.Thread | None", pool._executor_manager_thread)
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    if manager is not None:
+        manager.join(STOP_TIMEOUT)
 
 
 @contextmanager

@@ -541,7 +541,7 @@ def planner() -> ProcessPoolExecutor:
                 _PLANNER[0].submit(os.getpid).result(timeout=PLANNER_CHECK)
                 return _PLANNER[0]
             except (RuntimeError, OSError, AssertionError, TimeoutError):  # broken, no child
-                _PLANNER.pop().shutdown(wait=False, cancel_futures=True)
+                workers.stop(_PLANNER.pop())
         _PLANNER.append(workers.pool())
         # At the exit of a process of a pool, before multiprocessing closes the pool's
         # queues (their finalizers have priority 10) and joins the children.
