@@ -250,9 +250,9 @@ def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
     with controller(task_space="position") as (node, plant):
         plant.frozen = True
         monitor = monitor_publisher(plant)
-        # The monitor's command path: it forwards each command, its locked joints zeroed.
+        # The monitor's command path, as echoed: each command, its locked joints zeroed.
         zeroed = {3}
-        forwarded = plant.node.create_publisher(JointState, "ft/command", qos.RELIABLE)
+        forwarded = plant.node.create_publisher(JointState, "ft/command_echo", qos.RELIABLE)
         plant.node.create_subscription(JointState, "ft/command_raw", lambda msg: (
             forwarded.publish(JointState(header=msg.header, name=list(msg.name), velocity=[
                 0.0 if j in zeroed else v for j, v in enumerate(msg.velocity)]))),

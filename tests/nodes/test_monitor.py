@@ -13,10 +13,12 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_monitor.monitor_node import MonitorNode
-from ft_msgs_py import convert, qos
+from ft_msgs_py import convert, names, qos, wire
+from ft_msgs_py.monitor_guard import ECHO_PERIOD
 from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim.sim_node import SimNode
 from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosutil import fresh_domain, ros_context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -234,6 +236,40 @@ def test_no_decision_while_nobody_subscribes_to_the_command_output(tmp_path) -> 
         assert spin_until(executor, exchange, 5.0)
         assert monitor.core.detector.not_observing == "nobody subscribes to ft/command(_array)"
         assert monitor.locked == {}
+
+
+def test_the_monitor_echoes_what_it_sends_at_most_once_per_echo_period() -> None:
+    """`ft/command_echo`, for the controller's guard of a dead monitor: copies of `ft/command`.
+
+    Commands sent back to back, faster than one per `ECHO_PERIOD`, get fewer echoes than
+    commands; each echo is one of the commands the plant got, stamp and velocities.
+    """
+    every = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    with loop() as lp:
+        echoes: list[JointState] = []
+        plant: list[JointState] = []
+        lp.node.create_subscription(JointState, names.COMMAND_ECHO, echoes.append, every)
+        lp.node.create_subscription(JointState, names.COMMAND, plant.append, every)
+        assert spin_until(lp.executor, lambda: (lp.send([0.1] * 7), bool(echoes))[1], 10.0), (
+            "no echo from the monitor")
+        spin_until(lp.executor, lambda: False, 0.2)
+        echoes.clear()
+        plant.clear()
+        count, stamp = 100, wire.Stamp.of(round(lp.sim.t * 1e9))
+        start = time.monotonic()
+        for k in range(count):
+            lp.monitor._publish_command(np.full(7, 0.001 * (k + 1)), stamp)
+        span = time.monotonic() - start
+        assert spin_until(lp.executor, lambda: len(plant) >= count, 10.0), (
+            f"the plant got {len(plant)} of {count} commands")
+        spin_until(lp.executor, lambda: False, 0.1)  # the last echo, if any, arrives
+        sent = {tuple(m.velocity) for m in plant}
+        assert echoes, "no echo of the commands"
+        for echo in echoes:
+            assert tuple(echo.velocity) in sent and list(echo.name) == list(PANDA.joint_names)
+            assert (echo.header.stamp.sec, echo.header.stamp.nanosec) == tuple(stamp)
+        assert len(echoes) <= span / ECHO_PERIOD + 1 < count, (
+            f"{len(echoes)} echoes of {count} commands sent in {span * 1e3:.1f} ms")
 
 
 def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:

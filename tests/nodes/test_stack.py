@@ -42,6 +42,7 @@ def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
         assert spin_until(executor, lambda: controller.count_publishers(names.COMMAND_RAW) == 1
                           and controller.count_subscribers(names.COMMAND) == 1, 30.0)
         assert controller.count_subscribers(names.COMMAND_RAW) == 0
+        assert controller.count_subscribers(names.COMMAND_ECHO) == 0  # no guard needed
         assert controller.count_subscribers(names.JOINT_STATES) == 1  # the monitor's
         outputs: list[JointState] = []
         probe.create_subscription(JointState, names.COMMAND, outputs.append, qos.SENSOR_INPUT)

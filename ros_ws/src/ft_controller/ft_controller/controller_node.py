@@ -177,7 +177,7 @@ class ControllerNode(SuiteNode):
         self._plant_array_pub = self.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                       qos.RELIABLE)
         self._echo_subscription = self.subscribe_joint_states(
-            names.COMMAND, self._on_plant_command, qos.SENSOR_INPUT)
+            names.COMMAND_ECHO, self._on_echo, qos.SENSOR_INPUT)
         self._metrics_pub, self._metrics_audience = self.create_counted_publisher(
             Float64MultiArray, names.METRICS, qos.RELIABLE)
         self._suspect_pub = self.create_publisher(JointState, names.SUSPECTED_FAILURE,
@@ -548,8 +548,8 @@ class ControllerNode(SuiteNode):
                              self.now())
 
     # ------------------------------------------------------------------- cycle
-    def _on_plant_command(self, msg: JointStateLike) -> None:
-        """What the plant is told (`ft/command`): the monitor's echo of a command, or not."""
+    def _on_echo(self, msg: JointStateLike) -> None:
+        """What the monitor told the plant (`ft/command_echo`): its answer to a command, or not."""
         if self._guard.received((msg.header.stamp.sec, msg.header.stamp.nanosec),
                                 msg.velocity):
             self._take_corroborated()

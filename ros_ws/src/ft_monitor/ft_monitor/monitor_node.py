@@ -46,6 +46,7 @@ from ft_core import locked_set, robots
 from ft_core.detection import DetectorConfig
 from ft_core.monitor import UNSEEN_AFTER, Change, Monitor, MonitorConfig
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin, wire
+from ft_msgs_py.monitor_guard import ECHO_PERIOD
 from ft_msgs_py.node import JointStateLike, StateListener, SuiteNode
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
@@ -124,6 +125,10 @@ class MonitorNode(SuiteNode):
             JointState, names.COMMAND, qos.RELIABLE)
         self._array_pub, self._array_audience = self.create_counted_publisher(
             Float64MultiArray, names.COMMAND_ARRAY, qos.RELIABLE)
+        #: `ft/command` again, at most every ECHO_PERIOD s: the controller's guard hears it
+        self._echo_pub, self._echo_audience = self.create_counted_publisher(
+            JointState, names.COMMAND_ECHO, qos.RELIABLE)
+        self._last_echo = -math.inf  # steady s
         self._locked_pub = self.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                       qos.RELIABLE)
@@ -401,12 +406,19 @@ class MonitorNode(SuiteNode):
     def _publish_command(self, qd_chain: np.ndarray, stamp: Time | wire.Stamp) -> None:
         """The command (chain order, rad/s) out on `ft/command` as bytes (`wire.CommandWriter`).
 
-        Also as a Float64MultiArray while someone subscribes to `ft/command_array`.
+        Also as a Float64MultiArray while someone subscribes to `ft/command_array`, and
+        on `ft/command_echo` (the controller's guard of a dead monitor) at most once per
+        `ECHO_PERIOD` of steady time while someone subscribes to it.
         """
         ordered = qd_chain if self._reorder is None else qd_chain[self._reorder]
         serialized = self._command_writer.serialize(stamp.sec, stamp.nanosec, ordered)
         if self._command_taker is None or self._command_audience.count:
             self._command_pub.publish(serialized)
+            if self._echo_audience.count:
+                now = time.monotonic()
+                if now - self._last_echo >= ECHO_PERIOD:
+                    self._echo_pub.publish(serialized)
+                    self._last_echo = now
         if self._command_taker is not None:
             self._command_taker(self._taker_reader.read(serialized))
         if self._array_audience.count:  # a JointGroupVelocityController

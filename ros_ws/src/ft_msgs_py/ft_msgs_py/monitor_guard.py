@@ -2,17 +2,20 @@
 
 The monitor forwards each `ft/command_raw` to `ft/command` with the same stamp. If it
 dies (kill -9, a crash), a driver that holds its last command keeps the arm moving
-(1.22 rad in 3 s were measured), and nothing else would stop it. The controller
-remembers the stamps of the commands it sent; an `ft/command` carrying one of them is
-the monitor's echo. Once an echo has been seen (a graph without a monitor never
-triggers the guard), commands left unanswered for `timeout` s of steady time mean the
-monitor is gone or stalled: the controller then publishes explicit zeros on the plant's
-command topics itself, until an echo comes back. Times are steady seconds. The
-controller asks (`silent`) every cycle; a longer gap between two questions than
-`timeout` is the controller's own stall (stopped, starved of the CPU), not the
-monitor's: echoes that arrived meanwhile may still wait in its queue behind the question,
-so the wait starts again (a deployment test paused the controller for 0.3 s and the
-guard fired on a live monitor).
+(1.22 rad in 3 s were measured), and nothing else would stop it. The monitor also
+publishes what it sent on `ft/command` to `ft/command_echo`, at most once per
+`ECHO_PERIOD`: taking every `ft/command` at 1 kHz cost the controller's process a fifth
+of its CPU (docs/benchmarks.md), and the guard needs to hear from the monitor a few
+times per timeout, not every cycle. The controller remembers the stamps of the commands
+it sent; an echo carrying one of them is the monitor's answer. Once an echo has been
+seen (a graph without a monitor never triggers the guard), commands left unanswered for
+`timeout` s of steady time mean the monitor is gone or stalled: the controller then
+publishes explicit zeros on the plant's command topics itself, until an echo comes back.
+Times are steady seconds. The controller asks (`silent`) every cycle; a longer gap
+between two questions than `timeout` is the controller's own stall (stopped, starved of
+the CPU), not the monitor's: echoes that arrived meanwhile may still wait in its queue
+behind the question, so the wait starts again (a deployment test paused the controller
+for 0.3 s and the guard fired on a live monitor).
 
 The echoes also say which joints the monitor holds locked, in a way no other node can
 forge by merely publishing: it zeros them on the command path (`zeroed`). The controller
@@ -27,6 +30,10 @@ from collections.abc import Sequence
 
 #: Stamps of sent commands remembered for matching echoes (a few cycles' worth).
 REMEMBERED = 64
+#: Shortest time (s, steady) between two echoes the monitor publishes: a command
+#: unanswered waits up to this much longer for its answer than when every command was
+#: echoed, a tenth of the default `monitor_timeout` (0.05 s).
+ECHO_PERIOD = 0.005
 
 Stamp = tuple[int, int]  #: (sec, nanosec) of a message header
 
@@ -36,7 +43,7 @@ class MonitorGuard:
 
     def __init__(self, timeout: float):
         self.timeout = timeout
-        self._sent: OrderedDict[Stamp, tuple[float, ...]] = OrderedDict()
+        self._sent: OrderedDict[Stamp, Sequence[float]] = OrderedDict()
         self._seen = False  # an echo has come at least once
         self._waiting_since: float | None = None  # first command unanswered since
         self._asked: float | None = None  # when `silent` was last called
@@ -45,15 +52,15 @@ class MonitorGuard:
         self.zeroed: frozenset[int] = frozenset()
 
     def sent(self, stamp: Stamp, now: float, velocity: Sequence[float]) -> None:
-        """A command (`velocity`, rad/s) went out on `ft/command_raw` with `stamp`."""
-        self._sent[stamp] = tuple(velocity)
+        """A command (`velocity`, rad/s, not changed after) went out with `stamp`."""
+        self._sent[stamp] = velocity
         while len(self._sent) > REMEMBERED:
             self._sent.popitem(last=False)
         if self._waiting_since is None:
             self._waiting_since = now
 
     def received(self, stamp: Stamp, velocity: Sequence[float]) -> bool:
-        """A message arrived on `ft/command`; whether it is an echo (it carries a sent stamp).
+        """A message arrived on `ft/command_echo`; whether it is an echo (a sent stamp).
 
         An echo that moves some joint updates `zeroed` (one of all zeros, a refused
         command, says nothing of locks).
