@@ -108,7 +108,8 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                       parameters.float_range(0.001, 60.0)),
     "monitor_timeout": (MONITOR_TIMEOUT, "s (steady) without the monitor's answer to a command "
                         "before the controller publishes zeros on ft/command and "
-                        "ft/command_array itself (0: off)", parameters.float_range(0.0, 60.0)),
+                        "ft/command_array itself (0: off; the monitor answers every 5 ms, "
+                        "so keep it well above that)", parameters.float_range(0.0, 60.0)),
     "position_gain": (_TRACKING.gain, "1/s, pose-goal tracking",
                       parameters.float_range(0.01, 100.0)),
     "max_linear_speed": (_TRACKING.max_linear, "m/s, pose-goal tracking",
