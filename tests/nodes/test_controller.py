@@ -15,7 +15,7 @@ from ft_controller.controller_node import PARAMETERS, ControllerNode
 from ft_core import robots
 from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
 from ft_msgs_py import convert, diagnostics, metrics, qos
-from ft_msgs_py.spin import harness_node, spin_until
+from ft_msgs_py.spin import Ticked, harness_node, spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import REPO
 from rclpy.executors import Executor, SingleThreadedExecutor
@@ -603,3 +603,33 @@ def test_optimize_start_moves_the_idle_arm_with_the_tool_held_still() -> None:
         future = client.call_async(Trigger.Request())
         assert spin_until(plant.executor, future.done, 10.0)
         assert not future.result().success and "target is in force" in future.result().message
+
+
+def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer() -> None:
+    """`ft-controller` as a process of its own: `spin.run_nodes` ticks its cycles.
+
+    Same period on steady time, late ticks skipped as an rclpy timer skips them, the
+    period following `control_rate`; with `use_sim_time` the timer stays.
+    """
+    with controller(use_sim_time=False, control_rate=250.0) as (node, _plant):
+        timer = node._timer
+        assert math.isinf(node.next_tick())
+        node.cycle_on_loop_ticks()
+        assert isinstance(node, Ticked) and timer not in node.timers
+        first, period = node.next_tick(), 1.0 / 250.0
+        assert 0.0 < first - time.monotonic() <= period
+        node.last_command = None
+        node.tick(first)
+        assert node.last_command is not None and not np.any(node.last_command)  # no state
+        assert node.next_tick() == pytest.approx(first + period)
+        node.tick(first + 3.5 * period)  # late by 2.5 periods: those ticks are skipped
+        assert node.next_tick() == pytest.approx(first + 4 * period)
+        node.set_parameters([Parameter("control_rate", value=100.0)])
+        assert 0.0 < node.next_tick() - time.monotonic() <= 0.01
+        due = node.next_tick()
+        node.tick(due)
+        assert node.next_tick() == pytest.approx(due + 0.01)
+    with controller() as (node, _plant):  # use_sim_time: the simulated clock's timer
+        timer = node._timer
+        node.cycle_on_loop_ticks()
+        assert math.isinf(node.next_tick()) and timer in node.timers

@@ -35,7 +35,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import cast
+from typing import Protocol, cast, runtime_checkable
 
 import rclpy
 from rclpy.context import Context
@@ -161,6 +161,21 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> No
     run_nodes([make_node], args)
 
 
+@runtime_checkable
+class Ticked(Protocol):
+    """A node this loop ticks itself (`run_nodes`), instead of an rclpy timer.
+
+    The executor's timer thread wakes the loop once per tick besides the messages; a
+    deadline the loop waits for in `spin_once` costs no other thread (docs/benchmarks.md).
+    """
+
+    def next_tick(self) -> float:
+        """Steady time (s, `time.monotonic`) of the next tick; `math.inf`: none."""
+
+    def tick(self, now: float) -> None:
+        """The tick due at or before `now` (steady s)."""
+
+
 def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = None,
               wire: Callable[[list[Node]], None] = lambda _nodes: None) -> None:
     """`run_node` for several nodes in one process, on one executor (a component container).
@@ -172,7 +187,9 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     node's `stop()` runs, in order, and its reliable publishers get up to
     DELIVERY_TIMEOUT s each for their subscribers to acknowledge what it sent (the zeros:
     a driver that holds its last command must have them before the process is gone);
-    the teardown that follows is bounded by TEARDOWN_TIMEOUT (`exit_if_stuck`).
+    the teardown that follows is bounded by TEARDOWN_TIMEOUT (`exit_if_stuck`). A
+    `Ticked` node gets its ticks from this loop, which waits for the next one in
+    `spin_once` (messages are taken meanwhile).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
@@ -184,9 +201,16 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     executor = EventsExecutor()
     for node in nodes:
         executor.add_node(node)
+    ticked = [node for node in nodes if isinstance(node, Ticked)]
     try:
         while not stop_requested.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=CHECK_PERIOD)
+            now, wait = time.monotonic(), CHECK_PERIOD
+            for node in ticked:
+                if node.next_tick() <= now:
+                    node.tick(now)
+                    now = time.monotonic()
+                wait = min(wait, node.next_tick() - now)
+            executor.spin_once(timeout_sec=max(wait, 0.0))
     finally:
         for node in nodes:
             stop = getattr(node, "stop", None)
