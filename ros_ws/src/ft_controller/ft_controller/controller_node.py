@@ -198,8 +198,8 @@ class ControllerNode(SuiteNode):
         self._load_model()
         self._timer = self._control_timer(states_drive=False)
         #: Steady time (s) of the next tick where the process's loop ticks the cycles
-        #: (`cycle_on_loop_ticks`), else inf; and their period (s).
-        self._next_tick, self._loop_period = math.inf, 1.0 / self.param("control_rate")
+        #: (`cycle_on_loop_ticks`; their period is the accounting's), else inf.
+        self._next_tick = math.inf
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
         self.create_timer(markers.PERIOD, self._publish_markers)
         self.create_service(Trigger, names.OPTIMIZE_START, self._on_optimize_start)
@@ -312,8 +312,7 @@ class ControllerNode(SuiteNode):
         if "control_rate" in changed:
             self.accounting.period = 1.0 / self.param("control_rate")
             if math.isfinite(self._next_tick):  # the loop ticks the cycles
-                self._loop_period = self.accounting.period
-                self._next_tick = time.monotonic() + self._loop_period
+                self._next_tick = time.monotonic() + self.accounting.period
             else:
                 self._timer.cancel()
                 self.destroy_timer(self._timer)
@@ -455,8 +454,7 @@ class ControllerNode(SuiteNode):
         self._timer.cancel()
         self.destroy_timer(self._timer)
         self._timer_runs = False
-        self._loop_period = 1.0 / self.param("control_rate")
-        self._next_tick = time.monotonic() + self._loop_period
+        self._next_tick = time.monotonic() + self.accounting.period
 
     def next_tick(self) -> float:
         """Steady time (s) of the next loop tick (`cycle_on_loop_ticks`); inf: not so driven."""
@@ -464,7 +462,7 @@ class ControllerNode(SuiteNode):
 
     def tick(self, now: float) -> None:
         """The control cycle of the loop tick due at or before `now` (steady s)."""
-        period = self._loop_period
+        period = self.accounting.period
         self._next_tick += period * (math.floor((now - self._next_tick) / period) + 1)
         self._cycle()
 
