@@ -68,6 +68,7 @@ class Excursions:
     def __init__(self, n: int, config: ObservabilityConfig):
         self.config = config
         self._last: np.ndarray | None = None  # time each joint was last observed
+        self._clock = -math.inf  # the t of the last update
         self._n = n
         self._active: tuple[int, int | None, float] | None = None  # (joint, witness, start)
 
@@ -83,10 +84,14 @@ class Excursions:
         never excited. A backwards jump of t (a restarted simulation clock) restarts
         every timer.
         """
-        if self._last is None or t < self._last.max(initial=-math.inf):
+        if self._last is None or t < self._clock:
             self._last, self._active = np.full(self._n, t), None
+        self._clock = t
         self._last[np.abs(qd) >= OBSERVED_SPEED] = t
-        cfg, locked = self.config, set(locked)
+        cfg = self.config
+        if self._active is None and t - self._last.min() < cfg.idle_time:
+            return []  # no joint, locked or not, idle long enough: the common cycle, no sort
+        locked = set(locked)
         if self._active is not None:
             joint, witness, start = self._active
             if t - start < cfg.duration and joint not in locked:
