@@ -15,9 +15,10 @@ from ft_controller.controller_node import PARAMETERS, ControllerNode
 from ft_core import robots
 from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
 from ft_msgs_py import convert, diagnostics, metrics, qos
-from ft_msgs_py.spin import Ticked, harness_node, spin_until
+from ft_msgs_py.spin import Ticked, harness_node, spin_for, spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import REPO
+from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
@@ -605,13 +606,16 @@ def test_optimize_start_moves_the_idle_arm_with_the_tool_held_still() -> None:
         assert not future.result().success and "target is in force" in future.result().message
 
 
-def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer() -> None:
+@pytest.mark.parametrize("executor_type", [SingleThreadedExecutor, EventsExecutor])
+def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer(
+        executor_type: type[Executor]) -> None:
     """`ft-controller` as a process of its own: `spin.run_nodes` ticks its cycles.
 
     Same period on steady time, late ticks skipped as an rclpy timer skips them, the
-    period following `control_rate`; with `use_sim_time` the timer stays.
+    period following `control_rate`; the cycle's inputs wait for the tick, which takes
+    them; with `use_sim_time` the timer stays, and the callbacks.
     """
-    with controller(use_sim_time=False, control_rate=250.0) as (node, _plant):
+    with controller(executor_type, use_sim_time=False, control_rate=250.0) as (node, plant):
         timer = node._timer
         assert math.isinf(node.next_tick())
         node.cycle_on_loop_ticks()
@@ -629,7 +633,31 @@ def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer() -> None:
         due = node.next_tick()
         node.tick(due)
         assert node.next_tick() == pytest.approx(due + 0.01)
+        # The inputs wait in their queues: the executor dispatches none of them ...
+        held = {node.resolve_topic_name(topic) for topic in (
+            "joint_states", "ft/command_echo", "ft/target_twist", "ft/target_pose")}
+        assert held <= {s.topic_name for s in node._subscriptions}
+        assert not held & {s.topic_name for s in node.subscriptions}
+        plant.t_ns = node.now_ns()
+        plant.publish_state()
+        targets = plant.node.create_publisher(TwistStamped, "ft/target_twist", qos.RELIABLE)
+        assert spin_until(plant.executor, lambda: targets.get_subscription_count() == 1)
+        twist = TwistStamped()
+        twist.header.stamp, twist.twist.linear.x = plant.stamp(), 0.05
+        targets.publish(twist)
+        assert targets.wait_for_all_acked(Duration(seconds=5.0))
+        spin_for(plant.executor, 0.2)  # the executor's chance to dispatch them
+        assert node.core.target is None and math.isinf(node.state_stamp)
+        # ... the tick takes them, before its cycle.
+        node.tick(node.next_tick())
+        assert node.core.target is not None and node.core.target.kind == "twist"
+        deadline = time.monotonic() + 5.0  # the state is best effort: it may be in flight
+        while math.isinf(node.state_stamp) and time.monotonic() < deadline:
+            node.tick(node.next_tick())
+        assert node.state_stamp == pytest.approx(plant.t)
+        np.testing.assert_allclose(node.core.target.value[:3], [0.05, 0.0, 0.0])
     with controller() as (node, _plant):  # use_sim_time: the simulated clock's timer
         timer = node._timer
         node.cycle_on_loop_ticks()
         assert math.isinf(node.next_tick()) and timer in node.timers
+        assert len(list(node.subscriptions)) == len(node._subscriptions)

@@ -97,6 +97,51 @@ def test_an_audience_counts_subscribers_as_they_come_and_go(events: bool) -> Non
         node.destroy_node()
 
 
+@pytest.mark.parametrize("events", [False, True], ids=["lock-step", "events"])
+def test_a_subscription_taken_on_demand_is_not_dispatched_and_gives_its_queue_in_order(
+        events: bool) -> None:
+    """`SuiteNode.take_on_demand`: the executor leaves the messages; the call takes them.
+
+    At most the QoS depth per call, oldest first; still the node's subscription (the
+    publisher matches it).
+    """
+    import rclpy
+    from ft_msgs_py.node import SuiteNode
+    from rclpy.duration import Duration
+    from rclpy.experimental import EventsExecutor
+    from rosutil import ros_context
+    from std_msgs.msg import String
+
+    with ros_context(executor_type=EventsExecutor if events else spin.LockStepExecutor) as (
+            context, executor):
+        node = SuiteNode("on_demand", context=context)
+        heard: list[tuple[bool, str]] = []
+        taking = [False]
+        subscription = node.create_subscription(
+            String, "queued", lambda m: heard.append((taking[0], m.data)), 4)
+        take = node.take_on_demand(subscription)
+        assert subscription in node._subscriptions and subscription not in node.subscriptions
+        executor.add_node(node)
+        other = rclpy.create_node("sender", context=context)
+        executor.add_node(other)
+        publisher = other.create_publisher(String, "queued", 10)
+        assert spin.spin_until(executor, lambda: publisher.get_subscription_count() == 1, 5.0)
+        for k in range(6):
+            publisher.publish(String(data=str(k)))
+        assert publisher.wait_for_all_acked(Duration(seconds=5.0))  # all in the queue
+        spin.spin_for(executor, 0.2)  # the executor's chance to dispatch them
+        assert heard == []
+        taking[0] = True
+        take()
+        assert heard == [(True, "2"), (True, "3"), (True, "4"), (True, "5")]  # depth 4
+        take()
+        assert len(heard) == 4  # the queue is empty
+        executor.remove_node(other)
+        executor.remove_node(node)
+        other.destroy_node()
+        node.destroy_node()
+
+
 def test_a_harness_node_offers_no_services() -> None:
     from rosutil import ros_context
 

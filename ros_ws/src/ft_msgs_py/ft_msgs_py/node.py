@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import TypeAlias
 
 import numpy as np
@@ -40,6 +40,7 @@ class SuiteNode(Node):
                                  else FUTURE_TOLERANCE)
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
         self._clock_handle = self.get_clock().handle  # rcl's clock: `now_ns` reads it
+        self._on_demand: set[Subscription] = set()  # kept from executors (`take_on_demand`)
 
     def apply_thread_priority(self) -> str:
         """Apply the `thread_priority` parameter to the calling thread; how it is scheduled.
@@ -83,6 +84,37 @@ class SuiteNode(Node):
         cycle's budget.
         """
         return self._clock_handle.get_now().nanoseconds
+
+    @property
+    def subscriptions(self) -> Iterator[Subscription]:
+        """The subscriptions an executor dispatches: all but those taken on demand."""
+        return (s for s in super().subscriptions if s not in self._on_demand)
+
+    def take_on_demand(self, subscription: Subscription) -> Callable[[], None]:
+        """Keep `subscription` from the executor; returns the call that takes its messages now.
+
+        The call hands the messages waiting in the subscription's queue (oldest first, at
+        most its QoS depth) to its callback, as the executor would have on their arrival.
+        For a loop that reads its inputs at the top of each cycle, as ros2_control's
+        controllers read their state interfaces (`ControllerNode.cycle_on_loop_ticks`):
+        a message no longer wakes the executor, which at 1 kHz of joint states was about
+        a tenth of a controller's CPU (docs/benchmarks.md). The subscription stays the
+        node's: in the graph, remapped, with its QoS events, destroyed with the node.
+        Executors read `subscriptions`; call this before the node spins (an executor
+        spinning already keeps dispatching it until the node's next change of entities).
+        """
+        self._on_demand.add(subscription)
+        handle, msg_type, raw = subscription.handle, subscription.msg_type, subscription.raw
+        callback, depth = subscription.callback, max(subscription.qos_profile.depth, 1)
+
+        def take() -> None:
+            for _ in range(depth):  # bounded: what arrives meanwhile waits for the next call
+                with handle:
+                    taken = handle.take_message(msg_type, raw)
+                if taken is None:
+                    return
+                callback(taken[0])
+        return take
 
     def create_counted_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile,
                                  ) -> tuple[Publisher, Audience]:
