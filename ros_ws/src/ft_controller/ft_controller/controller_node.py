@@ -1,7 +1,8 @@
 """controller_node: fault-tolerant redundancy resolution as a ROS 2 node.
 
 Joint states plus an end-effector target (twist or pose) in, joint velocities out:
-one `ft_core.controller.Controller.step` per timer tick at `control_rate`. The node
+one `ft_core.controller.Controller.step` per tick at `control_rate` (an rclpy timer's,
+or in its own process the process loop's: `cycle_on_loop_ticks`). The node
 is wiring: parameters, message conversion, the watchdog, publishing and diagnostics;
 the per-cycle logic is the core's. Topics, parameters and reactions are listed in
 docs/controller.md.
