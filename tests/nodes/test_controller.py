@@ -420,9 +420,8 @@ def test_default_parameters_are_the_cores_defaults_written_once() -> None:
             Parameter("robot_model", value="panda")])
         try:
             assert node.robot is not None
-            assert node._engine_config(node.robot, node._order, {}) == EngineConfig()
-            assert node._controller_config({}) == ControllerConfig()
             assert node.core.engine.config == EngineConfig()
+            assert node.core.config == ControllerConfig()
             assert sim._plant_config() == PlantConfig()
         finally:
             node.destroy_node()
@@ -558,6 +557,38 @@ def test_soft_limits_can_be_set_one_side_at_a_time() -> None:
         np.testing.assert_allclose(node.core.engine.config.soft_upper, upper)
         plant.run(3)
         assert metrics.values(plant.metrics[-1])["soft_limit_margin"] < metrics.NO_SOFT_BOX
+
+
+def test_parameter_values_make_the_core_configurations_without_a_node() -> None:
+    """`ft_controller.settings`: parameter values to the core's configurations.
+
+    The table's defaults are the cores' defaults; per-joint values given in command order
+    land in chain order; values the core refuses raise.
+    """
+    from ft_controller import settings
+    from ft_core.controller import ControllerConfig
+    from ft_core.engine import EngineConfig
+
+    values = {name: [] if isinstance(default, Parameter.Type) else default
+              for name, (default, _, _) in PARAMETERS.items()}
+    chain = np.arange(7)
+    assert settings.engine_config(values, chain) == EngineConfig()
+    assert settings.controller_config(values) == ControllerConfig()
+    order = chain[::-1]  # the command lists the joints last to first
+    lower = [-1.0, -2.0, -3.0, -4.0, -5.0, -6.0, -7.0]
+    config = settings.engine_config({**values, "soft_limits.lower": lower,
+                                     "soft_limits.upper": [1.0] * 7}, order)
+    np.testing.assert_array_equal(config.soft_lower, lower[::-1])
+    np.testing.assert_array_equal(config.soft_upper, [1.0] * 7)
+    assert settings.engine_config({**values, "soft_limits.lower": lower}, order).soft_lower == ()
+    with pytest.raises(ValueError, match="failure_probabilities needs 7 finite values, got 3"):
+        settings.engine_config({**values, "failure_probabilities": [0.1, 0.2, 0.3]}, chain)
+    with pytest.raises(ValueError, match="with a non-finite one"):
+        settings.engine_config({**values, "soft_limits.lower": [math.nan] * 7,
+                                "soft_limits.upper": [1.0] * 7}, chain)
+    with pytest.raises(ValueError):
+        settings.controller_config({**values, "observability.speed": 0.0})
+    assert settings.controller_config({**values, "recovery.enabled": False}).recovery is None
 
 
 def test_the_shipped_parameters_file_names_only_declared_parameters() -> None:

@@ -22,17 +22,14 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import limits, robots, selfmotion
-from ft_core.controller import Controller, ControllerConfig
-from ft_core.engine import RESOLUTIONS, EngineConfig, Status, check_config
-from ft_core.observability import ObservabilityConfig
-from ft_core.recovery import RecoveryConfig
+from ft_core.controller import Controller
+from ft_core.engine import RESOLUTIONS, Status, check_config
 from ft_core.robots import Robot, RobotModelError
-from ft_core.targets import PoseTracking, goal_from_transform, twist_velocity
+from ft_core.targets import goal_from_transform, twist_velocity
 from ft_msgs_py import (
     convert,
     diagnostics,
@@ -58,6 +55,9 @@ from std_msgs.msg import Float64MultiArray, Header
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from ft_controller import settings
+from ft_controller.settings import PARAMETERS
+
 #: Diagnostics period (s).
 DIAGNOSTICS_PERIOD = 0.5
 #: Period (s, steady time) of the watchdog that publishes zeros when no cycle runs.
@@ -66,81 +66,9 @@ WATCHDOG_PERIOD = 0.05
 #: (`cycle_on_joint_states`), or the control period if longer. It runs only while they
 #: have stopped: the steady watchdog starts it again (within `WATCHDOG_PERIOD`).
 STATE_WAIT = 0.01
-#: s of steady time without the monitor's echo before the guard commands zeros
-#: (`ft_msgs_py.monitor_guard`): 5 cycles at 100 Hz; the echo normally takes a few ms.
-#: Each 10 ms more lets a dead monitor's last command run on 10 ms longer.
-MONITOR_TIMEOUT = 0.05
 #: What takes each command by a call (`hand_commands_to`): (velocities in rad/s, the
 #: joints they are for, the stamp, the node clock's time in s).
 CommandTaker = Callable[[np.ndarray, Sequence[str], wire.Stamp, float], None]
-
-#: The defaults of every parameter that configures the core: its dataclasses' own.
-_ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
-_TRACKING, _OBSERVABILITY = _CYCLE.tracking, ObservabilityConfig()
-_RECOVERY = RecoveryConfig()
-
-#: name -> (default, description, extra descriptor fields)
-PARAMETERS: dict[str, tuple[object, str, dict]] = {
-    **parameters.MODEL_PARAMETERS,
-    **parameters.THREAD_PRIORITY,
-    "resolution": (_ENGINE.resolution, "least_norm, max_kfm, min_jump or blend", {}),
-    "kfm_gain": (_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
-                 parameters.float_range(0.0, 1e4)),
-    "swing_gain": (_ENGINE.swing_gain, "swing-measure descent for free-swinging failures, "
-                   "rad/s per rad (0: off; needs the URDF's inertias, refused without)",
-                   parameters.float_range(0.0, 100.0)),
-    "jump_gain": (_ENGINE.jump_gain, "minimum-jump term (1 = exact)",
-                  parameters.float_range(0.0, 100.0)),
-    "limit_gain": (_ENGINE.limit_gain, "soft/hard limit avoidance, rad/s at a box edge",
-                   parameters.float_range(0.0, 100.0)),
-    "failure_probabilities": (Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` order "
-                              "(empty: equal)", {}),
-    "soft_limits.lower": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
-    "soft_limits.upper": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
-    "critical_points": (Parameter.Type.DOUBLE_ARRAY, "task points concatenated (pose: x y z "
-                        "qx qy qz qw); their intersected self-motion boxes become soft limits",
-                        {}),
-    "release_soft_limits_on_failure": (_ENGINE.release_soft_limits_on_failure,
-                                       "drop the soft limits once a joint is locked", {}),
-    "control_rate": (1.0 / _ENGINE.dt, "Hz", parameters.float_range(1.0, 2000.0)),
-    "target_timeout": (_CYCLE.target_timeout, "s; an older twist decays to 0 over one more "
-                       "timeout", parameters.float_range(0.001, 60.0)),
-    "state_timeout": (_CYCLE.state_timeout, "s; older joint states stop the arm",
-                      parameters.float_range(0.001, 60.0)),
-    "monitor_timeout": (MONITOR_TIMEOUT, "s (steady) without the monitor's answer to a command "
-                        "before the controller publishes zeros on ft/command and "
-                        "ft/command_array itself (0: off; the monitor answers every 5 ms, "
-                        "so keep it well above that)", parameters.float_range(0.0, 60.0)),
-    "position_gain": (_TRACKING.gain, "1/s, pose-goal tracking",
-                      parameters.float_range(0.01, 100.0)),
-    "max_linear_speed": (_TRACKING.max_linear, "m/s, pose-goal tracking",
-                         parameters.float_range(0.001, 10.0)),
-    "max_angular_speed": (_TRACKING.max_angular, "rad/s, pose-goal tracking",
-                          parameters.float_range(0.001, 10.0)),
-    "velocity_scale": (_ENGINE.velocity_scale, "fraction of the URDF velocity limits",
-                       parameters.float_range(0.01, 1.0)),
-    "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
-                     "in this namespace unless absolute (empty: any single publisher)",
-                     {"read_only": True}),
-    "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
-                               "null-space motion (kfm ascent, limit avoidance); otherwise "
-                               "hold still", {}),
-    "recovery.enabled": (_CYCLE.recovery is not None, "when a pose goal's error stops "
-                         "improving, move along a joint path to an IK solution with the "
-                         "locked joints pinned (planned in a worker process)", {}),
-    "recovery.stall_time": (_RECOVERY.stall_time, "s without progress towards a pose goal "
-                            "before recovering", parameters.float_range(0.05, 60.0)),
-    "observability.enabled": (_CYCLE.observability is not None, "null-space excursions of "
-                              "joints not commanded for observability.idle_time, so that a "
-                              "lock on them shows up", {}),
-    "observability.idle_time": (_OBSERVABILITY.idle_time, "s a joint may go uncommanded "
-                                "before an excursion", parameters.float_range(0.01, 3600.0)),
-    "observability.speed": (_OBSERVABILITY.speed, "rad/s, peak joint velocity of an excursion",
-                            parameters.float_range(0.06, 10.0)),
-    "observability.duration": (_OBSERVABILITY.duration, "s, one excursion (out and back)",
-                               parameters.float_range(0.01, 60.0)),
-}
-
 
 class ControllerNode(SuiteNode):
     """The controller; see the module docstring."""
@@ -223,8 +151,9 @@ class ControllerNode(SuiteNode):
         try:
             robot = robots.load(spec, *parameters.chain_arguments(self))
             order = parameters.joint_order(self, robot.joint_names)
-            core = Controller(robot, self._engine_config(robot, order, {}),
-                              self._controller_config({}),
+            values = self._values({})
+            core = Controller(robot, settings.engine_config(values, order),
+                              settings.controller_config(values),
                               (spec, parameters.chain_arguments(self)),
                               report=self.problems.report, log=self.get_logger().info,
                               background=self._shared_background)
@@ -247,52 +176,9 @@ class ControllerNode(SuiteNode):
             f"model from {source}: {robot.name}, {robot.base_link} -> {robot.tip_link}, "
             f"{robot.task_space} task, joints {self.command_joints}")
 
-    def _chain(self, values: list[float], order: np.ndarray, what: str) -> np.ndarray:
-        """Per-joint values given in command order, put in chain order."""
-        values = np.asarray(values, dtype=float)
-        if values.shape != (order.size,) or not np.all(np.isfinite(values)):
-            raise ValueError(f"{what} needs {order.size} finite values, got {values.size}"
-                             + (" with a non-finite one" if values.size == order.size else ""))
-        chain = np.empty(order.size)
-        chain[order] = values
-        return chain
-
-    def _engine_config(self, robot: Robot, order: np.ndarray, changes: dict) -> EngineConfig:
-        """The engine configuration from the parameters (with pending `changes`).
-
-        Without the critical points' box: the core intersects it with these limits.
-        """
-        value = {name: changes.get(name, self.param(name)) for name in PARAMETERS}
-        probabilities = list(value["failure_probabilities"] or [])
-        if probabilities:
-            probabilities = list(self._chain(probabilities, order, "failure_probabilities"))
-        sides = [self._chain(value[name], order, name) if value[name] else None
-                 for name in ("soft_limits.lower", "soft_limits.upper")]
-        # One side alone (set one at a time through SetParameters): no soft limits yet.
-        box = None if any(side is None for side in sides) else tuple(sides)
-        return EngineConfig(
-            resolution=value["resolution"], kfm_gain=value["kfm_gain"],
-            swing_gain=value["swing_gain"],
-            jump_gain=value["jump_gain"], limit_gain=value["limit_gain"],
-            failure_probabilities=tuple(probabilities),
-            soft_lower=() if box is None else box[0], soft_upper=() if box is None else box[1],
-            release_soft_limits_on_failure=value["release_soft_limits_on_failure"],
-            dt=1.0 / value["control_rate"], velocity_scale=value["velocity_scale"])
-
-    def _controller_config(self, changes: dict) -> ControllerConfig:
-        """The core's settings from the parameters (with pending `changes`)."""
-        value = {name: changes.get(name, self.param(name)) for name in PARAMETERS}
-        observability = ObservabilityConfig(value["observability.idle_time"],
-                                            value["observability.speed"],
-                                            value["observability.duration"])
-        return ControllerConfig(
-            state_timeout=value["state_timeout"], target_timeout=value["target_timeout"],
-            idle_null_space_motion=value["idle_null_space_motion"],
-            tracking=PoseTracking(value["position_gain"], value["max_linear_speed"],
-                                  value["max_angular_speed"]),
-            observability=observability if value["observability.enabled"] else None,
-            recovery=replace(_RECOVERY, stall_time=value["recovery.stall_time"])
-            if value["recovery.enabled"] else None)
+    def _values(self, changes: dict) -> dict:
+        """Every parameter's value, pending `changes` (name -> value) in place of the current."""
+        return {name: changes.get(name, self.param(name)) for name in PARAMETERS}
 
     # -------------------------------------------------------------- parameters
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
@@ -301,10 +187,10 @@ class ControllerNode(SuiteNode):
             parameters.check_sizes(changes)
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
-            self._controller_config(changes)
+            settings.controller_config(self._values(changes))
             if self.robot is not None:
                 robot = self.robot
-                check_config(robot, self._engine_config(robot, self._order, changes))
+                check_config(robot, settings.engine_config(self._values(changes), self._order))
                 if "critical_points" in changes:
                     selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
         except (ValueError, TypeError) as error:
@@ -324,8 +210,9 @@ class ControllerNode(SuiteNode):
                 self._timer = self._control_timer(states_drive=self._schedule is not None)
         if self.core is None:
             return
-        self.core.configure(self._engine_config(self.robot, self._order, {}),
-                            self._controller_config({}))
+        values = self._values({})
+        self.core.configure(settings.engine_config(values, self._order),
+                            settings.controller_config(values))
         if "critical_points" in changed:
             self.core.set_critical_points(self.param("critical_points") or [])
 

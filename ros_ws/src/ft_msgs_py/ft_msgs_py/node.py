@@ -98,8 +98,9 @@ class SuiteNode(Node):
         For a loop that reads its inputs at the top of each cycle, as ros2_control's
         controllers read their state interfaces (`ControllerNode.cycle_on_loop_ticks`):
         a message no longer wakes the executor, which at 1 kHz of joint states cost a
-        controller some 0.04 ms of its 0.3 ms of CPU per cycle (docs/benchmarks.md). The subscription stays the
-        node's: in the graph, remapped, with its QoS events, destroyed with the node.
+        controller some 0.04 ms of its 0.3 ms of CPU per cycle (docs/benchmarks.md). The
+        subscription stays the node's: in the graph, remapped, with its QoS events,
+        destroyed with the node.
         Executors read `subscriptions`; call this before the node spins (an executor
         spinning already keeps dispatching it until the node's next change of entities).
         """
