@@ -187,12 +187,12 @@ class ControllerNode(SuiteNode):
             parameters.check_sizes(changes)
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
-            settings.controller_config(self._values(changes))
+            values = self._values(changes)
+            settings.controller_config(values)
             if self.robot is not None:
-                robot = self.robot
-                check_config(robot, settings.engine_config(self._values(changes), self._order))
+                check_config(self.robot, settings.engine_config(values, self._order))
                 if "critical_points" in changes:
-                    selfmotion.targets_from_flat(robot, changes["critical_points"] or [])
+                    selfmotion.targets_from_flat(self.robot, changes["critical_points"] or [])
         except (ValueError, TypeError) as error:
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
