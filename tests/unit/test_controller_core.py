@@ -22,7 +22,8 @@ DT = 0.004
 
 
 def core(robot=PANDA, **config) -> Controller:
-    return Controller(robot, EngineConfig(dt=DT), ControllerConfig(**config),
+    """A controller core whose commands are the cycle's own, unsmoothed (test_smoothing.py)."""
+    return Controller(robot, EngineConfig(dt=DT), ControllerConfig(**{"limits": None, **config}),
                       model_source=(robot.name if robot is PANDA else "planar3r",
                                     (None, None, robot.task_space)))
 

@@ -22,11 +22,15 @@ DT = 0.004
 
 
 class Loop:
-    """A Monitor between a commander and the sim's plant, stepped at 250 Hz."""
+    """A Monitor between a commander and the sim's plant, stepped at 250 Hz.
+
+    Its commands are the filter's own, unsmoothed unless `config` says otherwise
+    (the smoother: test_smoothing.py).
+    """
 
     def __init__(self, store: Path | None, config: MonitorConfig | None = None):
         self.problems: dict[str, str | None] = {}
-        self.monitor = Monitor(PANDA, DetectorConfig(), config or MonitorConfig(), store,
+        self.monitor = Monitor(PANDA, DetectorConfig(), config or MonitorConfig(limits=None), store,
                                self.report)
         self.plant = Plant(PANDA.lower, PANDA.upper, PANDA.velocity_limits, START,
                            PlantConfig(latency=0.01, response_time=0.02))
@@ -72,7 +76,7 @@ def test_a_lock_is_announced_once_it_is_on_disk(tmp_path: Path) -> None:
 
 
 def test_without_remapping_locked_joints_are_only_zeroed_and_all_is_scaled(tmp_path) -> None:
-    lp = Loop(None, MonitorConfig(remap_commands=False, velocity_scale=0.5))
+    lp = Loop(None, MonitorConfig(remap_commands=False, velocity_scale=0.5, limits=None))
     lp.monitor.declare([0], 0.0)
     qd = PANDA.velocity_limits.copy()  # twice what the scale allows
     sent = lp.monitor.command(qd, 0.0)

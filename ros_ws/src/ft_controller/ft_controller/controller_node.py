@@ -11,9 +11,13 @@ Safety: with no model, no joint state yet, a stale state (older than
 `state_timeout`), missing joints, non-finite values, stamps in the future or going
 backwards, or a state or target the engine refuses as physically absurd (a joint
 far outside its limits, a task speed beyond 1000 m/s or rad/s), the node publishes
-explicit zero commands (a velocity controller holds its last command) and an ERROR
+zeros (a velocity controller holds its last command), reached on a ramp within the
+arm's acceleration and jerk limits as every command (`ft_core.smoothing`), and an ERROR
 diagnostic, and resumes by itself when good data returns. Each kind of problem is
-logged once per episode. On shutdown it publishes zeros before leaving.
+logged once per episode. On shutdown it brings the commands to rest on that ramp
+before leaving; with no control cycle for `state_timeout` the watchdog does
+(`SuiteNode.ramp`), and so does the guard of a dead monitor on the plant's topics, from
+the monitor's last command.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from ft_core import limits, robots, selfmotion
 from ft_core.controller import Controller
 from ft_core.engine import RESOLUTIONS, Status, check_config
 from ft_core.robots import Robot, RobotModelError
+from ft_core.smoothing import Smoother
 from ft_core.targets import goal_from_transform, twist_velocity
 from ft_msgs_py import (
     convert,
@@ -100,6 +105,8 @@ class ControllerNode(SuiteNode):
             JointState, names.COMMAND_RAW, qos.RELIABLE)
         # The plant's own topics, for the guard's zeros when the monitor is gone.
         self._guard = MonitorGuard(self.param("monitor_timeout"))
+        #: The guard's stop ramp while the monitor does not answer (None: it answers).
+        self._guard_stop: GuardStop | None = None
         #: A locked set heard while a stranger publishes too: its new locks wait for the
         #: monitor's echoes to show them (`_take_corroborated`).
         self._contested: set[str] = set()
@@ -153,7 +160,7 @@ class ControllerNode(SuiteNode):
             order = parameters.joint_order(self, robot.joint_names)
             values = self._values({})
             core = Controller(robot, settings.engine_config(values, order),
-                              settings.controller_config(values),
+                              settings.controller_config(values, order),
                               (spec, parameters.chain_arguments(self)),
                               report=self.problems.report, log=self.get_logger().info,
                               background=self._shared_background)
@@ -188,7 +195,7 @@ class ControllerNode(SuiteNode):
             if "resolution" in changes and changes["resolution"] not in RESOLUTIONS:
                 raise ValueError(f"resolution must be one of {RESOLUTIONS}")
             values = self._values(changes)
-            settings.controller_config(values)
+            settings.controller_config(values, self._order)
             if self.robot is not None:
                 check_config(self.robot, settings.engine_config(values, self._order))
                 if "critical_points" in changes:
@@ -212,7 +219,7 @@ class ControllerNode(SuiteNode):
             return
         values = self._values({})
         self.core.configure(settings.engine_config(values, self._order),
-                            settings.controller_config(values))
+                            settings.controller_config(values, self._order))
         if "critical_points" in changed:
             self.core.set_critical_points(self.param("critical_points") or [])
 
@@ -516,15 +523,23 @@ class ControllerNode(SuiteNode):
         silent = self._guard.silent(time.monotonic())
         if silent is None:
             self.problems.report("monitor", None)
+            self._guard_stop = None
             return
         self.problems.report("monitor", f"no answer from the monitor for {silent:.2f} s: "
                              "commanding zeros on ft/command and ft/command_array")
-        if self.robot is not None:
-            zeros = [0.0] * self.robot.n
-            self._plant_pub.publish(convert.joint_state(self.command_joints,
-                                                        self.get_clock().now().to_msg(),
-                                                        velocity=zeros))
-            self._plant_array_pub.publish(Float64MultiArray(data=zeros))
+        if self.core is None:
+            return
+        nanoseconds = self.now_ns()
+        if self._guard_stop is None:
+            echo = self._guard.last_echo
+            held = np.zeros(self.robot.n)
+            if echo is not None and len(echo) == self.robot.n:
+                held[self._order] = echo
+            self._guard_stop = GuardStop(self.core.stopper(held))
+        velocity = self._guard_stop.step(self.robot.n, nanoseconds * 1e-9)[self._order].tolist()
+        self._plant_pub.publish(convert.joint_state(
+            self.command_joints, convert.stamp_from_nanoseconds(nanoseconds), velocity=velocity))
+        self._plant_array_pub.publish(Float64MultiArray(data=velocity))
 
     def _check_watchdog(self) -> None:
         """Zeros (and an ERROR) while no control cycle has run for `state_timeout` (steady).
@@ -547,11 +562,17 @@ class ControllerNode(SuiteNode):
         else:
             self.problems.report("control loop", f"no control cycle for {silent:.2f} s (is /clock "
                                  "published with use_sim_time?): commanding zeros")
-        if self.robot is not None:
-            self._publish(np.zeros(self.robot.n))
+        if self.core is not None and not self._ramp_step(self.now_ns()):
+            self.ramp(self._ramp_step)
+
+    def _ramp_step(self, nanoseconds: int) -> bool:
+        """The next command of a stop ramp, stamped `nanoseconds`; whether it is at rest."""
+        self._publish(self.core.smooth(np.zeros(self.robot.n), nanoseconds * 1e-9), nanoseconds)
+        return self.core.smoother is None or self.core.smoother.at_rest
 
     def _cycle(self, nanoseconds: int | None = None) -> None:
         """One control cycle at the node clock's `nanoseconds` (default now)."""
+        self.stop_ramp()
         self._last_cycle, self._cycled = time.monotonic(), True
         nanoseconds = self.now_ns() if nanoseconds is None else nanoseconds
         if self._schedule is not None:
@@ -684,9 +705,26 @@ class ControllerNode(SuiteNode):
         return "waiting" if joint is None else f"exciting {self.robot.joint_names[joint]}"
 
     def stop(self) -> None:
-        """Publish explicit zero velocities (used on shutdown)."""
-        if self.robot is not None:
-            self._publish(np.zeros(self.robot.n))
+        """Bring the commands to rest on a ramp within the limits (used on shutdown)."""
+        if self.core is not None:
+            smoother = self.core.smoother
+            self.ramp_now(self._ramp_step, 0.1 + (smoother.stop_time() if smoother else 0.0))
+
+
+class GuardStop:
+    """The guard's commands to the plant: a stop ramp from the monitor's last command.
+
+    The plant has held that command since the monitor fell silent (at least
+    `monitor_timeout`), so the ramp starts from it at rest in acceleration.
+    """
+
+    def __init__(self, smoother: Smoother | None):
+        self._smoother = smoother
+
+    def step(self, n: int, now: float) -> np.ndarray:
+        """The next command (rad/s, chain order) stamped `now` (s): zeros without limits."""
+        zeros = np.zeros(n)
+        return zeros if self._smoother is None else self._smoother.step(zeros, now)
 
 
 def main(args: list[str] | None = None) -> None:

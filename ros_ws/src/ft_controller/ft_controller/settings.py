@@ -16,6 +16,7 @@ from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
+from ft_core.command_limits import limits_config
 from ft_core.controller import ControllerConfig
 from ft_core.engine import EngineConfig
 from ft_core.observability import ObservabilityConfig
@@ -38,6 +39,7 @@ _RECOVERY = RecoveryConfig()
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     **parameters.THREAD_PRIORITY,
+    **parameters.COMMAND_LIMITS,
     "resolution": (_ENGINE.resolution, "least_norm, max_kfm, min_jump or blend", {}),
     "kfm_gain": (_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
                  parameters.float_range(0.0, 1e4)),
@@ -122,8 +124,12 @@ def engine_config(value: Mapping[str, object], order: np.ndarray) -> EngineConfi
         dt=1.0 / value["control_rate"], velocity_scale=value["velocity_scale"])
 
 
-def controller_config(value: Mapping[str, object]) -> ControllerConfig:
-    """The core's settings from every parameter's `value`; ValueError where they refuse it."""
+def controller_config(value: Mapping[str, object],
+                      order: np.ndarray | None = None) -> ControllerConfig:
+    """The core's settings from every parameter's `value`; ValueError where they refuse it.
+
+    `order` as for `engine_config` (None: per-joint values in chain order).
+    """
     observability = ObservabilityConfig(value["observability.idle_time"],
                                         value["observability.speed"],
                                         value["observability.duration"])
@@ -134,7 +140,10 @@ def controller_config(value: Mapping[str, object]) -> ControllerConfig:
                               value["max_angular_speed"]),
         observability=observability if value["observability.enabled"] else None,
         recovery=replace(_RECOVERY, stall_time=value["recovery.stall_time"])
-        if value["recovery.enabled"] else None)
+        if value["recovery.enabled"] else None,
+        limits=limits_config(value["smooth_commands"], value["limits.preset"],
+                             value["limits.acceleration"] or (), value["limits.jerk"] or (),
+                             order))
 
 
 def _chain(values: object, order: np.ndarray, what: str) -> np.ndarray:

@@ -19,7 +19,12 @@ besides the engine's arithmetic (`ft_core.engine`):
   switched in atomically, in the cycle, once ready;
 - on request, with no target, the start configuration of best dexterity after a
   failure (`ft_core.start_configuration`, Zhao & Li sec. III-D step i): planned in the
-  worker process, then followed with the tool held still; a target or a lock ends it.
+  worker process, then followed with the tool held still; a target or a lock ends it;
+- the command smoother (`ft_core.smoothing`): every command, zeros included, reaches
+  the cycle's velocity within the arm's acceleration and jerk limits
+  (`ft_core.command_limits`), so a stale state or target brings the arm to rest on a
+  ramp; a joint that locks gets 0 at once (it is stopped anyway), the healthy ones go
+  to the reduced solution within their limits.
 
 Every input is checked by the caller or by the engine; the step never raises on a
 bad state or target: it returns explicit zeros and says why (`Step.problems`).
@@ -38,11 +43,13 @@ from functools import partial
 import numpy as np
 
 from ft_core import limits, recovery, selfmotion, start_configuration, workers
+from ft_core.command_limits import LimitsConfig
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot, RobotModelError
+from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
 from ft_core.targets import PoseTracking, norm, pose_velocity, staleness_scale
 from ft_core.task_channel import TaskChannel
@@ -68,6 +75,8 @@ class ControllerConfig:
         observability: the excursions' settings; None: no excursions.
         recovery: when and how to go round a stall after a lock (`ft_core.recovery`);
             None: never.
+        limits: the acceleration and jerk limits every command is smoothed into
+            (`ft_core.smoothing`); None: raw commands (which a real driver refuses).
     """
 
     state_timeout: float = 0.1
@@ -76,6 +85,7 @@ class ControllerConfig:
     tracking: PoseTracking = field(default_factory=PoseTracking)
     observability: ObservabilityConfig | None = None
     recovery: RecoveryConfig | None = field(default_factory=RecoveryConfig)
+    limits: LimitsConfig | None = field(default_factory=LimitsConfig)
 
 
 @dataclass(frozen=True)
@@ -144,6 +154,7 @@ class Controller:
         self._report, self._log = report, log
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
+        self.smoother = self._smoother(self.config)
         self.start_phase = StartPhase(self._submit_start, _START.gain, _START.timeout)
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
@@ -175,12 +186,24 @@ class Controller:
         # constructor runs its infeasible path, which uses them.
         return Recovery(config.recovery, partial(self._submit_plan, config.recovery))
 
+    def _smoother(self, config: ControllerConfig) -> Smoother | None:
+        """The command smoother for `config.limits` (ValueError: limits it refuses)."""
+        if config.limits is None:
+            return None
+        robot = self.robot
+        return Smoother(config.limits.build(robot.name, robot.joint_names,
+                                            robot.velocity_limits))
+
     def configure(self, engine_config: EngineConfig, config: ControllerConfig) -> None:
         """New settings: the engine is rebuilt (keeping the critical points' box)."""
         if config.observability != self.config.observability:
             self.excursions = self._excursions(config)
         if config.recovery != self.config.recovery:
             self.recovery = self._recovery(config)
+        if config.limits != self.config.limits:
+            old, self.smoother = self.smoother, self._smoother(config)
+            if old is not None and self.smoother is not None:
+                self.smoother.reset(old.velocity)
         self.config = config
         self._engine_config = engine_config
         self._rebuild_engine()
@@ -268,19 +291,42 @@ class Controller:
         return self._boxes_dirty or self._boxes_job is not None
 
     # -------------------------------------------------------------------- cycle
+    def stopper(self, velocity: np.ndarray) -> Smoother | None:
+        """A smoother with this controller's limits held at `velocity` (rad/s, chain order).
+
+        For a stop ramp of commands this core did not make (the guard's of a dead
+        monitor); None without smoothing.
+        """
+        if self.smoother is None:
+            return None
+        smoother = Smoother(self.smoother.limits)
+        smoother.reset(velocity)
+        return smoother
+
+    def smooth(self, qd: np.ndarray, now: float) -> np.ndarray:
+        """The command stamped `now` (s) towards `qd` (rad/s) within the limits.
+
+        Locked joints get 0 at once. `qd` itself without a smoother.
+        """
+        if self.smoother is None:
+            return qd
+        return self.smoother.step(qd, now, self.locked)
+
     def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
         """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
 
-        `q` None (no state yet) or older than `state_timeout` commands zeros.
+        `q` None (no state yet) or older than `state_timeout` commands zeros (reached
+        within the limits, as every command).
         """
         robot = self.robot
         zeros = np.zeros(robot.n)
         if q is None:
             self.last = None
-            return Step(zeros, None, {})
+            return Step(self.smooth(zeros, now), None, {})
         if state_age > self.config.state_timeout:
             self.last = None
-            return Step(zeros, None, {"joint_states": f"no joint state for {state_age:.3f} s"})
+            return Step(self.smooth(zeros, now), None,
+                        {"joint_states": f"no joint state for {state_age:.3f} s"})
         if self._boxes_job is not None:
             self._take_boxes(*self._boxes_job)
         if self._boxes_dirty:
@@ -292,7 +338,7 @@ class Controller:
             result = self.engine.step(kinematics, xd, locked)
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
-            return Step(zeros, None, {"engine": f"{problem}: commanding zeros"})
+            return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})
         qd = result.qd
         if idle and not self.config.idle_null_space_motion:
             qd = zeros
@@ -307,7 +353,8 @@ class Controller:
                 qd = self._recover(self.recovery, self.target.value, kinematics, qd, locked,
                                    now, task_error, error, idle)
         if not all_finite(qd):
-            qd = np.zeros(robot.n)
+            qd = zeros
+        qd = self.smooth(qd, now)
         self.last = result
         step = Step(qd, result, {"engine": None})
         if error is not None:

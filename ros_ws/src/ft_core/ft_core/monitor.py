@@ -7,8 +7,11 @@ converts messages, runs the watchdog and publishes; everything between is here.
 - **Commands** (`command`, `zeros`): the locked joints get exactly 0 and, with
   `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
   velocity J qd is kept (`ft_core.remap`); every command is scaled, direction kept,
-  into `velocity_scale` times the URDF velocity limits, and is recorded by the
-  detector as in force from the time given.
+  into `velocity_scale` times the URDF velocity limits, then smoothed into the arm's
+  acceleration and jerk limits (`ft_core.smoothing`; locked joints get 0 at once, and
+  zeros are reached on a ramp: `stopping` says one is under way), and is recorded by
+  the detector as in force from the time given: the plant model the detector
+  identifies is the one between the smoothed command and the measured motion.
 - **Detection** (`observe`, `suspect`): the measured configurations go to the
   `ft_core.detection.LockDetector`, with the way gravity would turn each joint
   (`ft_core.swing.falling_directions`; a joint moving on its own must go that way to
@@ -43,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ft_core import limits, locked_set, remap, swing
+from ft_core.command_limits import LimitsConfig
 from ft_core.detection import (
     Confirmation,
     DetectorConfig,
@@ -52,6 +56,7 @@ from ft_core.detection import (
 )
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
+from ft_core.smoothing import Smoother
 
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
 Report = Callable[..., None]
@@ -70,11 +75,14 @@ class MonitorConfig:
             (otherwise only zero the locked joints).
         velocity_scale: fraction of the URDF velocity limits every command is scaled into.
         brake_free_swinging: declare a free-swinging joint locked where it is.
+        limits: the acceleration and jerk limits every command is smoothed into;
+            None: raw commands (which a real driver refuses).
     """
 
     remap_commands: bool = True
     velocity_scale: float = 1.0
     brake_free_swinging: bool = False
+    limits: LimitsConfig | None = field(default_factory=LimitsConfig)
 
     def __post_init__(self) -> None:
         if not 0 < self.velocity_scale <= 1:
@@ -144,10 +152,21 @@ class Monitor:
         #: the detector to judge it); None before the first joint state
         self._observed_at: np.ndarray | None = None
         self._observed_latest = -math.inf  #: the largest of `_observed_at` (s)
+        self.smoother: Smoother | None = None
+        self.config = MonitorConfig(limits=None)
         self.configure(detection, config)
 
     def configure(self, detection: DetectorConfig, config: MonitorConfig) -> None:
-        """New settings; a change of the detector's model grid restarts identification."""
+        """New settings; a change of the detector's model grid restarts identification.
+
+        Raises ValueError for limits the arm's model refuses (`command_limits`).
+        """
+        if config.limits != self.config.limits:
+            old, robot = self.smoother, self.robot
+            self.smoother = None if config.limits is None else Smoother(
+                config.limits.build(robot.name, robot.joint_names, robot.velocity_limits))
+            if old is not None and self.smoother is not None:
+                self.smoother.reset(old.velocity)
         self.config = config
         self._limits = self.robot.velocity_limits * config.velocity_scale
         self.detector.configure(detection)
@@ -195,8 +214,13 @@ class Monitor:
                              "(call ~/reset after a repair)"], now)
 
     # -------------------------------------------------------------- commands
+    @property
+    def stopping(self) -> bool:
+        """Whether the commands have not come to rest yet (a stop ramp goes on)."""
+        return self.smoother is not None and not self.smoother.at_rest
+
     def command(self, qd: np.ndarray, now: float) -> np.ndarray:
-        """The command to send for `qd` (rad/s, chain order), in force from `now` (s)."""
+        """The command to send, stamped `now` (s), for `qd` (rad/s, chain order)."""
         locked = sorted(self.detector.locked)
         if locked and self.config.remap_commands and self.q is not None:
             qd = remap.remap(self.robot, self.q, qd, locked, self._limits)
@@ -207,12 +231,19 @@ class Monitor:
             qd = remap.within_limits(qd, self._limits)
         if not all_finite(qd):
             qd = np.zeros(self.robot.n)
+        if self.smoother is not None:
+            qd = self.smoother.step(qd, now, locked)
         self.detector.command(now, qd)
         return qd
 
     def zeros(self, now: float) -> np.ndarray:
-        """Explicit zeros, in force from `now` (s): a refused command, the watchdog."""
+        """Zeros, or the next command towards them within the limits, stamped `now` (s).
+
+        For a refused command and the watchdog; while `stopping`, call again.
+        """
         qd = np.zeros(self.robot.n)
+        if self.smoother is not None:
+            qd = self.smoother.step(qd, now, sorted(self.detector.locked))
         self.detector.command(now, qd)
         return qd
 

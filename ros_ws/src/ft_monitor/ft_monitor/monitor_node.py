@@ -11,8 +11,11 @@ JointGroupVelocityController): unchanged while nothing
 is locked; with locks, the locked joints get exactly 0 and, with
 `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
 velocity J qd is kept (`ft_core.remap`). Every output is scaled, direction kept,
-into `velocity_scale` times the URDF velocity limits, so detection compares the
-measured motion with a command the plant can follow.
+into `velocity_scale` times the URDF velocity limits and smoothed into the arm's
+acceleration and jerk limits (`smooth_commands`, `limits.*`; `ft_core.smoothing`),
+so detection compares the measured motion with a command the plant can follow. The
+outputs are stamped with this node's clock when sent (what the smoother's limits are
+kept against); the echo keeps the command's own stamp, which the controller matches.
 
 Detection (`ft_core.detection`) compares the measured motion with what a model of
 the plant (latency plus first-order lag, identified online from healthy motion)
@@ -29,8 +32,10 @@ that file holds it.
 Safety: a malformed command (NaN, wrong lengths, unknown, missing or duplicate
 names, more than `convert.MAX_NAMES` names, a stamp ahead of the clock or older than
 `command_timeout`) is replaced by explicit zeros; with no fresh command for `command_timeout` the
-watchdog publishes zeros once per period until commands return (a velocity
-controller holds its last command). Problems are logged once per episode.
+watchdog brings the commands to rest on a ramp (`SuiteNode.ramp`: a command every
+`RAMP_PERIOD` s within the limits), then publishes zeros once per period until commands
+return (a velocity controller holds its last command). On shutdown the same ramp runs
+before the node leaves. Problems are logged once per episode.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import locked_set, robots
+from ft_core.command_limits import limits_config
 from ft_core.detection import DetectorConfig
 from ft_core.monitor import UNSEEN_AFTER, Change, Monitor, MonitorConfig
 from ft_msgs_py import convert, diagnostics, names, parameters, qos, spin, wire
@@ -68,6 +74,7 @@ _IDENTIFIED = ("detection.latency", "detection.response_time")
 PARAMETERS: dict[str, tuple[object, str, dict]] = {
     **parameters.MODEL_PARAMETERS,
     **parameters.THREAD_PRIORITY,
+    **parameters.COMMAND_LIMITS,
     "detection.window": (_DETECTION.window, "s, sliding window of the comparison",
                          parameters.float_range(0.005, 10.0)),
     "detection.min_command": (_DETECTION.min_command, "rad/s; smaller predicted motion is "
@@ -101,6 +108,7 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
 
 #: The parameters the core's settings come from.
 _CORE_PARAMETERS = [*(k for k in PARAMETERS if k.startswith("detection.")),
+                    *parameters.COMMAND_LIMITS,
                     "remap_commands", "velocity_scale", "brake_free_swinging"]
 
 
@@ -175,7 +183,10 @@ class MonitorNode(SuiteNode):
             follow_time=value["detection.follow_time"])
         return detection, MonitorConfig(
             remap_commands=value["remap_commands"], velocity_scale=value["velocity_scale"],
-            brake_free_swinging=value["brake_free_swinging"])
+            brake_free_swinging=value["brake_free_swinging"],
+            limits=limits_config(value["smooth_commands"], value["limits.preset"],
+                                 value["limits.acceleration"] or (), value["limits.jerk"] or (),
+                                 np.asarray(self._order) if self._order else None))
 
     def _configure(self) -> None:
         self._command_timeout = self.param("command_timeout")
@@ -203,9 +214,16 @@ class MonitorNode(SuiteNode):
                 f"{old} (a locked set of an older version, for no particular ROS domain) is "
                 "not restored: declare on ft/declare_failure any joint still locked, then "
                 "delete the file")
+        try:
+            core = Monitor(robot, *self._configs(), store, self.problems.report)
+        except ValueError as error:  # command limits the model refuses
+            self.problems.report("model", f"cannot use the model from {source}: {error}")
+            return
         if self.core is not None:
             self.core.close()  # the old robot's last write, if any; its set is not ours now
-        self.core = Monitor(robot, *self._configs(), store, self.problems.report)
+        self.core = core
+        self.get_logger().info(core.smoother.limits.describe() if core.smoother is not None
+                               else "commands not smoothed (smooth_commands is false)")
         self.problems.report("model", None)
         self.get_logger().info(f"monitoring {robot.name}: joints {joints}")
         self._announce(self.core.restore(self.now()))
@@ -383,9 +401,9 @@ class MonitorNode(SuiteNode):
 
     def _refuse(self, topic: str, error: Exception | str, stamp: Time | wire.Stamp,
                 now: float) -> None:
-        """A malformed command: reported, and replaced by explicit zeros."""
+        """A malformed command: reported, and replaced by zeros (reached on a ramp)."""
         self.problems.report(topic, f"{error}: commanding zeros")
-        self._publish_command(self.core.zeros(now), stamp)
+        self._publish_command(self.core.zeros(now), now, stamp)
 
     def _forward(self, source: str, qd: np.ndarray, stamp: Time | wire.Stamp,
                  now: float) -> None:
@@ -400,25 +418,30 @@ class MonitorNode(SuiteNode):
         self.problems.report(source, None)
         self._last_command = now
         self._last_command_steady = time.monotonic()
-        self._publish_command(self.core.command(qd, now), stamp)
+        self.stop_ramp()
+        self._publish_command(self.core.command(qd, now), now, stamp)
 
     # ----------------------------------------------------------------- outputs
-    def _publish_command(self, qd_chain: np.ndarray, stamp: Time | wire.Stamp) -> None:
-        """The command (chain order, rad/s) out on `ft/command` as bytes (`wire.CommandWriter`).
+    def _publish_command(self, qd_chain: np.ndarray, now: float,
+                         answered: Time | wire.Stamp | None = None) -> None:
+        """The command (chain order, rad/s) stamped `now` (s) out on `ft/command` as bytes.
 
-        Also as a Float64MultiArray while someone subscribes to `ft/command_array`, and
-        on `ft/command_echo` (the controller's guard of a dead monitor) at most once per
-        `ECHO_PERIOD` of steady time while someone subscribes to it.
+        (`wire.CommandWriter`.) Also as a Float64MultiArray while someone subscribes to
+        `ft/command_array`, and on `ft/command_echo` (the controller's guard of a dead
+        monitor), stamped as the command it `answered`, at most once per `ECHO_PERIOD` of
+        steady time while someone subscribes to it.
         """
         ordered = qd_chain if self._reorder is None else qd_chain[self._reorder]
+        stamp = wire.Stamp.of(round(now * 1e9))
         serialized = self._command_writer.serialize(stamp.sec, stamp.nanosec, ordered)
         if self._command_taker is None or self._command_audience.count:
             self._command_pub.publish(serialized)
-            if self._echo_audience.count:
-                now = time.monotonic()
-                if now - self._last_echo >= ECHO_PERIOD:
-                    self._echo_pub.publish(serialized)
-                    self._last_echo = now
+            if answered is not None and self._echo_audience.count:
+                steady = time.monotonic()
+                if steady - self._last_echo >= ECHO_PERIOD:
+                    self._echo_pub.publish(self._command_writer.serialize(
+                        answered.sec, answered.nanosec, ordered))
+                    self._last_echo = steady
         if self._command_taker is not None:
             self._command_taker(self._taker_reader.read(serialized))
         if self._array_audience.count:  # a JointGroupVelocityController
@@ -436,10 +459,17 @@ class MonitorNode(SuiteNode):
         super().destroy_node()
 
     def stop(self) -> None:
-        """Publish explicit zero velocities, finish writing the locked set (on shutdown)."""
+        """Bring the commands to rest on a ramp, finish writing the locked set (on shutdown)."""
         if self.core is not None:
-            self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
+            bound = self.core.smoother.stop_time() if self.core.smoother is not None else 0.0
+            self.ramp_now(self._ramp_step, bound + 0.1)
             self._announce(self.core.close())
+
+    def _ramp_step(self, nanoseconds: int) -> bool:
+        """The next command of a stop ramp, stamped `nanoseconds`; whether it is at rest."""
+        now = nanoseconds * 1e-9
+        self._publish_command(self.core.zeros(now), now)
+        return not self.core.stopping
 
     def _announce_written(self) -> None:
         """Announce the changes of the locked set written since the last announcement."""
@@ -469,8 +499,8 @@ class MonitorNode(SuiteNode):
         if self.core is None:
             return
         age = time.monotonic() - self._last_command_steady
-        if age > self._command_timeout:
-            self._publish_command(self.core.zeros(self.now()), self.get_clock().now().to_msg())
+        if age > self._command_timeout and not self._ramp_step(self.now_ns()):
+            self.ramp(self._ramp_step)
 
     def _publish_diagnostics(self) -> None:
         now = self.now()

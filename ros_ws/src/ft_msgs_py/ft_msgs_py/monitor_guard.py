@@ -50,6 +50,8 @@ class MonitorGuard:
         #: Joints (command order) the latest echo zeroed where the command moved them: the
         #: monitor's locked set, as its command path shows it.
         self.zeroed: frozenset[int] = frozenset()
+        #: The velocities (rad/s, command order) of the latest echo: what the plant holds.
+        self.last_echo: Sequence[float] | None = None
 
     def sent(self, stamp: Stamp, now: float, velocity: Sequence[float]) -> None:
         """A command (`velocity`, rad/s, not changed after) went out with `stamp`."""
@@ -69,6 +71,7 @@ class MonitorGuard:
         if command is None:
             return False
         self._seen, self._waiting_since = True, None
+        self.last_echo = velocity
         if len(velocity) == len(command) and any(velocity):
             self.zeroed = frozenset(j for j, (c, e) in enumerate(zip(command, velocity,
                                                                       strict=True))

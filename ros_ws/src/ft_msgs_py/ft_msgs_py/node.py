@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TypeAlias
 
 import numpy as np
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
+from rclpy.timer import Timer
 from sensor_msgs.msg import JointState
 
 from ft_msgs_py import convert, diagnostics, parameters, thread_priority, wire
@@ -28,6 +31,11 @@ StateReading = tuple[np.ndarray, tuple[str, ...], float]
 #: Given each joint state a node takes, with its reading (None: the message failed that
 #: node's checks of the message itself, `SuiteNode.parse_joint_state`).
 StateListener = Callable[[JointStateLike, StateReading | None], None]
+#: Publishes the next command of a stop ramp stamped with the given node-clock time (ns);
+#: returns whether the commands are at rest.
+RampStep = Callable[[int], bool]
+#: s (steady) between two commands of a stop ramp (`SuiteNode.ramp`).
+RAMP_PERIOD = 0.004
 
 
 class SuiteNode(Node):
@@ -41,6 +49,41 @@ class SuiteNode(Node):
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
         self._clock_handle = self.get_clock().handle  # rcl's clock: `now_ns` reads it
         self._on_demand: set[Subscription] = set()  # kept from executors (`take_on_demand`)
+        self._ramp_timer: Timer | None = None  # the stop ramp under way (`ramp`)
+
+    def ramp(self, step: RampStep) -> None:
+        """Call `step` every RAMP_PERIOD s (steady) until it says the commands are at rest.
+
+        A stop ramp while no other command comes (a watchdog's): one at a time, the
+        newest `step` in charge; `stop_ramp` ends it early (commands came back).
+        """
+        def tick() -> None:
+            if step(self.now_ns()):
+                self.stop_ramp()
+
+        self.stop_ramp()
+        self._ramp_timer = self.create_timer(RAMP_PERIOD, tick,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def stop_ramp(self) -> None:
+        """End the stop ramp under way, if any."""
+        if self._ramp_timer is not None:
+            self.destroy_timer(self._ramp_timer)
+            self._ramp_timer = None
+
+    def ramp_now(self, step: RampStep, bound: float) -> None:
+        """On shutdown: a stop ramp in this thread, at most `bound` s (steady).
+
+        The stamps advance with steady time from the node clock's reading now: a
+        simulated clock may have stopped with the simulation.
+        """
+        self.stop_ramp()
+        start, start_ns = time.monotonic(), self.now_ns()
+        while True:
+            elapsed = time.monotonic() - start
+            if step(start_ns + round(elapsed * 1e9)) or elapsed > bound:
+                return
+            time.sleep(RAMP_PERIOD)
 
     def apply_thread_priority(self) -> str:
         """Apply the `thread_priority` parameter to the calling thread; how it is scheduled.

@@ -49,6 +49,22 @@ THREAD_PRIORITY = {
                         {"read_only": True, **int_range(0, thread_priority.MAX_PRIORITY)}),
 }
 
+#: The limits of the commands of the nodes on the command path (controller, monitor):
+#: `ft_core.command_limits.limits_config` makes their configuration.
+COMMAND_LIMITS = {
+    "smooth_commands": (True, "keep every command within the arm's acceleration and jerk "
+                        "limits (false: raw steps, which a real driver refuses; for "
+                        "comparisons)", {"read_only": True}),
+    "limits.preset": ("auto", "acceleration and jerk limits: auto (franka_panda, ur or xarm "
+                      "recognised from the URDF, else default), franka_panda, xarm, ur or "
+                      "default", {"read_only": True}),
+    "limits.acceleration": (Parameter.Type.DOUBLE_ARRAY, "rad/s^2, one for all joints or one "
+                            "per joint in `joints` order (empty: the preset's)",
+                            {"read_only": True}),
+    "limits.jerk": (Parameter.Type.DOUBLE_ARRAY, "rad/s^3, one for all joints or one per "
+                    "joint in `joints` order (empty: the preset's)", {"read_only": True}),
+}
+
 #: name -> (default, description, extra descriptor fields)
 MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
     "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
