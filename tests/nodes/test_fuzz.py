@@ -140,7 +140,10 @@ def controller():
 def monitor():
     with ros_context() as (context, _), tempfile.TemporaryDirectory() as state:
         node = MonitorNode(context=context, parameter_overrides=[
-            Parameter("robot_model", value="panda"), Parameter("state_directory", value=state)])
+            Parameter("robot_model", value="panda"), Parameter("state_directory", value=state),
+            # the filter's own output: a refusal is zeros at once (the smoother's
+            # bounds under random input: test_smoothing.py)
+            Parameter("smooth_commands", value=False)])
         for _ in range(3):  # the first calls load what they need: not what is timed
             node._on_command(convert.joint_state(NAMES, node.get_clock().now().to_msg(),
                                                  velocity=[0.1] * 7))

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
+from ft_core.command_limits import DriverCheck, command_limits
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, wire
 from ft_msgs_py.monitor_guard import ECHO_PERIOD
@@ -245,7 +246,7 @@ def test_the_monitor_echoes_what_it_sends_at_most_once_per_echo_period() -> None
     commands; each echo is one of the commands the plant got, stamp and velocities.
     """
     every = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-    with loop() as lp:
+    with loop(monitor_parameters={"smooth_commands": False}) as lp:
         echoes: list[JointState] = []
         plant: list[JointState] = []
         lp.node.create_subscription(JointState, names.COMMAND_ECHO, echoes.append, every)
@@ -258,7 +259,7 @@ def test_the_monitor_echoes_what_it_sends_at_most_once_per_echo_period() -> None
         count, stamp = 100, wire.Stamp.of(round(lp.sim.t * 1e9))
         start = time.monotonic()
         for k in range(count):
-            lp.monitor._publish_command(np.full(7, 0.001 * (k + 1)), stamp)
+            lp.monitor._publish_command(np.full(7, 0.001 * (k + 1)), lp.sim.t, stamp)
         span = time.monotonic() - start
         assert spin_until(lp.executor, lambda: len(plant) >= count, 10.0), (
             f"the plant got {len(plant)} of {count} commands")
@@ -404,7 +405,8 @@ def test_a_flood_of_declarations_is_answered_once_per_period() -> None:
 
 
 def test_watchdog_publishes_zeros_until_commands_return() -> None:
-    with loop(monitor_parameters={"command_timeout": 0.05}) as lp:
+    """Unsmoothed (the ramp: `test_with_smoothing_every_command_passes_the_driver_...`)."""
+    with loop(monitor_parameters={"command_timeout": 0.05, "smooth_commands": False}) as lp:
         command = constant(np.full(7, 0.1))
         for _ in range(5):
             lp.step(command)
@@ -417,8 +419,40 @@ def test_watchdog_publishes_zeros_until_commands_return() -> None:
         assert np.all(np.array(lp.commands[-1].velocity) == 0.1)
 
 
+def test_with_smoothing_every_command_passes_the_driver_and_a_stop_is_a_ramp() -> None:
+    """The default: `ft/command` within Franka's limits read by its stamps, a lock too.
+
+    A command step is reached on a ramp, then passed as it is; the locked joint gets 0 at
+    once; with no command for `command_timeout` the watchdog brings the arm to rest on a
+    ramp (simulated time runs meanwhile: the ramp's stamps are the monitor's clock).
+    """
+    limits = command_limits(PANDA.name, PANDA.joint_names, PANDA.velocity_limits)
+    with loop(monitor_parameters={"command_timeout": 0.05}) as lp:
+        for _ in range(100):
+            lp.step(constant(np.full(7, 0.3)))
+        assert np.all(np.array(lp.commands[-1].velocity) == 0.3)
+        lp.declare.publish(JointState(name=["panda_joint2"]))
+        assert spin_until(lp.executor, lambda: lp.locked_names() == ["panda_joint2"], 10.0)
+        for _ in range(50):
+            lp.step(constant(np.full(7, 0.3)))
+        assert lp.commands[-1].velocity[1] == 0.0
+        before = len(lp.commands)
+        assert spin_until(lp.executor, lambda: (lp.sim.step(), len(lp.commands) > before + 3
+                                                and not np.any(lp.commands[-1].velocity))[1],
+                          10.0), "the watchdog's ramp never came to rest"
+        ramp = [m for m in lp.commands[before:] if np.any(m.velocity)]
+        assert ramp, "a step to zeros, not a ramp"  # how long it is: the stamps' pace
+        driver = DriverCheck(limits)
+        for message in lp.commands:
+            stamp = message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
+            # panda_joint2 is locked from its first zero on: its command is moot.
+            refusal = driver.check(np.array(message.velocity), stamp,
+                                   exempt=(1,) if message.velocity[1] == 0.0 else ())
+            assert refusal is None, f"{refusal} at {stamp:.3f} s"
+
+
 def test_malformed_commands_become_explicit_zeros() -> None:
-    with loop() as lp:
+    with loop(monitor_parameters={"smooth_commands": False}) as lp:  # the command filter's own output
         lp.step(constant(np.full(7, 0.1)))
         for bad in ([np.nan] * 7, [0.1] * 6):
             lp.step(lambda lp, bad=bad: lp.raw.publish(JointState(
@@ -518,7 +552,7 @@ def test_fault_injector_zeroes_the_locked_joints_on_the_command_path() -> None:
 
 
 def test_velocity_arrays_in_joints_order_are_accepted_as_commands() -> None:
-    with loop() as lp:
+    with loop(monitor_parameters={"smooth_commands": False}) as lp:
         array = lp.node.create_publisher(Float64MultiArray, "ft/command_raw_array", qos.RELIABLE)
         lp.step(lambda lp: array.publish(Float64MultiArray(data=[0.1] * 7)))
         assert np.all(np.array(lp.commands[-1].velocity) == 0.1)
@@ -580,7 +614,8 @@ def test_an_injection_naming_a_hundred_thousand_joints_is_refused_at_once() -> N
 
 
 def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
-    with loop(sim_parameters={"response_time": 0.05, "hold_last_command": True}) as lp:
+    with loop(sim_parameters={"response_time": 0.05, "hold_last_command": True},
+              monitor_parameters={"smooth_commands": False}) as lp:
         lp.step(constant(np.full(7, 0.2)))
         for _ in range(125):  # 0.5 s with no new command: held, and the lag has settled
             lp.sim.step()
@@ -597,7 +632,7 @@ def test_sim_plant_options_take_effect_and_invalid_ones_are_refused() -> None:
 
 def test_stale_huge_and_duplicate_inputs_cost_little_and_change_nothing() -> None:
     # command_timeout also decides what is stale (its default here, not the loop's 60 s).
-    with loop(monitor_parameters={"command_timeout": 0.2}) as lp:
+    with loop(monitor_parameters={"command_timeout": 0.2, "smooth_commands": False}) as lp:
         for _ in range(100):
             lp.step(constant(np.full(7, 0.1)))
         old = convert.joint_state(PANDA.joint_names, convert.stamp_from_nanoseconds(1),

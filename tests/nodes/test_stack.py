@@ -76,7 +76,9 @@ def test_a_command_by_call_for_another_chain_goes_by_name() -> None:
     with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {"robot_model": "panda", "state_directory": state,
-                                               "command_timeout": 60.0}.items()])
+                                               "command_timeout": 60.0,
+                                               # the filter's own output, as given
+                                               "smooth_commands": False}.items()])
         take = monitor.take_commands_by_call()
         assert monitor.core is not None
         joints = monitor.core.robot.joint_names

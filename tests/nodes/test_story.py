@@ -133,7 +133,9 @@ def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     config = ScenarioConfig(lock_joint="panda_joint2", lock_time=3.0, duration=12.0)
     summary = demo.summarise(config, run(config, domain_id=fresh_domain()))
     assert summary["detected"] == ["panda_joint2"]
-    assert summary["error_before"] < 1e-9
+    # The plant follows the monitor's command, which smooths the controller's again from
+    # its own state: the two differ by a few mm/s at most where the ramps meet the limits.
+    assert summary["error_before"] < 0.01
     assert summary["error_during"] > 10 * summary["error_after"]
     assert summary["non_finite"] == 0
     assert demo.verdict(summary) == []

@@ -10,9 +10,13 @@ the spacing of the commands' stamps:
   limit, passes as it is (a controller's output that is smooth already is not delayed);
 - otherwise the command follows the time-optimal, jerk-limited profile from the
   current velocity and acceleration to the target, sampled at the new stamp (Ruckig's
-  velocity interface, Berscheid & Kroeger, RSS 2021, each joint on its own, as MoveIt
-  Servo's Ruckig smoothing plug-in does); the next call plans again from the sampled
-  state, so the acceleration stays continuous and the jerk within its limit.
+  velocity interface, Berscheid & Kroeger, RSS 2021, as MoveIt Servo's Ruckig smoothing
+  plug-in uses it); the next call plans again from the sampled state, so the
+  acceleration stays continuous and the jerk within its limit. The joints are
+  phase-synchronised: where Ruckig can, their velocities move together along the
+  straight line to the target, so a null-space motion stays in the null space (a
+  joint-by-joint profile turned the tool off a held goal); otherwise time-synchronised.
+  The joints pass, or are smoothed, all together.
 
 The velocity a joint would reach if its acceleration were brought to 0 at once at the
 jerk limit, v + a|a|/(2J), stays within the velocity limit: the profiles land on
@@ -120,8 +124,6 @@ class Smoother:
         velocity, acceleration = target, mean
         if not passes.all():
             velocity, acceleration = self._profile(target, dt)
-            velocity = np.where(passes, target, velocity)
-            acceleration = np.where(passes, mean, acceleration)
         self._mean = (velocity - self.velocity) / dt
         self.velocity, self.acceleration, self._target = velocity, acceleration, target
         self._interval, self.time = dt, t
@@ -154,11 +156,11 @@ class Smoother:
 
 
 def _ruckig(limits: CommandLimits) -> tuple[Ruckig, InputParameter, Trajectory]:
-    """Ruckig's objects for `limits`: velocity interface, each joint on its own."""
+    """Ruckig's objects for `limits`: velocity interface, phase-synchronised."""
     n = limits.velocity.size
     parameters = InputParameter(n)
     parameters.control_interface = ControlInterface.Velocity
-    parameters.synchronization = Synchronization.No
+    parameters.synchronization = Synchronization.Phase
     parameters.max_acceleration = limits.acceleration.tolist()
     parameters.max_jerk = limits.jerk.tolist()
     parameters.current_position = [0.0] * n

@@ -78,6 +78,9 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         "waypoint_visits": [ok for _, p, ok in record.visits if p not in critical],
         "recovery_paths": len(recovery_paths(record)),
         "replaced": record.replaced,
+        "reflex": record.reflex,
+        "peak_acceleration": max(record.peaks[1]) if record.peaks else None,
+        "peak_jerk": max(record.peaks[2]) if record.peaks else None,
     }
 
 
@@ -101,6 +104,8 @@ def verdict(summary: dict) -> list[str]:
     if summary["false_locks"]:
         problems.append(f"healthy joints declared locked before the failure: "
                         f"{summary['false_locks']}")
+    if summary["reflex"]:
+        problems.append(f"the driver refused a command and stopped the arm: {summary['reflex']}")
     return problems
 
 
@@ -128,6 +133,9 @@ def report(summary: dict, problems: list[str]) -> str:
         f"| joint-velocity jump at the lock | {_fmt(s['velocity_jump'], ' rad/s', 3)} |",
         f"| kfm before / after | {_fmt(s['kfm_before'], ' m', 3)} / "
         f"{_fmt(s['kfm_after'], ' m', 3)} |",
+        f"| largest commanded acceleration / jerk, over the arm's limits | "
+        f"{_fmt(s['peak_acceleration'], '', 3)} / {_fmt(s['peak_jerk'], '', 3)} |",
+        f"| driver | {s['reflex'] or 'took every command'} |",
         f"| soft limits | {s['soft_limits']} |",
         f"| recovery paths (local control stalled) | {s['recovery_paths']} |",
         f"| task points reached after the lock | "

@@ -115,6 +115,9 @@ class ScenarioConfig:
             reachable one near it (`Scenario.keep_reachable`; `Record.replaced` says
             which). The demo does: where a pose task leaves no redundancy after the lock, a
             point is generally out of reach. A campaign does not: it counts such points.
+        smooth_commands: the controller's and the monitor's command smoothing.
+        refuse_over_limits: the sim's driver refuses commands over the arm's limits and
+            stops the arm, as a real one does (`Record.reflex`).
     """
 
     robot: str = "panda"
@@ -142,6 +145,8 @@ class ScenarioConfig:
     recovery: bool = True
     tour_timeout: float = 12.0
     reachable_tour: bool = False
+    smooth_commands: bool = True
+    refuse_over_limits: bool = True
 
 
 @dataclass
@@ -165,6 +170,12 @@ class Record:
     detected_at: float | None = None
     detected: list[str] = field(default_factory=list)
     false_locks: list[str] = field(default_factory=list)  #: declared before the injection
+    #: Why the sim's driver stopped the arm (None: it took every command).
+    reflex: str | None = None
+    #: Largest |commanded velocity, acceleration, jerk| / limit per joint (3 lists), by
+    #: the commands' stamps, the joints the plant held locked left out; empty without
+    #: the driver's test.
+    peaks: list[list[float]] = field(default_factory=list)
     non_finite: int = 0
     #: The controller's recovery notes as they changed (`Controller.recovery_note`):
     #: (simulated time s, note).
@@ -220,6 +231,7 @@ class Scenario:
             "position_noise": config.noise, "seed": config.seed,
             "command_latency": config.command_latency, "response_time": config.response_time,
             "hold_last_command": config.hold_last_command,
+            "refuse_over_limits": config.refuse_over_limits,
             "initial_positions": [float(v) for v in start]}, services=False)
         # Lock-step on simulated time: wall-clock gaps between steps (a busy machine) are not
         # stalls of the loop, so no steady-time watchdog may fire in them (the controller's
@@ -228,13 +240,14 @@ class Scenario:
         controller = {**model, "use_sim_time": True, "control_rate": config.rate,
                       "resolution": config.resolution, "state_timeout": 60.0,
                       "monitor_timeout": 60.0, "recovery.enabled": config.recovery,
+                      "smooth_commands": config.smooth_commands,
                       **self._soft_limits(flat)}
         self.controller = ControllerNode(background=planner(), context=self.context,
                                          **spin.node_arguments(controller, services=False))
         # A state directory of its own: a run never starts from an earlier run's locks.
         self._state = tempfile.TemporaryDirectory(prefix="ft_scenario_")
         monitor = {**model, "use_sim_time": True, "state_directory": self._state.name,
-                   "command_timeout": 60.0}
+                   "command_timeout": 60.0, "smooth_commands": config.smooth_commands}
         self.monitor = MonitorNode(context=self.context,
                                    **spin.node_arguments(monitor, services=False))
         compose(self.controller, self.monitor)
@@ -471,6 +484,9 @@ class Scenario:
                 goal = tour[0]
             since = self.sim.t
             self.send_goal(goal)
+        rec.reflex = self.sim.reflex
+        if self.sim.driver is not None:
+            rec.peaks = self.sim.driver.peaks.tolist()
         return rec
 
     def _soft_limits(self, flat: list[float]) -> dict:

@@ -17,6 +17,12 @@ the lock and a drive without torque as the free swing. Both plants take:
   `hold_last_command`: ros2_control's JointGroupVelocityController keeps the last
   command forever.
 On the physics plant, `response_time` sets the servo's gains (`ft_core.physics`).
+With `refuse_over_limits` (on in the demo, the campaign and the demo's launch file) the
+driver refuses what a real one refuses, as Franka's reflex does: a command whose
+velocity, acceleration or jerk, read by its stamp, is over the arm's limits (`limits.*`,
+`ft_core.command_limits.DriverCheck`; the joints the plant holds locked or swinging are
+not judged) stops the arm, and it takes no command until `~/reset`; the refusal is
+logged as an ERROR and kept in `reflex`.
 Velocities are clipped to the URDF limits and positions to the URDF limits; locked
 joints do not move (behind the physics plant's brake: by a fraction of a mrad). It
 publishes `joint_states` (positions with optional Gaussian `position_noise`, and the
@@ -44,6 +50,7 @@ from collections.abc import Callable
 
 import numpy as np
 from ft_core import robots, swing
+from ft_core.command_limits import DriverCheck, limits_config
 from ft_core.physics import PhysicsPlant
 from ft_core.plant import CommandPath, Plant, PlantConfig
 from ft_msgs_py import convert, markers, names, parameters, qos, spin
@@ -82,6 +89,10 @@ PARAMETERS: dict[str, tuple[object, str, dict]] = {
                           "(ros2_control) instead of stopping after command_timeout", {}),
     "publish_clock": (False, "own the time: start at 0 and publish /clock", {"read_only": True}),
     "seed": (0, "seed of the position noise", {"read_only": True}),
+    "refuse_over_limits": (False, "refuse (and stop the arm on) a command over the arm's "
+                           "velocity, acceleration or jerk limits, as a real driver does",
+                           {"read_only": True}),
+    **{k: v for k, v in parameters.COMMAND_LIMITS.items() if k.startswith("limits.")},
     "failure.joint": ("", "joint to lock at failure.time (empty: none)", {}),
     "failure.time": (-1.0, "s of plant time at which failure.joint locks (< 0: never)", {}),
 }
@@ -95,6 +106,8 @@ class SimNode(SuiteNode):
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
         self.plant: Plant | PhysicsPlant | None = None
+        self.driver: DriverCheck | None = None  #: the driver's test (`refuse_over_limits`)
+        self.reflex: str | None = None  #: why the driver stopped the arm (until ~/reset)
         self._physics = self.param("plant") == "physics"
         if self.param("plant") not in ("kinematic", "physics"):
             raise ValueError(f"plant must be kinematic or physics, not {self.param('plant')!r}")
@@ -177,10 +190,18 @@ class SimNode(SuiteNode):
                 if not np.all(np.isfinite(q)):
                     raise ValueError("initial_positions must be finite")
             plant = self._plant(robot, q)
+            limits = limits_config(True, self.param("limits.preset"),
+                                   self.param("limits.acceleration") or (),
+                                   self.param("limits.jerk") or (),
+                                   parameters.joint_order(self, robot.joint_names)).build(
+                robot.name, robot.joint_names, robot.velocity_limits)
         except (robots.RobotModelError, ValueError) as error:
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
         self.robot, self.plant = robot, plant
+        if self.param("refuse_over_limits"):
+            self.driver = DriverCheck(limits)
+            self.get_logger().info(f"driver: refusing commands over the {limits.describe()}")
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
 
     def _plant(self, robot: robots.Robot, q: np.ndarray) -> Plant | PhysicsPlant:
@@ -204,7 +225,25 @@ class SimNode(SuiteNode):
         except convert.MessageError as error:
             self.get_logger().warning(f"ft/command ignored: {error}", throttle_duration_sec=5.0)
             return
+        if self.driver is not None and not self._accepted(msg, velocity):
+            return
         self.plant.command(self.t, velocity)
+
+    def _accepted(self, msg: JointStateLike, velocity: np.ndarray) -> bool:
+        """Whether the driver takes the command; a refusal stops the arm until ~/reset."""
+        if self.reflex is not None:
+            return False
+        plant = self.plant
+        stamp = msg.header.stamp
+        refusal = self.driver.check(velocity, stamp.sec + stamp.nanosec * 1e-9,
+                                    exempt=(*plant.locked, *plant.swinging))
+        if refusal is None:
+            return True
+        self.reflex = f"{refusal} (t = {self.t:.3f} s)"
+        self.get_logger().error(f"driver reflex: command refused and the arm stopped: "
+                                f"{self.reflex}; call ~/reset to take commands again")
+        plant.command(self.t, np.zeros(plant.n))
+        return False
 
     def take_commands_by_call(self) -> Callable[[JointStateLike], None]:
         """Stop subscribing to `ft/command`; returns what to call with each command instead.
@@ -277,6 +316,9 @@ class SimNode(SuiteNode):
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = ([self.robot.joint_names[j] for j in self.plant.release()]
                     if self.plant is not None else [])
+        if self.driver is not None:
+            self.reflex = None
+            self.driver.reset()
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
 
