@@ -452,7 +452,8 @@ def test_with_smoothing_every_command_passes_the_driver_and_a_stop_is_a_ramp() -
 
 
 def test_malformed_commands_become_explicit_zeros() -> None:
-    with loop(monitor_parameters={"smooth_commands": False}) as lp:  # the command filter's own output
+    # The command filter's own output.
+    with loop(monitor_parameters={"smooth_commands": False}) as lp:
         lp.step(constant(np.full(7, 0.1)))
         for bad in ([np.nan] * 7, [0.1] * 6):
             lp.step(lambda lp, bad=bad: lp.raw.publish(JointState(

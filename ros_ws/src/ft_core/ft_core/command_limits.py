@@ -241,8 +241,10 @@ class DriverCheck:
 
     def _worst(self, violation: Violation, value: np.ndarray, limit: np.ndarray,
                allowed: np.ndarray, mask: np.ndarray, row: int) -> Refusal | None:
-        """One test: the peaks of |value| / limit recorded; the refusal of the worst joint
-        over what is `allowed` (the limit with the stamps' slack), if any."""
+        """One test: |value| / limit into the peaks; the worst joint's refusal, if any.
+
+        A joint is refused over what is `allowed` (the limit with the stamps' slack).
+        """
         value = np.where(mask, value, 0.0)
         np.maximum(self.peaks[row], np.abs(value) / limit, out=self.peaks[row])
         excess = np.abs(value) / allowed
