@@ -72,7 +72,8 @@ demo: $(STAMP)
 	$(BIN)/ft-demo
 
 # Speed and detection-quality figures (not asserted in tests): writes bench_out/*.md and
-# *.json; about two hours (the fault campaign on a realistic plant, 160 runs, the deployed
+# *.json; about two and a half hours (the fault campaign on a realistic plant, 160 runs, and
+# on the physics plant, 40; the command streams against the arm's limits; the deployed
 # nodes' 30-minute soak on each plant, the nodes' 10-minute memory run, the two layouts at
 # two rates). The soft-limits study with 200 runs per condition is docs/campaign.md's
 # longer ft-campaign command.
@@ -87,6 +88,11 @@ bench: $(STAMP)
 	rm -rf bench_out/runs  # the campaign resumes from kept runs: start afresh
 	$(BIN)/ft-campaign --runs 20 --latency 0.02 --response-time 0.03 --hold-last-command \
 		--out bench_out
+	rm -rf bench_out/campaign_physics/runs
+	$(BIN)/ft-campaign --runs 5 --plant physics --latency 0.02 --response-time 0.03 \
+		--hold-last-command --out bench_out/campaign_physics
+	$(BIN)/python bench/commands.py --out bench_out
+	$(BIN)/python bench/zhao_li_circle.py --out bench_out
 	$(BIN)/python bench/campaign_scaling.py --out bench_out
 	$(BIN)/python bench/nodes.py --out bench_out
 	$(BIN)/python bench/layouts.py --out bench_out

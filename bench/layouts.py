@@ -31,6 +31,10 @@ bound that ignores the driver and everything else the machine runs. SCHED_FIFO
 needs root or an rtprio limit; where it is refused, the nodes say so and the row
 shows the normal scheduler's figures under the label "refused".
 
+Last, the command smoother's cost: the controller's own CPU per cycle in separate
+processes at 1 kHz (pose task, idle), with `smooth_commands` off and on, alternated
+(`--smoothing-pairs` pairs).
+
 Writes `<out>/layouts.md` and `<out>/layouts.json`. DDS domain `FT_BENCH_DOMAIN_LAYOUTS`
 (default 63).
 """
@@ -69,14 +73,16 @@ def cpu_seconds(pid: int) -> float:
 
 
 def run(layout: str, rate: float, priority: int, seconds: float, warm_up: float,
-        busy: bool = False, task: str = "position") -> dict:
+        busy: bool = False, task: str = "position", smooth: bool = True) -> dict:
     """One layout at one rate and priority: CPU per process, the controller's rate, latencies.
 
     With `busy`, the timed runs share the machine with one busy process per core.
-    `task`: the Panda's task space (the probe's twist has six components).
+    `task`: the Panda's task space (the probe's twist has six components). `smooth`:
+    the controller's and the monitor's `smooth_commands`.
     """
     common = ["--ros-args", "-p", "robot_model:=panda", "-p", f"task_space:={task}",
-              "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend"]
+              "-p", f"rate:={rate}", "-p", f"control_rate:={rate}", "-p", "resolution:=blend",
+              "-p", f"smooth_commands:={str(smooth).lower()}"]
     commands = {name: [*script, *common] for name, script in LAYOUTS[layout].items()}
     for name, argv in commands.items():
         if name != "sim":
@@ -152,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--warm-up", type=float, default=10.0, help="discovery and warm-up")
     parser.add_argument("--pose-rates", type=float, nargs="*", default=[250.0, 1000.0],
                         help="rates also run with the pose task (idle, normal scheduler)")
+    parser.add_argument("--smoothing-pairs", type=int, default=3,
+                        help="alternated runs without and with the command smoother")
     args = parser.parse_args(argv)
     cases = [(rate, priority, busy, layout, "position")
              for busy, rates in ((False, args.rates), (True, args.busy_rates))
@@ -187,11 +195,32 @@ def main(argv: list[str] | None = None) -> int:
                      f"{'-' if busy else r['arms_per_machine']} | "
                      f"{shown} |")
     lines += ["", *above_floor(results, cases)]
+    smoothing = smoothing_cost(args.smoothing_pairs, args.seconds, args.warm_up)
+    lines += ["", *smoothing["lines"]]
     lines += ["", f"{args.seconds:.0f} s per run after {args.warm_up:.0f} s of warm-up, then "
               f"{args.seconds:.0f} s of latency timing; {info['cpu']}, {info['cores']} cores, "
               f"Python {info['python']}, {info['date']}."]
-    report(args.out, "layouts", lines, {"machine": info, "runs": results})
+    report(args.out, "layouts", lines, {"machine": info, "runs": results,
+                                        "smoothing": smoothing["runs"]})
     return 0
+
+
+def smoothing_cost(pairs: int, seconds: float, warm_up: float) -> dict:
+    """The controller's CPU per cycle (ms) without and with smoothing, alternated pairs."""
+    runs: dict[str, list[float]] = {"off": [], "on": []}
+    for _ in range(pairs):
+        for smooth in (False, True):
+            r = run("separate processes", 1000.0, 0, seconds, warm_up, task="pose",
+                    smooth=smooth)
+            runs["on" if smooth else "off"].append(1e3 * r["cpu_share"]["controller"] / 1000.0)
+    if not pairs:
+        return {"lines": [], "runs": runs}
+    off, on = float(np.median(runs["off"])), float(np.median(runs["on"]))
+    return {"runs": runs, "lines": [
+        f"The command smoother: the controller's CPU per cycle at 1 kHz (pose task, separate "
+        f"processes, idle), {pairs} alternated pairs: without {off:.3f} ms, with {on:.3f} ms "
+        f"(medians; {100 * (on - off) / off:+.0f} %); runs without "
+        f"{[round(v, 3) for v in runs['off']]}, with {[round(v, 3) for v in runs['on']]}."]}
 
 
 if __name__ == "__main__":

@@ -297,6 +297,22 @@ def test_the_locked_set_is_taken_from_the_monitor_only() -> None:
             assert "not by the monitor '/monitor'" in problem and impostor in problem
 
 
+def test_a_restarted_monitor_is_believed_while_its_dead_predecessor_is_in_the_graph() -> None:
+    """A killed monitor's publisher lingers until its lease ends: both bear its name."""
+    twist = np.array([0.03, -0.02, 0.01, 0, 0, 0])
+    with controller(task_space="position") as (node, plant):
+        plant.frozen = True
+        monitor_publisher(plant)  # the dead one: in the graph, silent
+        monitor = monitor_publisher(plant)
+        monitor.publish(convert.locked_message({"panda_joint4": Q0[3]}, plant.stamp()))
+        plant.run(10, twist_sender(plant, twist))
+        assert node.locked_joints == ["panda_joint4"] and plant.velocity()[3] == 0.0
+        monitor.publish(convert.locked_message({}, plant.stamp()))  # a reset: released
+        plant.run(10, twist_sender(plant, twist))
+        assert node.locked_joints == [] and plant.velocity()[3] != 0.0
+        assert node.problems.active.get("ft/locked_joints") is None
+
+
 def test_twist_in_another_frame_is_rejected() -> None:
     with controller() as (_, plant):
         plant.run(10, twist_sender(plant, frame="camera_link"))

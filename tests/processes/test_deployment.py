@@ -22,6 +22,7 @@ import pytest
 import yaml
 from deployment import Graph, graph
 from ft_core import robots
+from ft_core.command_limits import DriverCheck, command_limits
 from ft_msgs_py import convert, qos, thread_priority
 from ft_sim.cpu_load import busy_cores
 from rcl_interfaces.srv import SetParameters
@@ -31,12 +32,18 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-#: A driver with a command watchdog (Franka FCI, KUKA FRI, UR RTDE).
+#: A driver with a command watchdog (Franka FCI, KUKA FRI, UR RTDE), which refuses a
+#: command over the arm's velocity, acceleration or jerk limits and stops the arm, as
+#: Franka's reflex does (every plant here does).
 WATCHDOG_PLANT = {"command_latency": 0.03, "response_time": 0.03, "command_timeout": 0.1,
-                  "position_noise": 0.001}
+                  "position_noise": 0.001, "refuse_over_limits": True}
 #: ros2_control's velocity controller behind a slow bus: holds the last command.
 HOLDING_PLANT = {"command_latency": 0.05, "response_time": 0.05, "hold_last_command": True,
-                 "acceleration_limit": [10.0], "position_noise": 0.001}
+                 "acceleration_limit": [10.0], "position_noise": 0.001,
+                 "refuse_over_limits": True}
+#: Franka's smallest joint acceleration and its jerk (rad/s^2, rad/s^3): how fast a stop
+#: ramp of the Panda's commands is at the slowest (ft_core.command_limits).
+PANDA_SLOWEST = (7.5, 3750.0)
 
 
 #: The MuJoCo plant (issue 29) behind the slowest driver of the issue's targets: 50 ms of
@@ -63,6 +70,7 @@ def assert_observed_healthy_motion(g: Graph, saturated: bool = False,
     for the same reason.
     """
     assert g.ever_locked() == set(), g.log(process)[-3000:]
+    assert "driver reflex" not in g.log("sim"), g.log("sim")[-3000:]
     assert g.travelled() > 5.0, "the arm hardly moved"
     monitor = g.values("/monitor")
     assert monitor, "no diagnostics from the monitor"
@@ -188,9 +196,10 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
     topics itself. Nothing can stop the arm sooner than the guard's timeout plus the
     driver's own lag, so what it travels is bounded by its speed v at the kill times the
     guard's timeout (0.05 s), two control periods and the plant's 0.1 s of latency and
-    response, plus the braking distance v^2 / 2a at the plant's acceleration limit and
-    0.01 rad of noise (docs/controller.md). Killed at full speed (velocity_scale 0.5,
-    about 1.3 rad/s: 0.21 rad measured against a bound of 0.29); the speed and the bound
+    response, plus the braking distance v^2 / 2a at the slower of the plant's acceleration
+    limit and the arm's (the guard's zeros are a ramp within the Panda's limits, which the
+    driver checks), the ramp's jerk phases and 0.01 rad of noise (docs/controller.md).
+    Killed at full speed (velocity_scale 0.5, about 1.3 rad/s); the speed and the bound
     are in the failure message.
     """
     values = parameters(tmp_path, HOLDING_PLANT)
@@ -204,8 +213,11 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
                10.0, "the arm moving fast")
         speed = float(np.max(np.abs(g.commands[-1].velocity)))
         plant = HOLDING_PLANT
-        bound = (speed * (0.05 + 2 / rate + plant["command_latency"] + plant["response_time"])
-                 + speed**2 / (2 * plant["acceleration_limit"][0]) + 0.01)
+        braking, jerk = min(plant["acceleration_limit"][0], PANDA_SLOWEST[0]), PANDA_SLOWEST[1]
+        ramp = speed / braking + 2 * braking / jerk  # the guard's stop, s
+        bound = (speed * (0.05 + 2 / rate + plant["command_latency"] + plant["response_time"]
+                          + 2 * braking / jerk)
+                 + speed**2 / (2 * braking) + 0.01)
         killed = time.time()
         g.kill("monitor")
         seen, heard = len(g.states), len(g.commands)
@@ -218,14 +230,19 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         states = g.states[seen:]
         after = np.array([m.position for m in states])
         travel = float(np.max(np.ptp(after, axis=0)))
+        guard = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]]
         zeros = [convert.stamp_seconds(c.header.stamp) - killed for c in g.commands[heard:]
                  if not any(c.velocity)]
         # A process the loaded machine stalls cannot act meanwhile (1.2 s seen for the
         # controller, 1 s for the sim, which then integrates the held command over it): the
         # guard is judged on the time its processes ran.
         stall = stalled(killed, g.raw_commands) + stalled(killed, states)
-        assert zeros and zeros[0] < 0.2 + stall, (
-            f"the guard's first zeros {zeros[:1]} s after the kill ({stall:.2f} s stalled)")
+        assert guard and guard[0] < 0.2 + stall, (
+            f"the guard's first command {guard[:1]} s after the kill ({stall:.2f} s stalled)")
+        assert zeros and zeros[0] < 0.2 + ramp + stall, (
+            f"the guard's first zeros {zeros[:1]} s after the kill, its ramp {ramp:.3f} s "
+            f"({stall:.2f} s stalled)")
+        assert "driver reflex" not in g.log("sim"), g.log("sim")[-3000:]
         assert travel < bound + speed * stall, (
             f"the arm moved {travel:.3f} rad after the kill, bound {bound:.3f} (at {speed:.2f} "
             f"rad/s when it died; guard's first zeros {zeros[0]:.3f} s after it; "
@@ -349,6 +366,17 @@ def test_on_the_physics_plant_a_lock_is_found_and_healthy_motion_declares_nothin
         assert g.ever_locked() == {"panda_joint4"}
         assert "free-swinging" not in g.log("monitor"), g.log("monitor")[-3000:]
         assert g.commands and all(c.velocity[3] == 0.0 for c in g.commands[-50:])
+        # Every command the plant got was within the Panda's limits, the lock's included
+        # (panda_joint4 gets 0 at once: the driver does not judge a locked joint).
+        assert "driver reflex" not in g.log("sim"), g.log("sim")[-3000:]
+        panda = robots.load("panda")
+        driver = DriverCheck(command_limits(panda.name, panda.joint_names,
+                                           panda.velocity_limits))
+        for c in g.commands:
+            refusal = driver.check(np.array(c.velocity), convert.stamp_seconds(c.header.stamp),
+                                   exempt=(3,) if c.velocity[3] == 0.0 else ())
+            assert refusal is None, refusal
+        assert driver.peaks[1].max() > 0.1  # the stream was judged, and moved
 
 
 @pytest.mark.slow

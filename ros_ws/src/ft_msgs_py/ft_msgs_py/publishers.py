@@ -9,8 +9,10 @@ them. The monitor zeros a locked joint in each command it forwards, and the cont
 recognises those forwards by their stamps (`ft_msgs_py.monitor_guard`): a stranger that
 merely publishes cannot make them. So the monitor's new locks still arrive, a forged one
 does not; a release (the monitor's reset after a repair, or a forged empty set) waits
-until the stranger is gone. Names can be forged: SROS2 closes the rest
-(docs/security.md).
+until the stranger is gone. Several publishers that all bear the monitor's name are a
+restart: a killed monitor's participant stays in the graph until its lease runs out
+(Fast DDS: 20 s), beside the new one; only the living one publishes, and its messages
+are taken whole. Names can be forged: SROS2 closes the rest (docs/security.md).
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ def judge(publishers: list[str], monitor: str | None) -> Verdict:
     No publisher listed yet (discovery lags the first message): taken.
     """
     named = sorted(publishers)
+    if monitor is not None and named and set(named) == {monitor}:
+        return Verdict("all")  # the monitor, and a dead predecessor still in the graph
     if len(named) <= 1:
         if monitor is None or not named or named[0] == monitor:
             return Verdict("all")

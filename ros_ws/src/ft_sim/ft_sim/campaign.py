@@ -330,15 +330,18 @@ def table(results: list[dict]) -> str:
     Per condition: success with its CI, IK reachability after the lock, success where
     every point stays reachable and where the last joint locked (the tool's own axis in a
     position task), runs in which the controller followed a recovery path, the lock
-    against the box, waypoints, detection and the velocity jump.
+    against the box, waypoints, detection, the velocity jump, and the commands against
+    the arm's limits (the sim's driver: runs it stopped, the largest commanded
+    acceleration and jerk over the limits).
     """
     lines = ["| condition | runs | success (%, 95 % CI) | every point reachable (IK) | "
              "success where every point is reachable | success, last joint locked | "
              "runs with a recovery path | "
              "lock outside the box | waypoints reached | right joint detected "
              "| runs with a false lock "
-             "| detection latency median / max (ms) | velocity jump median / max (rad/s) |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "| detection latency median / max (ms) | velocity jump median / max (rad/s) "
+             "| driver reflexes | peak acceleration / jerk over the limits |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     modes = [m for m in MODES if any(r["resolution"] == m for r in results)]
     for mode in modes:
         for soft in (False, True):
@@ -350,6 +353,8 @@ def table(results: list[dict]) -> str:
             visits = [v for r in group for v in r["waypoint_visits"]]
             possible = [r for r in group if r["reachable"] == r["points"]]
             last = [r for r in group if r["locked"] == r["last_joint"]]
+            peaks = [(r.get("peak_acceleration") or 0.0, r.get("peak_jerk") or 0.0)
+                     for r in group]
             lines.append(
                 f"| {mode}, {'with' if soft else 'without'} soft limits | {len(group)} | "
                 f"{_rate(sum(r['success'] for r in group), len(group))} | "
@@ -361,7 +366,9 @@ def table(results: list[dict]) -> str:
                 f"{100 * np.mean(visits) if visits else 0:.0f} % | "
                 f"{sum(r['correct_detection'] for r in group)}/{len(group)} | "
                 f"{sum(bool(r.get('false_locks')) for r in group)}/{len(group)} | "
-                f"{_stat(latency, '.0f')} | {_stat(jump, '.2f')} |")
+                f"{_stat(latency, '.0f')} | {_stat(jump, '.2f')} | "
+                f"{sum(bool(r.get('reflex')) for r in group)}/{len(group)} | "
+                f"{max(p[0] for p in peaks):.3g} / {max(p[1] for p in peaks):.3g} |")
     lines += ["", "| mode | paired runs | failed only without soft limits | failed only with "
               "them | exact McNemar p |", "|---|---:|---:|---:|---:|"]
     for mode in modes:

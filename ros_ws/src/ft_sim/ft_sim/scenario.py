@@ -173,8 +173,7 @@ class Record:
     #: Why the sim's driver stopped the arm (None: it took every command).
     reflex: str | None = None
     #: Largest |commanded velocity, acceleration, jerk| / limit per joint (3 lists), by
-    #: the commands' stamps, the joints the plant held locked left out; empty without
-    #: the driver's test.
+    #: the commands' stamps (the sim's driver), the joints the plant held locked left out.
     peaks: list[list[float]] = field(default_factory=list)
     non_finite: int = 0
     #: The controller's recovery notes as they changed (`Controller.recovery_note`):
@@ -485,7 +484,7 @@ class Scenario:
             since = self.sim.t
             self.send_goal(goal)
         rec.reflex = self.sim.reflex
-        if self.sim.driver is not None:
+        if self.sim.driver is not None:  # None only without a model
             rec.peaks = self.sim.driver.peaks.tolist()
         return rec
 

@@ -106,8 +106,11 @@ class SimNode(SuiteNode):
         parameters.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
         self.plant: Plant | PhysicsPlant | None = None
-        self.driver: DriverCheck | None = None  #: the driver's test (`refuse_over_limits`)
+        #: The driver's test of every command (its `peaks` measure the stream); a refusal
+        #: stops the arm with `refuse_over_limits`.
+        self.driver: DriverCheck | None = None
         self.reflex: str | None = None  #: why the driver stopped the arm (until ~/reset)
+        self._refuse = self.param("refuse_over_limits")
         self._physics = self.param("plant") == "physics"
         if self.param("plant") not in ("kinematic", "physics"):
             raise ValueError(f"plant must be kinematic or physics, not {self.param('plant')!r}")
@@ -198,9 +201,8 @@ class SimNode(SuiteNode):
         except (robots.RobotModelError, ValueError) as error:
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
-        self.robot, self.plant = robot, plant
-        if self.param("refuse_over_limits"):
-            self.driver = DriverCheck(limits)
+        self.robot, self.plant, self.driver = robot, plant, DriverCheck(limits)
+        if self._refuse:
             self.get_logger().info(f"driver: refusing commands over the {limits.describe()}")
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
 
@@ -225,19 +227,19 @@ class SimNode(SuiteNode):
         except convert.MessageError as error:
             self.get_logger().warning(f"ft/command ignored: {error}", throttle_duration_sec=5.0)
             return
-        if self.driver is not None and not self._accepted(msg, velocity):
+        if not self._accepted(msg, velocity):
             return
         self.plant.command(self.t, velocity)
 
     def _accepted(self, msg: JointStateLike, velocity: np.ndarray) -> bool:
-        """Whether the driver takes the command; a refusal stops the arm until ~/reset."""
+        """Whether the plant takes the command (`refuse_over_limits`: a refusal stops it)."""
         if self.reflex is not None:
             return False
         plant = self.plant
         stamp = msg.header.stamp
         refusal = self.driver.check(velocity, stamp.sec + stamp.nanosec * 1e-9,
                                     exempt=(*plant.locked, *plant.swinging))
-        if refusal is None:
+        if refusal is None or not self._refuse:
             return True
         self.reflex = f"{refusal} (t = {self.t:.3f} s)"
         self.get_logger().error(f"driver reflex: command refused and the arm stopped: "

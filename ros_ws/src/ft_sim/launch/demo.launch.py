@@ -62,7 +62,7 @@ def nodes(context) -> list[Node]:
              parameters=[{**model, "publish_clock": sim_time, "rate": 250.0,
                           "plant": value["plant"], "position_noise": 0.001,
                           "command_latency": 0.02, "response_time": 0.03,
-                          "command_timeout": 0.1}, *files]),
+                          "command_timeout": 0.1, "refuse_over_limits": True}, *files]),
         Node(package="ft_controller", executable="controller_node", name="controller",
              **common,
              parameters=[{**model, "use_sim_time": sim_time, "resolution": "blend",
