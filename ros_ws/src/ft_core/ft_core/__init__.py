@@ -19,6 +19,8 @@ The online path (what the nodes call every cycle, and what they need to start):
     workers: worker processes that end with their parent, started off a real-time thread.
     detection: locked-joint detection from commanded and measured motion.
     remap: reduced-Jacobian remapping of commands around locked joints.
+    command_limits: an arm's velocity, acceleration and jerk limits; a driver's test.
+    smoothing: every command within those limits (Ruckig's velocity interface).
     files: reading small input files safely (regular, bounded in size and nesting).
     locked_set: the persisted locked set (atomic write, keyed by robot, node and domain).
     monitor: the monitor's logic: filter commands, decide on locks, keep the set.
