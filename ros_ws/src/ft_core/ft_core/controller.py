@@ -27,7 +27,7 @@ besides the engine's arithmetic (`ft_core.engine`):
   to the reduced solution within their limits.
 
 Every input is checked by the caller or by the engine; the step never raises on a
-bad state or target: it returns explicit zeros and says why (`Step.problems`).
+bad state or target: it commands zeros (reached on a ramp) and says why (`Step.problems`).
 """
 
 from __future__ import annotations
@@ -102,7 +102,8 @@ class Step:
     """What one cycle decided.
 
     Attributes:
-        qd: the command (rad/s, chain order); explicit zeros when no motion is safe.
+        qd: the command (rad/s, chain order), within the arm's acceleration and jerk
+            limits; towards zeros, on a ramp, when no motion is safe.
         result: the engine's cycle (None when zeros were commanded without one).
         problems: why zeros were commanded, by input: "joint_states" (stale) or
             "engine" (a state or target it refuses); "engine" None once it accepts again.
