@@ -212,6 +212,11 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         g.wait(lambda: bool(g.commands) and np.max(np.abs(g.commands[-1].velocity)) > 0.6,
                10.0, "the arm moving fast")
         speed = float(np.max(np.abs(g.commands[-1].velocity)))
+        # No process of the graph maps Fast DDS's shared memory (ft_msgs_py.transport):
+        # a killed reader holding its port's lock stalled every writer to it for 1 s.
+        for name, process in g.processes.items():
+            maps = Path(f"/proc/{process.pid}/maps").read_text()
+            assert "fastrtps" not in maps and "fastdds" not in maps, name
         plant = HOLDING_PLANT
         braking, jerk = min(plant["acceleration_limit"][0], PANDA_SLOWEST[0]), PANDA_SLOWEST[1]
         ramp = speed / braking + 2 * braking / jerk  # the guard's stop, s
@@ -237,6 +242,10 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         # controller, 1 s for the sim, which then integrates the held command over it): the
         # guard is judged on the time its processes ran.
         stall = stalled(killed, g.raw_commands) + stalled(killed, states)
+        # Off shared memory, the controller's loop never waits on the dead monitor: what
+        # is left is the machine's own scheduling (0.3 s seen under a loaded suite).
+        assert stalled(killed, g.raw_commands) < 0.5, (
+            f"the controller's commands stalled {stalled(killed, g.raw_commands):.2f} s")
         assert guard and guard[0] < 0.2 + stall, (
             f"the guard's first command {guard[:1]} s after the kill ({stall:.2f} s stalled)")
         assert zeros and zeros[0] < 0.2 + ramp + stall, (

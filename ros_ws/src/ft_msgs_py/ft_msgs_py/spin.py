@@ -50,6 +50,8 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
+from ft_msgs_py.transport import avoid_shared_memory
+
 #: Longest time (s) between two checks of the stop flag.
 CHECK_PERIOD = 0.1
 #: s each reliable publisher waits, on shutdown, for its last messages to be acknowledged.
@@ -189,13 +191,18 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     a driver that holds its last command must have them before the process is gone);
     the teardown that follows is bounded by TEARDOWN_TIMEOUT (`exit_if_stuck`). A
     `Ticked` node gets its ticks from this loop, which waits for the next one in
-    `spin_once` (messages are taken meanwhile).
+    `spin_once` (messages are taken meanwhile). The process keeps off Fast DDS's shared
+    memory (`ft_msgs_py.transport`).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
                 for sig in (signal.SIGINT, signal.SIGTERM)}
+    transport = avoid_shared_memory()  # before the participant is made
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes = [make() for make in makers]
+    if transport is not None:
+        nodes[0].get_logger().info(f"Fast DDS without shared memory: {transport} "
+                                   "(a killed process cannot stall this one)")
     wire(nodes)
     settle_heap()
     executor = EventsExecutor()
