@@ -93,7 +93,10 @@ def test_the_driver_refuses_a_step_a_jerk_and_a_speed_and_says_which_joint() -> 
     assert refusal is not None and refusal.violation is Violation.VELOCITY
     driver = DriverCheck(LIMITS)
     driver.check(np.zeros(7), 1.0)
-    refusal = driver.check(np.zeros(7), 1.0)
+    assert driver.check(np.zeros(7), 1.0) is None  # a repeat
+    refusal = driver.check(np.full(7, 1e-3), 1.0)  # another command at the same instant
+    assert refusal is not None and refusal.violation is Violation.STAMP
+    refusal = driver.check(np.zeros(7), 0.5)  # an earlier stamp
     assert refusal is not None and refusal.violation is Violation.STAMP
     # An exempt joint (locked in the plant) is not tested.
     driver = DriverCheck(LIMITS)

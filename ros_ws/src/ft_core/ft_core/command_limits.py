@@ -212,7 +212,8 @@ class DriverCheck:
 
         `exempt` joints are not tested (a joint the plant holds locked: its command is
         moot). The first command, and the first after `reset`, is tested against its
-        velocity only.
+        velocity only. The same velocity again with the same stamp is a repeat, accepted;
+        another velocity at the same stamp, or an earlier stamp, is refused.
         """
         limits = self.limits
         velocity = np.asarray(velocity, dtype=float)
@@ -225,6 +226,8 @@ class DriverCheck:
             return refusals[0]
         t0, v0, a0, dt0 = self._last
         dt = t - t0
+        if dt == 0 and np.array_equal(velocity, v0):
+            return refusals[0]  # the same command again (a simulated clock stood still)
         if not dt > 0:
             return Refusal(Violation.STAMP, -1, dt, 0.0)
         tau = self.time_tolerance
