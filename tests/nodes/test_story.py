@@ -131,12 +131,18 @@ def test_the_demo_holds_on_every_arm_with_robot_and_task_alone(
 @pytest.mark.slow
 def test_undetected_failure_spoils_tracking_and_detection_restores_it() -> None:
     config = ScenarioConfig(lock_joint="panda_joint2", lock_time=3.0, duration=12.0)
-    summary = demo.summarise(config, run(config, domain_id=fresh_domain()))
+    record = run(config, domain_id=fresh_domain())
+    summary = demo.summarise(config, record)
     assert summary["detected"] == ["panda_joint2"]
     # The plant follows the monitor's command, which smooths the controller's again from
     # its own state: the two differ by a few mm/s at most where the ramps meet the limits.
     assert summary["error_before"] < 0.01
-    assert summary["error_during"] > 10 * summary["error_after"]
+    # Once detected, the healthy joints reach the reduced solution within their limits
+    # (0.1 to 0.2 s on the Panda); from then on the tool follows again.
+    a = record.arrays()
+    settled = a["tool_velocity_error"][a["t"] > record.detected_at + 0.3].max()
+    assert summary["error_during"] > 10 * settled
+    assert summary["error_after"] < summary["error_during"]
     assert summary["non_finite"] == 0
     assert demo.verdict(summary) == []
 

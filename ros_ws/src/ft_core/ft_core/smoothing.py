@@ -4,10 +4,11 @@ Each call takes the newest target velocity and returns the next command, so that
 stream of commands passes `ft_core.command_limits.DriverCheck` by construction, whatever
 the spacing of the commands' stamps:
 
-- while the commands follow the targets (the previous command was the previous
-  target), a target the previous command can reach within the limits in the time
-  since it, with an acceleration that can still be brought to 0 within the velocity
-  limit, passes as it is (a controller's output that is smooth already is not delayed);
+- a target the previous command can reach within the limits in the time since it
+  passes as it is, where the acceleration that takes is within a jerk step of the
+  target's own (so the commands can go on following it: a target that stands still is
+  not overshot) and can still be brought to 0 within the velocity limit (a controller's
+  output that is smooth already is not delayed, and a delay catches up);
 - otherwise the command follows the time-optimal, jerk-limited profile from the
   current velocity and acceleration to the target, sampled at the new stamp (Ruckig's
   velocity interface, Berscheid & Kroeger, RSS 2021, as MoveIt Servo's Ruckig smoothing
@@ -51,8 +52,6 @@ from ruckig import (
 from ft_core.command_limits import CommandLimits
 
 _RUCKIG_OK = (Result.Working, Result.Finished)
-#: rad/s: a command this close to its target follows it (Ruckig lands within rounding).
-_FOLLOWING = 1e-9
 #: s assumed between the velocity held at a reset and the first command after it.
 FIRST_INTERVAL = 1e-3
 
@@ -116,7 +115,8 @@ class Smoother:
         mean = (target - self.velocity) / dt
         # The interval before the first is a steady one as long as this one.
         previous = self._interval if math.isfinite(self._interval) else dt
-        passes = ((np.abs(self.velocity - self._target) <= _FOLLOWING)
+        own = (target - self._target) / dt  # the target's acceleration
+        passes = ((np.abs(mean - own) <= limits.jerk * dt)
                   & (np.abs(mean) <= limits.acceleration)
                   & (np.abs(mean - self._mean) <= limits.jerk * (dt + previous) / 2)
                   & (np.abs(target + mean * np.abs(mean) / (2 * limits.jerk))
