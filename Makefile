@@ -8,9 +8,9 @@ BIN := $(VENV)/bin
 PACKAGES := ft_core ft_msgs_py ft_controller ft_monitor ft_sim
 SETUPS := $(foreach p,$(PACKAGES),ros_ws/src/$(p)/setup.py ros_ws/src/$(p)/setup.cfg)
 STAMP := $(VENV)/.installed
-WARM_UP := from ft_core import detection, engine, robots; engine.ResolutionEngine(robots.load('panda')); \
+WARM_UP := from ft_core import detection, engine, robots, smoothing; engine.ResolutionEngine(robots.load('panda')); \
 	engine.ResolutionEngine(robots.load('panda'), engine.EngineConfig(resolution='least_norm')); \
-	detection.compile_ahead()
+	detection.compile_ahead(); smoothing.compile_ahead()
 
 PYTEST := $(BIN)/python -m pytest
 #: The ft_core sources whose compiled functions numba caches (see `build`).
@@ -41,8 +41,9 @@ build: $(STAMP)
 	if [ "$$sources" != "$$(cat $(NUMBA_STAMP) 2>/dev/null)" ]; then \
 		find ros_ws/src/ft_core ros_ws/install/ft_core -name '*.nb[ic]' -delete; \
 		echo "$$sources" > $(NUMBA_STAMP); fi
-	# Compile the engine's cycle and the detector (numba, cached next to each copy of the
-	# sources: the install space's and the editable one) now, not in the first node to start.
+	# Compile the engine's cycle, the detector and the smoother's test (numba, cached next to
+	# each copy of the sources: the install space's and the editable one) now, not in the
+	# first node to start.
 	for path in ros_ws/install/ft_core/lib/python*/site-packages ""; do \
 		PYTHONPATH=$$path $(BIN)/python -c "$(WARM_UP)" || exit 1; done
 

@@ -39,6 +39,7 @@ import weakref
 from collections.abc import Iterable
 
 import numpy as np
+from numba import njit
 from ruckig import (
     ControlInterface,
     InputParameter,
@@ -54,6 +55,7 @@ from ft_core.command_limits import CommandLimits
 _RUCKIG_OK = (Result.Working, Result.Finished)
 #: s assumed between the velocity held at a reset and the first command after it.
 FIRST_INTERVAL = 1e-3
+_NO_JOINTS = np.zeros(0, dtype=np.int64)
 
 
 class Smoother:
@@ -64,6 +66,7 @@ class Smoother:
     """
 
     def __init__(self, limits: CommandLimits):
+        compile_ahead()  # numba's cache loaded here, not in the first control cycle
         self.limits = limits
         #: Ruckig's generator, input and trajectory, made at the first profile.
         self._ruckig: tuple[Ruckig, InputParameter, Trajectory] | None = None
@@ -101,33 +104,27 @@ class Smoother:
         after `reset` is reached from the velocity held over `FIRST_INTERVAL`.
         """
         limits = self.limits
-        target = np.clip(np.nan_to_num(np.asarray(target, dtype=float), nan=0.0, posinf=0.0,
-                                       neginf=0.0), -limits.velocity, limits.velocity)
-        stopped = list(stopped)
-        if stopped:
-            self.velocity[stopped] = self.acceleration[stopped] = self._mean[stopped] = 0.0
-            target[stopped] = 0.0
         if self.time is None:
             self.time = t - FIRST_INTERVAL
         dt = t - self.time
-        if not dt > 0:
-            return self.velocity.copy()
-        mean = (target - self.velocity) / dt
         # The interval before the first is a steady one as long as this one.
         previous = self._interval if math.isfinite(self._interval) else dt
-        own = (target - self._target) / dt  # the target's acceleration
-        passes = ((np.abs(mean - own) <= limits.jerk * dt)
-                  & (np.abs(mean) <= limits.acceleration)
-                  & (np.abs(mean - self._mean) <= limits.jerk * (dt + previous) / 2)
-                  & (np.abs(target + mean * np.abs(mean) / (2 * limits.jerk))
-                     <= limits.velocity))
-        velocity, acceleration = target, mean
-        if not passes.all():
-            velocity, acceleration = self._profile(target, dt)
-        self._mean = (velocity - self.velocity) / dt
-        self.velocity, self.acceleration, self._target = velocity, acceleration, target
+        passes, target, mean = _try_pass(
+            np.asarray(target, dtype=float),
+            np.array(stopped, dtype=np.int64) if stopped else _NO_JOINTS, dt, previous,
+            self.velocity, self.acceleration, self._mean, self._target, limits.velocity,
+            limits.acceleration, limits.jerk)
+        if not dt > 0:
+            return self.velocity.copy()
+        if passes:
+            self._mean, self.acceleration = mean, mean.copy()
+            self.velocity, self._target = target, target.copy()
+        else:
+            velocity, self.acceleration = self._profile(target, dt)
+            self._mean = (velocity - self.velocity) / dt
+            self.velocity, self._target = velocity, target
         self._interval, self.time = dt, t
-        return velocity.copy()
+        return self.velocity.copy()
 
     def _profile(self, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration dt s along the time-optimal profile to `target`.
@@ -177,3 +174,47 @@ _LIVE: weakref.WeakSet[Smoother] = weakref.WeakSet()
 def _release() -> None:
     for smoother in list(_LIVE):
         smoother._ruckig = None
+
+
+@njit(cache=True, error_model="numpy")
+def _try_pass(target: np.ndarray, stopped: np.ndarray, dt: float, previous: float,
+              velocity: np.ndarray, acceleration: np.ndarray, mean: np.ndarray,
+              last: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, j_max: np.ndarray,
+              ) -> tuple[bool, np.ndarray, np.ndarray]:
+    """(whether `target` passes as it is, the target, its mean acceleration over dt).
+
+    The target (rad/s) is made finite (a non-finite value counts as 0) and clipped into
+    `v_max`; the `stopped` joints (indices) get 0, their velocity, acceleration and
+    mean (the state, rad/s and rad/s^2, changed in place) with them. It passes where,
+    per joint, its mean acceleration is within `a_max`, differs from the last one
+    (`mean`, over `previous` s) by at most `j_max` times the midpoints' distance and from
+    the target's own (from `last`, the last target) by at most `j_max` dt, and where
+    the velocity it would reach with that acceleration brought to 0 at `j_max` stays
+    within `v_max` (the module docstring). Nothing passes without time (dt <= 0).
+    """
+    n = target.size
+    clean = np.empty(n)
+    for j in range(n):
+        value = target[j] if np.isfinite(target[j]) else 0.0
+        clean[j] = min(max(value, -v_max[j]), v_max[j])
+    for j in stopped:
+        clean[j] = velocity[j] = acceleration[j] = mean[j] = 0.0
+    reached = np.zeros(n)
+    if not dt > 0:
+        return False, clean, reached
+    passes = True
+    for j in range(n):
+        a = (clean[j] - velocity[j]) / dt
+        reached[j] = a
+        if (abs(a) > a_max[j] or abs(a - mean[j]) > j_max[j] * (dt + previous) / 2
+                or abs(a - (clean[j] - last[j]) / dt) > j_max[j] * dt
+                or abs(clean[j] + a * abs(a) / (2 * j_max[j])) > v_max[j]):
+            passes = False
+    return passes, clean, reached
+
+
+def compile_ahead() -> None:
+    """Load the compiled pass test now (numba's cache), not in a control cycle."""
+    zeros = np.zeros(1)
+    _try_pass(zeros, _NO_JOINTS, 1e-3, 1e-3, zeros.copy(), zeros.copy(), zeros.copy(),
+              zeros.copy(), np.ones(1), np.ones(1), np.ones(1))
