@@ -109,17 +109,14 @@ class Smoother:
         dt = t - self.time
         # The interval before the first is a steady one as long as this one.
         previous = self._interval if math.isfinite(self._interval) else dt
-        passes, target, mean = _try_pass(
+        passed, target = _try_pass(
             np.asarray(target, dtype=float),
             np.array(stopped, dtype=np.int64) if stopped else _NO_JOINTS, dt, previous,
             self.velocity, self.acceleration, self._mean, self._target, limits.velocity,
             limits.acceleration, limits.jerk)
         if not dt > 0:
             return self.velocity.copy()
-        if passes:
-            self._mean, self.acceleration = mean, mean.copy()
-            self.velocity, self._target = target, target.copy()
-        else:
+        if not passed:
             velocity, self.acceleration = self._profile(target, dt)
             self._mean = (velocity - self.velocity) / dt
             self.velocity, self._target = velocity, target
@@ -180,17 +177,19 @@ def _release() -> None:
 def _try_pass(target: np.ndarray, stopped: np.ndarray, dt: float, previous: float,
               velocity: np.ndarray, acceleration: np.ndarray, mean: np.ndarray,
               last: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, j_max: np.ndarray,
-              ) -> tuple[bool, np.ndarray, np.ndarray]:
-    """(whether `target` passes as it is, the target, its mean acceleration over dt).
+              ) -> tuple[bool, np.ndarray]:
+    """(whether `target` passed as it is, the target as taken).
 
     The target (rad/s) is made finite (a non-finite value counts as 0) and clipped into
     `v_max`; the `stopped` joints (indices) get 0, their velocity, acceleration and
     mean (the state, rad/s and rad/s^2, changed in place) with them. It passes where,
-    per joint, its mean acceleration is within `a_max`, differs from the last one
-    (`mean`, over `previous` s) by at most `j_max` times the midpoints' distance and from
-    the target's own (from `last`, the last target) by at most `j_max` dt, and where
-    the velocity it would reach with that acceleration brought to 0 at `j_max` stays
-    within `v_max` (the module docstring). Nothing passes without time (dt <= 0).
+    on every joint, its mean acceleration over dt is within `a_max`, differs from the
+    last one (`mean`, over `previous` s) by at most `j_max` times the midpoints'
+    distance and from the target's own (from `last`, the last target) by at most `j_max`
+    dt, and where the velocity it would reach with that acceleration brought to 0 at
+    `j_max` stays within `v_max` (the module docstring); then the state becomes it
+    (velocity and `last` the target, acceleration and `mean` that mean). Nothing passes
+    without time (dt <= 0).
     """
     n = target.size
     clean = np.empty(n)
@@ -199,18 +198,21 @@ def _try_pass(target: np.ndarray, stopped: np.ndarray, dt: float, previous: floa
         clean[j] = min(max(value, -v_max[j]), v_max[j])
     for j in stopped:
         clean[j] = velocity[j] = acceleration[j] = mean[j] = 0.0
-    reached = np.zeros(n)
     if not dt > 0:
-        return False, clean, reached
-    passes = True
+        return False, clean
+    reached = np.empty(n)
     for j in range(n):
         a = (clean[j] - velocity[j]) / dt
-        reached[j] = a
         if (abs(a) > a_max[j] or abs(a - mean[j]) > j_max[j] * (dt + previous) / 2
                 or abs(a - (clean[j] - last[j]) / dt) > j_max[j] * dt
                 or abs(clean[j] + a * abs(a) / (2 * j_max[j])) > v_max[j]):
-            passes = False
-    return passes, clean, reached
+            return False, clean
+        reached[j] = a
+    velocity[:] = clean
+    last[:] = clean
+    acceleration[:] = reached
+    mean[:] = reached
+    return True, clean
 
 
 def compile_ahead() -> None:
