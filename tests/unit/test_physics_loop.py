@@ -32,7 +32,10 @@ GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
 GOAL_PERIOD = 1.5
 #: s of healthy goals before the lock (the monitor identifies the plant meanwhile).
 HEALTHY = 4.0
-#: rad/s; the joint locks at the first moment after HEALTHY that it moves this fast.
+#: rad/s; the joint locks at the first moment after HEALTHY that it moves this fast and
+#: is commanded as fast (a lock shows only while its joint is commanded: a joint that
+#: overshoots briefly as the others ramp up, then is hardly commanded, is not the case
+#: this test is about; docs/monitor.md "Locks the monitor cannot see").
 LOCK_SPEED = 0.1
 DRIVERS = {"fast": PlantConfig(latency=0.01, response_time=0.02),
            "slow": PlantConfig(latency=0.05, response_time=0.05, hold_last_command=True)}
@@ -56,6 +59,7 @@ class Loop:
         self.t = 0.0
         self.goals = 0
         self.declared: list[tuple[float, list[str]]] = []  # (time, locked set) on changes
+        self.sent = np.zeros(self.robot.n)  # the last command the plant got (rad/s)
 
     def send_goal(self) -> None:
         pose = np.eye(4)
@@ -78,7 +82,8 @@ class Loop:
             step = self.controller.step(q, 0.0, self.t)
             if step.announce and step.suspect is not None:
                 self.monitor.suspect(step.suspect, self.t)
-            self.plant.command(self.t, self.monitor.command(step.qd, self.t))
+            self.sent = self.monitor.command(step.qd, self.t)
+            self.plant.command(self.t, self.sent)
             self.t += self.dt
             self.plant.step(self.t)
             if stop():
@@ -94,7 +99,8 @@ def test_a_lock_on_a_physics_plant_is_named_within_a_second(task: str, joint: in
                                                             driver: str) -> None:
     loop = Loop(task, DRIVERS[driver])
     loop.run(HEALTHY)
-    loop.run(3 * GOAL_PERIOD, stop=lambda: abs(loop.plant.qd[joint]) > LOCK_SPEED)
+    loop.run(3 * GOAL_PERIOD, stop=lambda: min(abs(loop.plant.qd[joint]),
+                                               abs(loop.sent[joint])) > LOCK_SPEED)
     assert abs(loop.plant.qd[joint]) > LOCK_SPEED, f"joint {joint} never moves"
     assert loop.declared == [] and loop.monitor.swinging == [], "declared in healthy motion"
     assert loop.monitor.plant_values()["observing"] == "yes", "the monitor never observed"
