@@ -9,7 +9,8 @@ besides the engine's arithmetic (`ft_core.engine`):
   or a pose goal (tracked proportionally, `targets.pose_velocity`);
 - holding still with no target (unless `idle_null_space_motion`);
 - the observability excursions (`ft_core.observability`) in the null space;
-- the task-space channel (`ft_core.task_channel`), fed the pose goal's error: its
+- the task-space channel (`ft_core.task_channel`), fed the pose goal's error and the
+  cycle's own command (before smoothing: what the engine asks of the joints): its
   suspect is returned for whoever decides (the monitor);
 - the recovery (`ft_core.recovery`): when a pose goal's error stops improving, a joint
   path to an IK solution with the locked joints pinned, planned in the worker process and
@@ -355,11 +356,11 @@ class Controller:
                                    now, task_error, error, idle)
         if not all_finite(qd):
             qd = zeros
-        qd = self.smooth(qd, now)
         self.last = result
         step = Step(qd, result, {"engine": None})
         if error is not None:
             self._watch_task(step, kinematics, locked, now, error)
+        step.qd = self.smooth(qd, now)
         return step
 
     def _task_velocity(self, kinematics: Kinematics, now: float,
