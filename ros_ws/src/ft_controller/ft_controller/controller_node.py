@@ -33,7 +33,6 @@ from ft_core import limits, robots, selfmotion
 from ft_core.controller import Controller
 from ft_core.engine import RESOLUTIONS, Status, check_config
 from ft_core.robots import Robot, RobotModelError
-from ft_core.smoothing import Smoother
 from ft_core.targets import goal_from_transform, twist_velocity
 from ft_msgs_py import (
     convert,
@@ -105,8 +104,9 @@ class ControllerNode(SuiteNode):
             JointState, names.COMMAND_RAW, qos.RELIABLE)
         # The plant's own topics, for the guard's zeros when the monitor is gone.
         self._guard = MonitorGuard(self.param("monitor_timeout"))
-        #: The guard's stop ramp while the monitor does not answer (None: it answers).
-        self._guard_stop: GuardStop | None = None
+        #: The guard's stop while the monitor does not answer (`Controller.stopper`; None:
+        #: it answers): the next command (chain order) for a time (s).
+        self._guard_stop: Callable[[float], np.ndarray] | None = None
         #: A locked set heard while a stranger publishes too: its new locks wait for the
         #: monitor's echoes to show them (`_take_corroborated`).
         self._contested: set[str] = set()
@@ -535,8 +535,8 @@ class ControllerNode(SuiteNode):
             held = np.zeros(self.robot.n)
             if echo is not None and len(echo) == self.robot.n:
                 held[self._order] = echo
-            self._guard_stop = GuardStop(self.core.stopper(held))
-        velocity = self._guard_stop.step(self.robot.n, nanoseconds * 1e-9)[self._order].tolist()
+            self._guard_stop = self.core.stopper(held)
+        velocity = self._guard_stop(nanoseconds * 1e-9)[self._order].tolist()
         self._plant_pub.publish(convert.joint_state(
             self.command_joints, convert.stamp_from_nanoseconds(nanoseconds), velocity=velocity))
         self._plant_array_pub.publish(Float64MultiArray(data=velocity))
@@ -709,22 +709,6 @@ class ControllerNode(SuiteNode):
         if self.core is not None:
             smoother = self.core.smoother
             self.ramp_now(self._ramp_step, 0.1 + (smoother.stop_time() if smoother else 0.0))
-
-
-class GuardStop:
-    """The guard's commands to the plant: a stop ramp from the monitor's last command.
-
-    The plant has held that command since the monitor fell silent (at least
-    `monitor_timeout`), so the ramp starts from it at rest in acceleration.
-    """
-
-    def __init__(self, smoother: Smoother | None):
-        self._smoother = smoother
-
-    def step(self, n: int, now: float) -> np.ndarray:
-        """The next command (rad/s, chain order) stamped `now` (s): zeros without limits."""
-        zeros = np.zeros(n)
-        return zeros if self._smoother is None else self._smoother.step(zeros, now)
 
 
 def main(args: list[str] | None = None) -> None:

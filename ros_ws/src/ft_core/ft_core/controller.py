@@ -293,17 +293,19 @@ class Controller:
         return self._boxes_dirty or self._boxes_job is not None
 
     # -------------------------------------------------------------------- cycle
-    def stopper(self, velocity: np.ndarray) -> Smoother | None:
-        """A smoother with this controller's limits held at `velocity` (rad/s, chain order).
+    def stopper(self, velocity: np.ndarray) -> Callable[[float], np.ndarray]:
+        """A stop from `velocity` (rad/s, chain order) held steady, within this core's limits.
 
-        For a stop ramp of commands this core did not make (the guard's of a dead
-        monitor); None without smoothing.
+        For commands this core did not make (the guard's of a dead monitor, from the
+        monitor's last command): each call returns the next command (rad/s, chain order)
+        stamped with the time given (s); zeros at once without smoothing.
         """
+        zeros = np.zeros(self.robot.n)
         if self.smoother is None:
-            return None
+            return lambda _now: zeros.copy()
         smoother = Smoother(self.smoother.limits)
         smoother.reset(velocity)
-        return smoother
+        return lambda now: smoother.step(zeros, now)
 
     def smooth(self, qd: np.ndarray, now: float) -> np.ndarray:
         """The command stamped `now` (s) towards `qd` (rad/s) within the limits.
