@@ -8,9 +8,9 @@ is generated::
     <!-- parameters: end -->
 
 The rows come from what the node module declares: its module-level `PARAMETERS`
-dict (name -> (default, description, extra descriptor fields)), the one it passes
-to `parameters.declare`. Importing a node module does not start ROS, and neither
-does this script.
+table (name -> `ft_msgs_py.parameter_table.Setting`, from its package's `settings.py`),
+the one it passes to `parameter_table.declare`. Importing a node module does not start
+ROS, and neither does this script.
 
 Usage (from the repository root)::
 
@@ -29,6 +29,7 @@ import re
 import sys
 from pathlib import Path
 
+from ft_msgs_py.parameter_table import Setting
 from rclpy.parameter import Parameter
 
 REPO = Path(__file__).resolve().parents[1]
@@ -57,15 +58,14 @@ _TYPE_NAMES = {
 }
 
 
-def declared_parameters(module_name: str) -> dict[str, tuple[object, str, dict]]:
+def declared_parameters(module_name: str) -> dict[str, Setting]:
     """The parameters a node module declares.
 
     Args:
         module_name: a node module, such as `ft_sim.sim_node`.
 
     Returns:
-        name -> (default, description, extra descriptor fields), in declaration
-        order: the module's `PARAMETERS`.
+        name -> `Setting`, in declaration order: the module's `PARAMETERS`.
 
     Raises:
         LookupError: the module has no `PARAMETERS`.
@@ -74,12 +74,6 @@ def declared_parameters(module_name: str) -> dict[str, tuple[object, str, dict]]
     if not hasattr(module, "PARAMETERS"):
         raise LookupError(f"{module_name} declares no module-level PARAMETERS")
     return dict(module.PARAMETERS)
-
-
-def _type(default: object) -> Parameter.Type:
-    if isinstance(default, Parameter.Type):
-        return default
-    return Parameter.Type.from_parameter_value(default)
 
 
 def _default(default: object) -> str:
@@ -98,35 +92,29 @@ def _number(value: object) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _range(extra: dict) -> str:
-    ranges = extra.get("floating_point_range") or extra.get("integer_range") or []
-    if not ranges:
-        return ""
-    bounds = ranges[0]
-    text = f"{_number(bounds.from_value)} to {_number(bounds.to_value)}"
-    step = getattr(bounds, "step", 0)
-    return text + (f", step {_number(step)}" if step else "")
+def _range(setting: Setting) -> str:
+    return setting.constraints() if setting.bounds is not None or setting.choices else ""
 
 
 def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def table(declared: dict[str, tuple[object, str, dict]]) -> str:
+def table(declared: dict[str, Setting]) -> str:
     """A Markdown table of declared parameters.
 
     Args:
-        declared: name -> (default, description, extra descriptor fields).
+        declared: name -> `Setting`.
 
     Returns:
         The table, one row per parameter in declaration order, ending in a newline.
     """
-    lines = ["| parameter | type | default | range | at run time | description |",
+    lines = ["| parameter | type | default | allowed | at run time | description |",
              "|---|---|---|---|---|---|"]
-    for name, (default, description, extra) in declared.items():
-        changeable = "read-only" if extra.get("read_only") else "settable"
-        lines.append(f"| `{name}` | {_TYPE_NAMES[_type(default)]} | {_default(default)} | "
-                     f"{_range(extra)} | {changeable} | {_cell(description)} |")
+    for name, setting in declared.items():
+        changeable = "read-only" if setting.read_only else "settable"
+        lines.append(f"| `{name}` | {_TYPE_NAMES[setting.type]} | {_default(setting.default)} | "
+                     f"{_cell(_range(setting))} | {changeable} | {_cell(setting.description)} |")
     return "\n".join(lines) + "\n"
 
 

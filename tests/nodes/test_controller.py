@@ -14,7 +14,7 @@ import rclpy
 from ft_controller.controller_node import PARAMETERS, ControllerNode
 from ft_core import robots
 from ft_monitor.monitor_node import PARAMETERS as MONITOR_PARAMETERS
-from ft_msgs_py import convert, diagnostics, metrics, qos
+from ft_msgs_py import convert, diagnostics, metrics, parameter_table, qos
 from ft_msgs_py.spin import Ticked, harness_node, spin_for, spin_until
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from paths import REPO
@@ -439,7 +439,7 @@ def test_default_parameters_are_the_cores_defaults_written_once() -> None:
             assert node.robot is not None
             assert node.core.engine.config == EngineConfig()
             assert node.core.config == ControllerConfig()
-            assert sim._plant_config() == PlantConfig()
+            assert sim.plant.path.config == PlantConfig()
         finally:
             node.destroy_node()
             sim.destroy_node()
@@ -586,8 +586,7 @@ def test_parameter_values_make_the_core_configurations_without_a_node() -> None:
     from ft_core.controller import ControllerConfig
     from ft_core.engine import EngineConfig
 
-    values = {name: [] if isinstance(default, Parameter.Type) else default
-              for name, (default, _, _) in PARAMETERS.items()}
+    values = parameter_table.defaults(PARAMETERS)
     chain = np.arange(7)
     assert settings.engine_config(values, chain) == EngineConfig()
     assert settings.controller_config(values) == ControllerConfig()
@@ -664,23 +663,23 @@ def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer(
     them; with `use_sim_time` the timer stays, and the callbacks.
     """
     with controller(executor_type, use_sim_time=False, control_rate=250.0) as (node, plant):
-        timer = node._timer
-        assert math.isinf(node.next_tick())
+        timer = node.cycles.timer
+        assert math.isinf(node.cycles.next_tick())
         node.cycle_on_loop_ticks()
-        assert isinstance(node, Ticked) and timer not in node.timers
-        first, period = node.next_tick(), 1.0 / 250.0
+        assert isinstance(node.cycles, Ticked) and timer not in node.timers
+        first, period = node.cycles.next_tick(), 1.0 / 250.0
         assert 0.0 < first - time.monotonic() <= period
         node.last_command = None
-        node.tick(first)
+        node.cycles.tick(first)
         assert node.last_command is not None and not np.any(node.last_command)  # no state
-        assert node.next_tick() == pytest.approx(first + period)
-        node.tick(first + 3.5 * period)  # late by 2.5 periods: those ticks are skipped
-        assert node.next_tick() == pytest.approx(first + 4 * period)
+        assert node.cycles.next_tick() == pytest.approx(first + period)
+        node.cycles.tick(first + 3.5 * period)  # late by 2.5 periods: those ticks are skipped
+        assert node.cycles.next_tick() == pytest.approx(first + 4 * period)
         node.set_parameters([Parameter("control_rate", value=100.0)])
-        assert 0.0 < node.next_tick() - time.monotonic() <= 0.01
-        due = node.next_tick()
-        node.tick(due)
-        assert node.next_tick() == pytest.approx(due + 0.01)
+        assert 0.0 < node.cycles.next_tick() - time.monotonic() <= 0.01
+        due = node.cycles.next_tick()
+        node.cycles.tick(due)
+        assert node.cycles.next_tick() == pytest.approx(due + 0.01)
         # The inputs wait in their queues: the executor dispatches none of them ...
         held = {node.resolve_topic_name(topic) for topic in (
             "joint_states", "ft/command_echo", "ft/target_twist", "ft/target_pose")}
@@ -697,15 +696,15 @@ def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer(
         spin_for(plant.executor, 0.2)  # the executor's chance to dispatch them
         assert node.core.target is None and math.isinf(node.state_stamp)
         # ... the tick takes them, before its cycle.
-        node.tick(node.next_tick())
+        node.cycles.tick(node.cycles.next_tick())
         assert node.core.target is not None and node.core.target.kind == "twist"
         deadline = time.monotonic() + 5.0  # the state is best effort: it may be in flight
         while math.isinf(node.state_stamp) and time.monotonic() < deadline:
-            node.tick(node.next_tick())
+            node.cycles.tick(node.cycles.next_tick())
         assert node.state_stamp == pytest.approx(plant.t)
         np.testing.assert_allclose(node.core.target.value[:3], [0.05, 0.0, 0.0])
     with controller() as (node, _plant):  # use_sim_time: the simulated clock's timer
-        timer = node._timer
+        timer = node.cycles.timer
         node.cycle_on_loop_ticks()
-        assert math.isinf(node.next_tick()) and timer in node.timers
+        assert math.isinf(node.cycles.next_tick()) and timer in node.timers
         assert len(list(node.subscriptions)) == len(node._subscriptions)

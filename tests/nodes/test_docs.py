@@ -107,33 +107,37 @@ def test_tables_show_what_the_running_node_declares(module_name):
             assert declared == set(documented), (
                 f"{module_name}: declared but not in the table {sorted(declared - set(documented))}"
                 f", in the table but not declared {sorted(set(documented) - declared)}")
-            for name, (default, description, extra) in documented.items():
+            for name, setting in documented.items():
                 descriptor = node.describe_parameter(name)
-                assert descriptor.description == description, name
-                assert descriptor.read_only == bool(extra.get("read_only")), name
-                if not isinstance(default, Parameter.Type):
-                    assert node.get_parameter(name).value == default, name
+                assert descriptor.description == setting.description, name
+                assert descriptor.read_only == setting.read_only, name
+                assert descriptor.additional_constraints == setting.constraints(), name
+                if not isinstance(setting.default, Parameter.Type):
+                    assert node.get_parameter(name).value == setting.default, name
         finally:
             node.destroy_node()
 
 
 def test_the_generator_renders_types_defaults_and_ranges():
-    from rcl_interfaces.msg import FloatingPointRange, IntegerRange
+    from ft_msgs_py.parameter_table import Setting
     table = param_tables.table({
-        "a": (0.5, "s | per cycle", {"floating_point_range": [
-            FloatingPointRange(from_value=0.0, to_value=1e4)]}),
-        "b": (Parameter.Type.STRING_ARRAY, "names", {"read_only": True}),
-        "c": (3, "count", {"integer_range": [IntegerRange(from_value=1, to_value=9, step=2)]}),
-        "d": ([0.0], "one or per joint", {}),
-        "e": (False, "flag", {}),
-        "f": ("", "text", {}),
+        "a": Setting(0.5, "s | per cycle", (0.0, 1e4)),
+        "b": Setting(Parameter.Type.STRING_ARRAY, "names", read_only=True),
+        "c": Setting(3, "count", (1, 9)),
+        "d": Setting([0.0], "one or per joint"),
+        "e": Setting(False, "flag"),
+        "f": Setting("", "text"),
+        "g": Setting("x", "mode", choices=("x", "y")),
+        "h": Setting(1.0, "gain", (0.001, 100.0), off=0.0),
     }).splitlines()
     assert table[2] == "| `a` | double | `0.5` | 0 to 10000 | settable | s \\| per cycle |"
     assert table[3] == "| `b` | string[] | `[]` |  | read-only | names |"
-    assert table[4] == "| `c` | integer | `3` | 1 to 9, step 2 | settable | count |"
+    assert table[4] == "| `c` | integer | `3` | 1 to 9 | settable | count |"
     assert table[5] == "| `d` | double[] | `[0]` |  | settable | one or per joint |"
     assert table[6] == "| `e` | bool | `false` |  | settable | flag |"
     assert table[7] == '| `f` | string | `""` |  | settable | text |'
+    assert table[8] == "| `g` | string | `\"x\"` | one of x, y | settable | mode |"
+    assert table[9] == "| `h` | double | `1` | 0.001 to 100 or 0 (off) | settable | gain |"
 
 
 def test_a_stale_table_is_rewritten_between_its_markers():

@@ -94,9 +94,8 @@ def taker(node, topic: str):
 
 
 @contextmanager
-def recorded(node, publisher_attribute: str) -> Iterator[list]:
+def recorded(publisher) -> Iterator[list]:
     """Every message the node publishes through that publisher (bytes deserialized)."""
-    publisher = getattr(node, publisher_attribute)
     sent: list = []
     original = publisher.publish
     publisher.publish = lambda msg: (sent.append(deserialize_message(msg, JointState) if
@@ -168,7 +167,7 @@ def good_twist(node) -> TwistStamped:
 @given(data=st.data())
 def test_controller_survives_hostile_input(controller, data) -> None:
     node = controller
-    with recorded(node, "_command_pub") as commands:
+    with recorded(node.outputs.command) as commands:
         kind = data.draw(st.sampled_from(["state", "twist", "pose", "locked"]))
         if kind == "state":
             timed(taker(node, "joint_states"), wire_bytes(data, node, "position"))
@@ -204,7 +203,7 @@ def test_controller_survives_hostile_input(controller, data) -> None:
 @given(data=st.data())
 def test_monitor_survives_hostile_input(monitor, data) -> None:
     node = monitor
-    with recorded(node, "_command_pub") as commands:
+    with recorded(node.outputs.command) as commands:
         kind = data.draw(st.sampled_from(["state", "command", "array", "declare"]))
         if kind == "state":
             timed(taker(node, "joint_states"), wire_bytes(data, node, "position"))
@@ -287,7 +286,7 @@ def test_parameter_services_refuse_hostile_values_without_crashing(request, whic
     if which == "controller":
         node._on_state(good_state(node))
         node._on_twist(good_twist(node))
-        with recorded(node, "_command_pub") as commands:
+        with recorded(node.outputs.command) as commands:
             node._control()
         assert_safe(commands)
 
@@ -295,7 +294,7 @@ def test_parameter_services_refuse_hostile_values_without_crashing(request, whic
 def test_bytes_that_are_not_a_command_give_zeros_saying_why(monitor) -> None:
     node = monitor
     take = taker(node, "ft/command_raw")
-    with recorded(node, "_command_pub") as commands:
+    with recorded(node.outputs.command) as commands:
         take(serialize_message(convert.joint_state(NAMES, node.get_clock().now().to_msg(),
                                                    velocity=[0.1] * 7)))
         assert commands and np.allclose(commands[-1].velocity, 0.1)

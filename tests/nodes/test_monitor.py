@@ -259,7 +259,7 @@ def test_the_monitor_echoes_what_it_sends_at_most_once_per_echo_period() -> None
         count, stamp = 100, wire.Stamp.of(round(lp.sim.t * 1e9))
         start = time.monotonic()
         for k in range(count):
-            lp.monitor._publish_command(np.full(7, 0.001 * (k + 1)), lp.sim.t, stamp)
+            lp.monitor.outputs.send(lp.monitor.wiring, np.full(7, 0.001 * (k + 1)), lp.sim.t, stamp)
         span = time.monotonic() - start
         assert spin_until(lp.executor, lambda: len(plant) >= count, 10.0), (
             f"the plant got {len(plant)} of {count} commands")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from ft_controller import loaded
 from ft_sim.scenario import TASK_POINTS, Scenario, ScenarioConfig
 from rclpy.parameter import Parameter
 from rosutil import fresh_domain
@@ -67,7 +68,7 @@ def test_the_controller_refuses_bad_observability_parameters() -> None:
         result = node.set_parameters([Parameter("observability.speed", value=math.nan)])
         assert not result[0].successful
         assert node.set_parameters([Parameter("observability.enabled", value=True)])[0].successful
-        assert node._observability_note() == "waiting"
+        assert loaded.observability_note(node.loaded) == "waiting"
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)

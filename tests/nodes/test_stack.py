@@ -65,7 +65,7 @@ def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
         # ft/command_raw goes out again once someone else listens.
         raw: list[JointState] = []
         probe.create_subscription(JointState, names.COMMAND_RAW, raw.append, qos.SENSOR_INPUT)
-        assert spin_until(executor, lambda: controller._command_pub.get_subscription_count()
+        assert spin_until(executor, lambda: controller.outputs.command.get_subscription_count()
                           == 1, 10.0), "the probe's subscription was never matched"
         for _ in range(5):
             sim.advance(executor)
@@ -154,11 +154,11 @@ def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
             return serialize_message(convert.joint_state(joints, stamp, position=START))
 
         cycles = controller.accounting.cycles
-        assert not controller._timer.is_canceled()  # no state yet: the timer cycles
+        assert not controller.cycles.timer.is_canceled()  # no state yet: the timer cycles
         take(state())  # no executor spins: the call itself runs the cycle
         assert calls == ["observe", "step"], calls
         assert controller.accounting.cycles == cycles + 1
-        assert controller._timer.is_canceled(), "the timer ticks while the states drive"
+        assert controller.cycles.timer.is_canceled(), "the timer ticks while the states drive"
         # Back to back within a quarter of the control period (0.1 s): no more cycles,
         # the next one a control period after the first.
         for _ in range(4):
@@ -191,6 +191,7 @@ def test_with_simulated_time_the_clock_still_drives_the_cycles() -> None:
                                                    position=START)))
         assert monitor.core.detector.latest_time > observed, "the monitor never took the state"
         assert controller.accounting.cycles == 0
-        assert controller._timer.timer_period_ns == round(1e9 / controller.param("control_rate"))
+        period = round(1e9 / controller.param("control_rate"))
+        assert controller.cycles.timer.timer_period_ns == period
         controller.destroy_node()
         monitor.destroy_node()

@@ -1,7 +1,7 @@
 """The controller's parameters: one declarative table, and the core's configurations from it.
 
-`PARAMETERS` writes each parameter once (name -> (default, description, extra
-descriptor fields)): `ControllerNode` declares it (`ft_msgs_py.parameters.declare`),
+`PARAMETERS` writes each parameter once (`ft_msgs_py.parameter_table.Setting`):
+`ControllerNode` declares and checks it (`ft_msgs_py.parameter_table`),
 docs/controller.md's table is generated from it (tools/param_tables.py), and every
 default that configures the core is its dataclass's own (`EngineConfig`,
 `ControllerConfig`, `PoseTracking`, `ObservabilityConfig`, `RecoveryConfig`).
@@ -16,13 +16,15 @@ from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
+from ft_core import limits
 from ft_core.command_limits import limits_config
 from ft_core.controller import ControllerConfig
-from ft_core.engine import EngineConfig
+from ft_core.engine import RESOLUTIONS, EngineConfig
 from ft_core.observability import ObservabilityConfig
 from ft_core.recovery import RecoveryConfig
 from ft_core.targets import PoseTracking
 from ft_msgs_py import parameters
+from ft_msgs_py.parameter_table import Setting
 from rclpy.parameter import Parameter
 
 #: s of steady time without the monitor's echo before the guard commands zeros
@@ -35,67 +37,73 @@ _ENGINE, _CYCLE = EngineConfig(), ControllerConfig()
 _TRACKING, _OBSERVABILITY = _CYCLE.tracking, ObservabilityConfig()
 _RECOVERY = RecoveryConfig()
 
-#: name -> (default, description, extra descriptor fields)
-PARAMETERS: dict[str, tuple[object, str, dict]] = {
+#: Largest soft limit magnitude (rad, m for a prismatic joint): beyond it, no joint's.
+SOFT_LIMIT_BOUND = 1e3
+#: Smallest useful gain: a positive gain below it moves no joint measurably (0: off).
+SMALLEST_GAIN = 1e-3
+
+#: The controller's parameters, in declaration order.
+PARAMETERS: dict[str, Setting] = {
     **parameters.MODEL_PARAMETERS,
     **parameters.THREAD_PRIORITY,
     **parameters.COMMAND_LIMITS,
-    "resolution": (_ENGINE.resolution, "least_norm, max_kfm, min_jump or blend", {}),
-    "kfm_gain": (_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
-                 parameters.float_range(0.0, 1e4)),
-    "swing_gain": (_ENGINE.swing_gain, "swing-measure descent for free-swinging failures, "
-                   "rad/s per rad (0: off; needs the URDF's inertias, refused without)",
-                   parameters.float_range(0.0, 100.0)),
-    "jump_gain": (_ENGINE.jump_gain, "minimum-jump term (1 = exact)",
-                  parameters.float_range(0.0, 100.0)),
-    "limit_gain": (_ENGINE.limit_gain, "soft/hard limit avoidance, rad/s at a box edge",
-                   parameters.float_range(0.0, 100.0)),
-    "failure_probabilities": (Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` order "
-                              "(empty: equal)", {}),
-    "soft_limits.lower": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
-    "soft_limits.upper": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: none)", {}),
-    "critical_points": (Parameter.Type.DOUBLE_ARRAY, "task points concatenated (pose: x y z "
-                        "qx qy qz qw); their intersected self-motion boxes become soft limits",
-                        {}),
-    "release_soft_limits_on_failure": (_ENGINE.release_soft_limits_on_failure,
-                                       "drop the soft limits once a joint is locked", {}),
-    "control_rate": (1.0 / _ENGINE.dt, "Hz", parameters.float_range(1.0, 2000.0)),
-    "target_timeout": (_CYCLE.target_timeout, "s; an older twist decays to 0 over one more "
-                       "timeout", parameters.float_range(0.001, 60.0)),
-    "state_timeout": (_CYCLE.state_timeout, "s; older joint states stop the arm",
-                      parameters.float_range(0.001, 60.0)),
-    "monitor_timeout": (MONITOR_TIMEOUT, "s (steady) without the monitor's answer to a command "
-                        "before the controller publishes zeros on ft/command and "
-                        "ft/command_array itself (0: off; the monitor answers every 5 ms, "
-                        "so keep it well above that)", parameters.float_range(0.0, 60.0)),
-    "position_gain": (_TRACKING.gain, "1/s, pose-goal tracking",
-                      parameters.float_range(0.01, 100.0)),
-    "max_linear_speed": (_TRACKING.max_linear, "m/s, pose-goal tracking",
-                         parameters.float_range(0.001, 10.0)),
-    "max_angular_speed": (_TRACKING.max_angular, "rad/s, pose-goal tracking",
-                          parameters.float_range(0.001, 10.0)),
-    "velocity_scale": (_ENGINE.velocity_scale, "fraction of the URDF velocity limits",
-                       parameters.float_range(0.01, 1.0)),
-    "monitor_name": ("monitor", "node name of the only accepted ft/locked_joints publisher, "
-                     "in this namespace unless absolute (empty: any single publisher)",
-                     {"read_only": True}),
-    "idle_null_space_motion": (_CYCLE.idle_null_space_motion, "with no target, allow "
-                               "null-space motion (kfm ascent, limit avoidance); otherwise "
-                               "hold still", {}),
-    "recovery.enabled": (_CYCLE.recovery is not None, "when a pose goal's error stops "
-                         "improving, move along a joint path to an IK solution with the "
-                         "locked joints pinned (planned in a worker process)", {}),
-    "recovery.stall_time": (_RECOVERY.stall_time, "s without progress towards a pose goal "
-                            "before recovering", parameters.float_range(0.05, 60.0)),
-    "observability.enabled": (_CYCLE.observability is not None, "null-space excursions of "
-                              "joints not commanded for observability.idle_time, so that a "
-                              "lock on them shows up", {}),
-    "observability.idle_time": (_OBSERVABILITY.idle_time, "s a joint may go uncommanded "
-                                "before an excursion", parameters.float_range(0.01, 3600.0)),
-    "observability.speed": (_OBSERVABILITY.speed, "rad/s, peak joint velocity of an excursion",
-                            parameters.float_range(0.06, 10.0)),
-    "observability.duration": (_OBSERVABILITY.duration, "s, one excursion (out and back)",
-                               parameters.float_range(0.01, 60.0)),
+    "resolution": Setting(_ENGINE.resolution, "redundancy resolution", choices=RESOLUTIONS),
+    "kfm_gain": Setting(_ENGINE.kfm_gain, "kfm gradient ascent, rad/s per (m/rad)",
+                        (SMALLEST_GAIN, 1e4), off=0.0),
+    "swing_gain": Setting(_ENGINE.swing_gain, "swing-measure descent for free-swinging "
+                          "failures, rad/s per rad (0: off; needs the URDF's inertias, "
+                          "refused without)", (SMALLEST_GAIN, 100.0), off=0.0),
+    "jump_gain": Setting(_ENGINE.jump_gain, "minimum-jump term (1 = exact)",
+                         (SMALLEST_GAIN, 100.0), off=0.0),
+    "limit_gain": Setting(_ENGINE.limit_gain, "soft/hard limit avoidance, rad/s at a box edge",
+                          (SMALLEST_GAIN, 100.0), off=0.0),
+    "failure_probabilities": Setting(Parameter.Type.DOUBLE_ARRAY, "one per joint in `joints` "
+                                     "order (empty: equal)", (0.0, 1e6)),
+    "soft_limits.lower": Setting(Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: "
+                                 "none)", (-SOFT_LIMIT_BOUND, SOFT_LIMIT_BOUND)),
+    "soft_limits.upper": Setting(Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: "
+                                 "none)", (-SOFT_LIMIT_BOUND, SOFT_LIMIT_BOUND)),
+    "critical_points": Setting(Parameter.Type.DOUBLE_ARRAY, "task points concatenated (pose: "
+                               "x y z qx qy qz qw); their intersected self-motion boxes become "
+                               "soft limits", (-limits.ABSURD_DISTANCE, limits.ABSURD_DISTANCE)),
+    "release_soft_limits_on_failure": Setting(_ENGINE.release_soft_limits_on_failure,
+                                              "drop the soft limits once a joint is locked"),
+    "control_rate": Setting(1.0 / _ENGINE.dt, "Hz", (1.0, 2000.0)),
+    "target_timeout": Setting(_CYCLE.target_timeout, "s; an older twist decays to 0 over one "
+                              "more timeout", (0.001, 60.0)),
+    "state_timeout": Setting(_CYCLE.state_timeout, "s; older joint states stop the arm",
+                             (0.001, 60.0)),
+    "monitor_timeout": Setting(MONITOR_TIMEOUT, "s (steady) without the monitor's answer to a "
+                               "command before the controller publishes zeros on ft/command "
+                               "and ft/command_array itself (the monitor answers every 5 ms, "
+                               "so keep it well above that)", (0.01, 60.0)),
+    "position_gain": Setting(_TRACKING.gain, "1/s, pose-goal tracking", (0.01, 100.0)),
+    "max_linear_speed": Setting(_TRACKING.max_linear, "m/s, pose-goal tracking",
+                                (0.001, 10.0)),
+    "max_angular_speed": Setting(_TRACKING.max_angular, "rad/s, pose-goal tracking",
+                                 (0.001, 10.0)),
+    "velocity_scale": Setting(_ENGINE.velocity_scale, "fraction of the URDF velocity limits",
+                              (0.01, 1.0)),
+    "monitor_name": Setting("monitor", "node name of the only accepted ft/locked_joints "
+                            "publisher, in this namespace unless absolute (empty: any single "
+                            "publisher)", read_only=True),
+    "idle_null_space_motion": Setting(_CYCLE.idle_null_space_motion, "with no target, allow "
+                                      "null-space motion (kfm ascent, limit avoidance); "
+                                      "otherwise hold still"),
+    "recovery.enabled": Setting(_CYCLE.recovery is not None, "when a pose goal's error stops "
+                                "improving, move along a joint path to an IK solution with the "
+                                "locked joints pinned (planned in a worker process)"),
+    "recovery.stall_time": Setting(_RECOVERY.stall_time, "s without progress towards a pose "
+                                   "goal before recovering", (0.05, 60.0)),
+    "observability.enabled": Setting(_CYCLE.observability is not None, "null-space excursions "
+                                     "of joints not commanded for observability.idle_time, so "
+                                     "that a lock on them shows up"),
+    "observability.idle_time": Setting(_OBSERVABILITY.idle_time, "s a joint may go uncommanded "
+                                       "before an excursion", (0.01, 3600.0)),
+    "observability.speed": Setting(_OBSERVABILITY.speed, "rad/s, peak joint velocity of an "
+                                   "excursion", (0.06, 10.0)),
+    "observability.duration": Setting(_OBSERVABILITY.duration, "s, one excursion (out and "
+                                      "back)", (0.01, 60.0)),
 }
 
 

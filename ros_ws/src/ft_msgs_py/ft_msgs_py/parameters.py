@@ -1,4 +1,4 @@
-"""Model-selection parameters shared by every node, and where the model comes from.
+"""The parameters several nodes share, and where the robot model comes from.
 
 `robot_description` (URDF XML) if set, else `robot_model` (a built-in name or a URDF
 path), else the `robot_description` topic (std_msgs/String, transient local, as
@@ -13,136 +13,61 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from ft_core.command_limits import Preset
+from ft_core.robots import TASK_DIMENSIONS
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ft_msgs_py import names, qos, thread_priority
-
-#: Most values an array parameter may hold (critical points: 1365 positions).
-MAX_ARRAY = 4096
-
-
-def float_range(low: float, high: float) -> dict:
-    """Descriptor fields for a floating-point parameter allowed in [low, high]."""
-    return {"floating_point_range": [FloatingPointRange(from_value=low, to_value=high)]}
-
-
-def int_range(low: int, high: int) -> dict:
-    """Descriptor fields for an integer parameter allowed in [low, high]."""
-    return {"integer_range": [IntegerRange(from_value=low, to_value=high, step=1)]}
-
+from ft_msgs_py.parameter_table import Setting
 
 #: The nodes on the command path (controller, monitor): `thread_priority.apply` at start.
 THREAD_PRIORITY = {
-    "thread_priority": (0, "SCHED_FIFO priority (1-99) of the thread running the callbacks; "
-                        "0: the normal scheduler. Needs root or an rtprio limit (refused: a "
-                        "warning)",
-                        {"read_only": True, **int_range(0, thread_priority.MAX_PRIORITY)}),
+    "thread_priority": Setting(0, "SCHED_FIFO priority (1-99) of the thread running the "
+                               "callbacks; 0: the normal scheduler. Needs root or an rtprio "
+                               "limit (refused: a warning)",
+                               (0, thread_priority.MAX_PRIORITY), read_only=True),
 }
 
 #: The limits of the commands of the nodes on the command path (controller, monitor):
 #: `ft_core.command_limits.limits_config` makes their configuration.
 COMMAND_LIMITS = {
-    "smooth_commands": (True, "keep every command within the arm's acceleration and jerk "
-                        "limits (false: raw steps, which a real driver refuses; for "
-                        "comparisons)", {"read_only": True}),
-    "limits.preset": ("auto", "acceleration and jerk limits: auto (franka_panda, ur or xarm "
-                      "recognised from the URDF, else default), franka_panda, xarm, ur or "
-                      "default", {"read_only": True}),
-    "limits.acceleration": (Parameter.Type.DOUBLE_ARRAY, "rad/s^2, one for all joints or one "
-                            "per joint in `joints` order (empty: the preset's)",
-                            {"read_only": True}),
-    "limits.jerk": (Parameter.Type.DOUBLE_ARRAY, "rad/s^3, one for all joints or one per "
-                    "joint in `joints` order (empty: the preset's)", {"read_only": True}),
+    "smooth_commands": Setting(True, "keep every command within the arm's acceleration and "
+                               "jerk limits (false: raw steps, which a real driver refuses; "
+                               "for comparisons)", read_only=True),
+    "limits.preset": Setting("auto", "acceleration and jerk limits: auto (franka_panda, ur or "
+                             "xarm recognised from the URDF, else default) or a preset",
+                             choices=("auto", *(preset.value for preset in Preset)),
+                             read_only=True),
+    "limits.acceleration": Setting(Parameter.Type.DOUBLE_ARRAY, "rad/s^2, one for all joints "
+                                   "or one per joint in `joints` order (empty: the preset's)",
+                                   read_only=True),
+    "limits.jerk": Setting(Parameter.Type.DOUBLE_ARRAY, "rad/s^3, one for all joints or one "
+                           "per joint in `joints` order (empty: the preset's)", read_only=True),
 }
 
-#: name -> (default, description, extra descriptor fields)
-MODEL_PARAMETERS: dict[str, tuple[object, str, dict]] = {
-    "robot_description": ("", "URDF XML; empty: use robot_model", {"read_only": True}),
-    "robot_model": ("", "built-in name (planar3r, puma560, panda, panda_inertial, iiwa14) or "
-                    "URDF path; "
-                    "empty too: wait for the robot_description topic", {"read_only": True}),
-    "base_link": ("", "first link of the chain (empty: the URDF root)", {"read_only": True}),
-    "tip_link": ("", "tool link (empty: where the chain branches)", {"read_only": True}),
-    "joints": (Parameter.Type.STRING_ARRAY, "command order of the chain's joints (empty: "
-               "base to tip)", {"read_only": True}),
-    "task_space": ("", "pose, position or planar (empty: the model's default)",
-                   {"read_only": True}),
-    "characteristic_length": (0.0, "m; scales angular rows (0: the robot's reach)",
-                              {"read_only": True, **float_range(0.0, 100.0)}),
+#: Model selection, shared by every node that loads the robot.
+MODEL_PARAMETERS = {
+    "robot_description": Setting("", "URDF XML; empty: use robot_model", read_only=True),
+    "robot_model": Setting("", "built-in name (planar3r, puma560, panda, panda_inertial, "
+                           "iiwa14) or URDF path; empty too: wait for the robot_description "
+                           "topic", read_only=True),
+    "base_link": Setting("", "first link of the chain (empty: the URDF root)", read_only=True),
+    "tip_link": Setting("", "tool link (empty: where the chain branches)", read_only=True),
+    "joints": Setting(Parameter.Type.STRING_ARRAY, "command order of the chain's joints "
+                      "(empty: base to tip)", read_only=True),
+    "task_space": Setting("", "pose, position or planar (empty: the model's default)",
+                          choices=("", *TASK_DIMENSIONS), read_only=True),
+    "characteristic_length": Setting(0.0, "m; scales angular rows (0: the robot's reach)",
+                                     (0.0, 100.0), read_only=True),
 }
-
-
-def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None:
-    """Declare parameters with descriptions, types and ranges; every one has a value.
-
-    A default given as a `Parameter.Type` (the arrays) declares a typed parameter whose
-    value is an empty array of that type unless set: `[]` in a parameters file (as `ros2
-    param dump` writes it) loads back as that. Never "not set": rclpy's get_parameters
-    service answers nothing at all to a request that names an uninitialized parameter,
-    so `ros2 param dump` printed `ros__parameters: {}` for the whole node. An invalid
-    start-up value is logged and replaced by the default, so a typo in a launch file
-    does not stop the node.
-    """
-    for name, (default, description, extra) in parameters.items():
-        descriptor = ParameterDescriptor(description=description, **extra)
-        try:
-            node.declare_parameter(name, default, descriptor)
-        except (InvalidParameterValueException, InvalidParameterTypeException) as error:
-            shown = "an empty list" if isinstance(default, Parameter.Type) else repr(default)
-            node.get_logger().error(f"{error}; using the default, {shown}")
-            node.declare_parameter(name, default, descriptor, ignore_override=True)
-        if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:
-            # Setting it the way a declaration does (with its descriptor: a read-only
-            # parameter too); rclpy's public declare_parameter takes no typed empty value.
-            node._set_parameters_atomically_common(
-                [Parameter(name, default, [])], {name: node.describe_parameter(name)},
-                allow_not_set_type=True)
 
 
 def value(node: Node, name: str):
     """A parameter's value."""
     return node.get_parameter(name).value
-
-
-def check_sizes(changes: dict) -> None:
-    """Refuse an array parameter of more than `MAX_ARRAY` values (ValueError, short reason).
-
-    Checked before anything reads the values: a 10^6-element array cost 0.34 s and came
-    back as a 17 MB reason.
-    """
-    for name, given in changes.items():
-        if isinstance(given, (list, tuple, np.ndarray)) and len(given) > MAX_ARRAY:
-            raise ValueError(f"{name} has {len(given)} values (at most {MAX_ARRAY})")
-
-
-def on_change(node: Node, check: Callable[[dict], object], apply: Callable[[], None]) -> None:
-    """Validate parameter changes with `check({name: value})`, then `apply()` them.
-
-    `check` raises ValueError or TypeError to refuse the whole change, with its
-    message as the reason; the node keeps its previous configuration. Arrays are
-    bounded first (`check_sizes`).
-    """
-    def validate(params: list) -> SetParametersResult:
-        try:
-            changes = {p.name: p.value for p in params}
-            check_sizes(changes)
-            check(changes)
-        except (ValueError, TypeError) as error:
-            return SetParametersResult(successful=False, reason=str(error))
-        return SetParametersResult(successful=True)
-
-    node.add_on_set_parameters_callback(validate)
-    node.add_post_set_parameters_callback(lambda _: apply())
 
 
 def request_model(node: Node, use: Callable[[str, str], None]) -> None:

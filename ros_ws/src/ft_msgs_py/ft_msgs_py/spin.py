@@ -182,17 +182,17 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
               wire: Callable[[list[Node]], None] = lambda _nodes: None) -> None:
     """`run_node` for several nodes in one process, on one executor (a component container).
 
-    Messages between them go through the middleware (the same topics, QoS and
-    remappings as in separate processes) unless `wire`, called with the nodes once
-    made, connects some of them by calls instead; no process boundary either way: one
-    interpreter, one heap, no context switch between them. On SIGINT or SIGTERM every
-    node's `stop()` runs, in order, and its reliable publishers get up to
-    DELIVERY_TIMEOUT s each for their subscribers to acknowledge what it sent (the zeros:
-    a driver that holds its last command must have them before the process is gone);
-    the teardown that follows is bounded by TEARDOWN_TIMEOUT (`exit_if_stuck`). A
-    `Ticked` node gets its ticks from this loop, which waits for the next one in
-    `spin_once` (messages are taken meanwhile). The process keeps off Fast DDS's shared
-    memory (`ft_msgs_py.transport`).
+    Messages between them go through the middleware (the same topics, QoS and remappings as
+    in separate processes) unless `wire`, called with the nodes once made, connects some of
+    them by calls instead; no process boundary either way: one interpreter, one heap, no
+    context switch between them. On SIGINT or SIGTERM every node's `stop()` runs, in order,
+    and its reliable publishers get up to DELIVERY_TIMEOUT s each for their subscribers to
+    acknowledge what it sent (the zeros: a driver that holds its last command must have them
+    before the process is gone); the teardown that follows is bounded by TEARDOWN_TIMEOUT
+    (`exit_if_stuck`). A node that is `Ticked`, or whose `cycles` (`loop.CycleDriver`) is,
+    gets its ticks from this loop, which waits for the next one in `spin_once` (messages are
+    taken meanwhile). The process keeps off Fast DDS's shared memory
+    (`ft_msgs_py.transport`).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
@@ -208,15 +208,16 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     executor = EventsExecutor()
     for node in nodes:
         executor.add_node(node)
-    ticked = [node for node in nodes if isinstance(node, Ticked)]
+    ticked: list[Ticked] = [driver for node in nodes
+                            if isinstance(driver := getattr(node, "cycles", node), Ticked)]
     try:
         while not stop_requested.is_set() and rclpy.ok():
             now, wait = time.monotonic(), CHECK_PERIOD
-            for node in ticked:
-                if node.next_tick() <= now:
-                    node.tick(now)
+            for driver in ticked:
+                if driver.next_tick() <= now:
+                    driver.tick(now)
                     now = time.monotonic()
-                wait = min(wait, node.next_tick() - now)
+                wait = min(wait, driver.next_tick() - now)
             executor.spin_once(timeout_sec=max(wait, 0.0))
     finally:
         for node in nodes:

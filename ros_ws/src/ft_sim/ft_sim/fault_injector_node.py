@@ -14,12 +14,13 @@ nothing: the plant's own timeout then stops it).
 from __future__ import annotations
 
 import numpy as np
-from ft_msgs_py import convert, names, parameters, qos, spin
+from ft_msgs_py import convert, names, parameter_table, qos, spin
 from ft_msgs_py.node import SuiteNode
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
+
+from ft_sim.settings import FAULT_INJECTOR
 
 #: Fastest joint velocity forwarded (rad/s or m/s): beyond it no arm joint moves.
 MAX_SPEED = 100.0
@@ -27,11 +28,8 @@ OUTPUT_COMMAND = "faulty/command"
 OUTPUT_COMMAND_ARRAY = "faulty/command_array"
 
 
-#: name -> (default, description, extra descriptor fields)
-PARAMETERS: dict[str, tuple[object, str, dict]] = {
-    "joints": (Parameter.Type.STRING_ARRAY, "joint order of ft/command_array (needed only for "
-               "the array)", {"read_only": True}),
-}
+#: Its parameters (`ft_sim.settings.FAULT_INJECTOR`).
+PARAMETERS = FAULT_INJECTOR
 
 
 class FaultInjectorNode(SuiteNode):
@@ -39,7 +37,7 @@ class FaultInjectorNode(SuiteNode):
 
     def __init__(self, **kwargs):
         super().__init__("fault_injector", **kwargs)
-        parameters.declare(self, PARAMETERS)
+        parameter_table.declare(self, PARAMETERS)
         self.joints = [str(j) for j in self.param("joints")]
         self.locked: set[str] = set()
         self._out = self.create_publisher(JointState, OUTPUT_COMMAND, qos.RELIABLE)

@@ -52,8 +52,8 @@ import numpy as np
 from ft_core import robots, swing
 from ft_core.command_limits import DriverCheck, limits_config
 from ft_core.physics import PhysicsPlant
-from ft_core.plant import CommandPath, Plant, PlantConfig
-from ft_msgs_py import convert, markers, names, parameters, qos, spin
+from ft_core.plant import CommandPath, Plant
+from ft_msgs_py import convert, markers, names, parameter_table, parameters, qos, spin
 from ft_msgs_py.node import JointStateLike, SuiteNode
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import Executor
@@ -63,39 +63,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-#: The plant's parameters default to `PlantConfig`'s own values.
-_PLANT = PlantConfig()
-PARAMETERS: dict[str, tuple[object, str, dict]] = {
-    **parameters.MODEL_PARAMETERS,
-    "plant": ("kinematic", "kinematic (any model) or physics (MuJoCo; needs the URDF's "
-              "inertias)", {"read_only": True}),
-    "initial_positions": (Parameter.Type.DOUBLE_ARRAY, "rad, `joints` order (empty: the "
-                          "model's home configuration)", {"read_only": True}),
-    "rate": (500.0, "Hz, integration and joint_states rate",
-             {"read_only": True, **parameters.float_range(1.0, 10000.0)}),
-    "position_noise": (0.0, "rad, standard deviation of the published positions",
-                       parameters.float_range(0.0, 1.0)),
-    "command_latency": (_PLANT.latency, "s from a command's arrival to its effect",
-                        parameters.float_range(0.0, 10.0)),
-    "command_timeout": (_PLANT.timeout, "s; older commands are dropped (the arm stops)",
-                        parameters.float_range(0.001, 60.0)),
-    "response_time": (_PLANT.response_time, "s, first-order time constant of the velocity "
-                      "loop (0: instant)",
-                      parameters.float_range(0.0, 10.0)),
-    "acceleration_limit": (list(_PLANT.acceleration_limit), "rad/s^2, one for all joints or "
-                           "one per joint (0: none)",
-                           {}),
-    "hold_last_command": (_PLANT.hold_last_command, "execute the last command forever "
-                          "(ros2_control) instead of stopping after command_timeout", {}),
-    "publish_clock": (False, "own the time: start at 0 and publish /clock", {"read_only": True}),
-    "seed": (0, "seed of the position noise", {"read_only": True}),
-    "refuse_over_limits": (False, "refuse (and stop the arm on) a command over the arm's "
-                           "velocity, acceleration or jerk limits, as a real driver does",
-                           {"read_only": True}),
-    **{k: v for k, v in parameters.COMMAND_LIMITS.items() if k.startswith("limits.")},
-    "failure.joint": ("", "joint to lock at failure.time (empty: none)", {}),
-    "failure.time": (-1.0, "s of plant time at which failure.joint locks (< 0: never)", {}),
-}
+from ft_sim import settings
+from ft_sim.settings import PARAMETERS
 
 
 class SimNode(SuiteNode):
@@ -103,7 +72,7 @@ class SimNode(SuiteNode):
 
     def __init__(self, **kwargs):
         super().__init__("sim", **kwargs)
-        parameters.declare(self, PARAMETERS)
+        parameter_table.declare(self, PARAMETERS)
         self.robot: robots.Robot | None = None
         self.plant: Plant | PhysicsPlant | None = None
         #: The driver's test of every command (its `peaks` measure the stream); a refusal
@@ -112,8 +81,6 @@ class SimNode(SuiteNode):
         self.reflex: str | None = None  #: why the driver stopped the arm (until ~/reset)
         self._refuse = self.param("refuse_over_limits")
         self._physics = self.param("plant") == "physics"
-        if self.param("plant") not in ("kinematic", "physics"):
-            raise ValueError(f"plant must be kinematic or physics, not {self.param('plant')!r}")
         self._rng = np.random.default_rng(self.param("seed"))
         self._own_clock = self.param("publish_clock")
         self.period = 1.0 / self.param("rate")
@@ -131,33 +98,26 @@ class SimNode(SuiteNode):
         self.create_subscription(JointState, names.INJECT_FREE_SWING, self._on_free_swing,
                                  qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
-        parameters.on_change(self, self._check_plant, self._configure_plant)
+        parameter_table.on_change(self, PARAMETERS, self._check, self._configure)
         parameters.request_model(self, self._set_model)
         # Owning the clock, the sim must not wait for it: its timer runs on steady time.
         self.timer = self.create_timer(self.period, self.step,
                                        clock=Clock(clock_type=ClockType.STEADY_TIME)
                                        if self._own_clock else None)
 
-    def _plant_config(self, changes: dict | None = None) -> PlantConfig:
-        value = {k: self.param(k) for k in
-                 ("command_latency", "response_time", "acceleration_limit", "command_timeout",
-                  "hold_last_command")}
-        value.update(changes or {})
-        return PlantConfig(latency=value["command_latency"],
-                           response_time=value["response_time"],
-                           acceleration_limit=tuple(float(a) for a in
-                                                    value["acceleration_limit"]),
-                           timeout=value["command_timeout"],
-                           hold_last_command=value["hold_last_command"])
-
-    def _check_plant(self, changes: dict) -> None:
-        config = self._plant_config(changes)
+    def _check(self, values: dict) -> None:
+        config = settings.plant_config(values)
         if self.plant is not None:  # per-joint values must match the model
             CommandPath(self.plant.n, self.plant.velocity_limits, config)
+        if values["failure.joint"] and self.robot is not None \
+                and values["failure.joint"] not in self.robot.joint_names:
+            raise ValueError(f"failure.joint {values['failure.joint']!r} is not one of "
+                             f"{list(self.robot.joint_names)}")
 
-    def _configure_plant(self) -> None:
+    def _configure(self, _changed: set[str]) -> None:
         if self.plant is not None:
-            self.plant.configure(self._plant_config())
+            self.plant.configure(settings.plant_config(parameter_table.values(self,
+                                                                              PARAMETERS)))
 
     @property
     def t(self) -> float:
@@ -202,6 +162,11 @@ class SimNode(SuiteNode):
             self.get_logger().error(f"cannot use the model from {source}: {error}")
             return
         self.robot, self.plant, self.driver = robot, plant, DriverCheck(limits)
+        scheduled = self.param("failure.joint")
+        if scheduled and scheduled not in robot.joint_names:
+            self.get_logger().error(f"failure.joint {scheduled!r} is not one of "
+                                    f"{list(robot.joint_names)}: no failure scheduled")
+            self.set_parameters([Parameter("failure.joint", value="")])
         if self._refuse:
             self.get_logger().info(f"driver: refusing commands over the {limits.describe()}")
         self.get_logger().info(f"simulating {robot.name} ({robot.n} joints) from {source}")
@@ -212,10 +177,10 @@ class SimNode(SuiteNode):
         Raises:
             ft_core.physics.PhysicsError: a physics plant for a model MuJoCo cannot simulate.
         """
+        config = settings.plant_config(parameter_table.values(self, PARAMETERS))
         if self._physics:
-            return PhysicsPlant(robot, q, self._plant_config(), time=self.t)
-        plant = Plant(robot.lower, robot.upper, robot.velocity_limits, q,
-                      self._plant_config(), time=self.t)
+            return PhysicsPlant(robot, q, config, time=self.t)
+        plant = Plant(robot.lower, robot.upper, robot.velocity_limits, q, config, time=self.t)
         plant.free_swing_acceleration = lambda q, qd: swing.pendulum_acceleration(robot, q, qd)
         return plant
 
@@ -355,7 +320,7 @@ class SimNode(SuiteNode):
         robot, plant = self.robot, self.plant
         plant.step(self.t + self.period if self._own_clock else self.now())
         scheduled = self.param("failure.joint")
-        if scheduled and 0 <= self.param("failure.time") <= self.t:
+        if scheduled and self.param("failure.time") <= self.t:
             self.lock([scheduled])
             self.set_parameters([Parameter("failure.joint", value="")])
         stamp = convert.stamp_from_nanoseconds(round(self.t * 1e9))
