@@ -18,7 +18,7 @@ from rclpy.impl.rcutils_logger import RcutilsLogger
 from ft_msgs_py import convert
 
 if TYPE_CHECKING:
-    from ft_msgs_py.wire import Stamp
+    from ft_msgs_py.messages import Stamp
 
 #: Stamps up to this far (s) ahead of the node's clock are accepted: clock skew, and
 #: with simulated time the node's /clock lagging the publisher's (0.1-0.6 s measured

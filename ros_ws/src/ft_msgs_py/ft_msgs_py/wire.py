@@ -19,7 +19,7 @@ after a 4-byte encapsulation header, each primitive is aligned to its size (at
 most 8) from the start of the payload, a string is a uint32 length (with its
 terminating NUL) and its bytes, a sequence a uint32 count and its elements.
 Another encapsulation goes to rclpy's own deserializer. Bytes that do not parse
-raise `convert.MessageError` saying why, like any other message the suite refuses;
+raise `MessageError` saying why, like any other message the suite refuses;
 every length is checked against the bytes left before anything is read or
 allocated, so a hostile count costs nothing.
 """
@@ -28,53 +28,18 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py.convert import MAX_NAMES, MessageError
+from ft_msgs_py.messages import MAX_NAMES, Header, JointStateView, MessageError, Stamp
 
 #: The encapsulation header of little-endian plain CDR (representation id CDR_LE).
 CDR_LE = b"\x00\x01"
 _HEADER = 4  # bytes before the payload; alignment counts from its end
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
-
-
-class Stamp(NamedTuple):
-    """A message stamp as `builtin_interfaces/Time` has it (s, ns)."""
-
-    sec: int
-    nanosec: int
-
-    @classmethod
-    def of(cls, nanoseconds: int) -> Stamp:
-        """The stamp of a clock reading in integer nanoseconds (`SuiteNode.now_ns`)."""
-        return cls(*divmod(nanoseconds, 1_000_000_000))
-
-
-class Header(NamedTuple):
-    """`std_msgs/Header`: stamp and frame."""
-
-    stamp: Stamp
-    frame_id: str
-
-
-class JointStateView(NamedTuple):
-    """A `JointState` read from its bytes: the message's fields, its arrays read-only.
-
-    Reads like the message where the suite reads one (`convert.joint_vector`,
-    `Episodes.message_time`): `header.stamp.sec` / `.nanosec`, `name` (a tuple),
-    `position`, `velocity`, `effort` (float64 arrays, rad, rad/s, N m).
-    """
-
-    header: Header
-    name: tuple[str, ...]
-    position: np.ndarray
-    velocity: np.ndarray
-    effort: np.ndarray
 
 
 class _Reader:
@@ -158,7 +123,7 @@ class JointStateReader:
         Plain little-endian CDR is read here; another CDR encapsulation goes to rclpy's
         deserializer. Raises MessageError, saying why, for bytes that are not a
         JointState (not CDR, truncated, a length past the end, a name that is not
-        UTF-8, more than `convert.MAX_NAMES` names).
+        UTF-8, more than `MAX_NAMES` names).
         """
         if raw[:2] == CDR_LE:
             view, blob = _parse(_Reader(raw), self._names)
