@@ -25,7 +25,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from ft_msgs_py import names, qos, thread_priority
+from ft_msgs_py import names, qos, rclpy_private, thread_priority
 
 #: Most values an array parameter may hold (critical points: 1365 positions).
 MAX_ARRAY = 4096
@@ -102,11 +102,8 @@ def declare(node: Node, parameters: dict[str, tuple[object, str, dict]]) -> None
             node.get_logger().error(f"{error}; using the default, {shown}")
             node.declare_parameter(name, default, descriptor, ignore_override=True)
         if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:
-            # Setting it the way a declaration does (with its descriptor: a read-only
-            # parameter too); rclpy's public declare_parameter takes no typed empty value.
-            node._set_parameters_atomically_common(
-                [Parameter(name, default, [])], {name: node.describe_parameter(name)},
-                allow_not_set_type=True)
+            # rclpy's public declare_parameter takes no typed empty value.
+            rclpy_private.set_as_declared(node, Parameter(name, default, []))
 
 
 def value(node: Node, name: str):

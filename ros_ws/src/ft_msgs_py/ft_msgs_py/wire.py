@@ -1,11 +1,9 @@
 """`sensor_msgs/JointState` as it travels: read from, and written to, its serialized bytes.
 
-rclpy turns every message it takes into a Python object field by field (each
-string, each array, each setter's type checks) and every message it publishes
-back again. For the one message a cycle takes and the one it sends, at 1 kHz, that
-was some 7 % of the one-process stack's CPU (`make bench`, docs/benchmarks.md). The
-nodes take and send `JointState` as bytes (rclpy's `raw=True` subscriptions and
-publishing of `bytes`) through this module instead:
+The nodes take and send `JointState` as bytes (rclpy's `raw=True` subscriptions and
+publishing of `bytes`) through these names, instead of rclpy's conversion of every
+field to and from a Python object, for the one message each control cycle takes and
+the one it sends:
 
 - `JointStateReader.read` gives a `JointStateView` that reads like the message
   (`header.stamp`, `name`, `position`, `velocity`, `effort`), its arrays numpy views of
@@ -13,159 +11,12 @@ publishing of `bytes`) through this module instead:
 - `CommandWriter` keeps the serialized command of a fixed set of joints and writes
   only its stamp and velocities into it each cycle.
 
-The layout is plain little-endian CDR (OMG CDR version 1, the encapsulation
-`CDR_LE` that rmw_fastrtps writes for ROS 2 messages and rosbag2 records):
-after a 4-byte encapsulation header, each primitive is aligned to its size (at
-most 8) from the start of the payload, a string is a uint32 length (with its
-terminating NUL) and its bytes, a sequence a uint32 count and its elements.
-Another encapsulation goes to rclpy's own deserializer. Bytes that do not parse
-raise `MessageError` saying why, like any other message the suite refuses;
-every length is checked against the bytes left before anything is read or
-allocated, so a hostile count costs nothing.
+The codec itself, which knows the wire format (plain little-endian CDR, `CDR_LE`), is in
+`ft_msgs_py.rclpy_private` with the suite's other uses of what lies beneath rclpy's
+public API; `Stamp`, `Header` and `JointStateView` are `ft_msgs_py.messages`'s.
 """
 
-from __future__ import annotations
+from ft_msgs_py.messages import Header, JointStateView, Stamp
+from ft_msgs_py.rclpy_private import CDR_LE, CommandWriter, JointStateReader
 
-import struct
-from collections.abc import Sequence
-
-import numpy as np
-from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import JointState
-
-from ft_msgs_py.messages import MAX_NAMES, Header, JointStateView, MessageError, Stamp
-
-#: The encapsulation header of little-endian plain CDR (representation id CDR_LE).
-CDR_LE = b"\x00\x01"
-_HEADER = 4  # bytes before the payload; alignment counts from its end
-_U32 = struct.Struct("<I")
-_STAMP = struct.Struct("<iI")
-
-
-class _Reader:
-    """A cursor over CDR_LE bytes; a read past the end raises MessageError."""
-
-    def __init__(self, raw: bytes) -> None:
-        self.raw, self.at = raw, _HEADER
-
-    def u32(self) -> int:
-        self.at += -(self.at - _HEADER) % 4
-        if self.at + 4 > len(self.raw):
-            raise MessageError(f"{len(self.raw)} bytes end inside a length")
-        (value,) = _U32.unpack_from(self.raw, self.at)
-        self.at += 4
-        return value
-
-    def string(self) -> str:
-        size = self.u32()
-        end = self.at + size
-        if size == 0 or end > len(self.raw) or self.raw[end - 1] != 0:
-            raise MessageError("a string runs past the end or lacks its NUL")
-        try:
-            text = self.raw[self.at:end - 1].decode()
-        except UnicodeDecodeError as error:
-            raise MessageError(f"a string is not UTF-8 ({error.reason})") from None
-        self.at = end
-        return text
-
-    def doubles(self) -> np.ndarray:
-        count = self.u32()
-        if count:
-            self.at += -(self.at - _HEADER) % 8
-        if 8 * count > len(self.raw) - self.at:
-            raise MessageError(f"{count} values run past the end")
-        values = np.frombuffer(self.raw, "<f8", count, self.at)
-        self.at += 8 * count
-        return values
-
-
-def _parse(reader: _Reader, known: tuple[bytes, tuple[str, ...]] = (b"", ()),
-           ) -> tuple[JointStateView, bytes]:
-    """A JointState from CDR_LE bytes, and the bytes of its names (from their count).
-
-    Names whose bytes equal `known`'s are `known`'s strings, not decoded again.
-    MessageError if the bytes are not a JointState.
-    """
-    raw = reader.raw
-    if len(raw) < _HEADER + 8:
-        raise MessageError(f"{len(raw)} bytes: too short")
-    stamp = Stamp(*_STAMP.unpack_from(raw, _HEADER))
-    reader.at = _HEADER + 8
-    frame_id = reader.string()
-    reader.at += -(reader.at - _HEADER) % 4
-    start = reader.at
-    blob, names = known
-    if blob and raw.startswith(blob, start):
-        reader.at += len(blob)
-    else:
-        count = reader.u32()
-        if count > MAX_NAMES:
-            raise MessageError(f"{count} joint names (more than {MAX_NAMES})")
-        names = tuple(reader.string() for _ in range(count))
-        blob = raw[start:reader.at]
-    return (JointStateView(Header(stamp, frame_id), names, reader.doubles(), reader.doubles(),
-                           reader.doubles()), blob)
-
-
-class JointStateReader:
-    """Reads the JointStates of one stream from their bytes (a `raw=True` subscription's).
-
-    Keeps the names of the last message read: a driver sends the same names in every
-    message, and bytes equal to those read as those, undecoded.
-    """
-
-    def __init__(self) -> None:
-        self._names: tuple[bytes, tuple[str, ...]] = (b"", ())
-
-    def read(self, raw: bytes) -> JointStateView:
-        """The joint state in `raw`.
-
-        Plain little-endian CDR is read here; another CDR encapsulation goes to rclpy's
-        deserializer. Raises MessageError, saying why, for bytes that are not a
-        JointState (not CDR, truncated, a length past the end, a name that is not
-        UTF-8, more than `MAX_NAMES` names).
-        """
-        if raw[:2] == CDR_LE:
-            view, blob = _parse(_Reader(raw), self._names)
-            self._names = (blob, view.name)
-            return view
-        if raw[:1] != b"\x00":  # every CDR representation identifier starts so
-            raise MessageError(f"{len(raw)} bytes that are not CDR (header {raw[:2].hex()})")
-        try:
-            msg = deserialize_message(raw, JointState)
-        except Exception as error:  # whatever rclpy raises for bytes it cannot read
-            raise MessageError(f"{len(raw)} bytes rclpy cannot read ({error})") from None
-        return JointStateView(Header(Stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
-                                     msg.header.frame_id), tuple(msg.name),
-                              np.asarray(msg.position, dtype=float),
-                              np.asarray(msg.velocity, dtype=float),
-                              np.asarray(msg.effort, dtype=float))
-
-
-class CommandWriter:
-    """The serialized velocity command (a `JointState`) of fixed joints, rewritten in place.
-
-    rclpy's serializer runs once, for the names; `serialize` writes the stamp and the
-    velocities into those bytes and returns a copy to publish.
-    """
-
-    def __init__(self, joints: Sequence[str]) -> None:
-        template = serialize_message(JointState(name=list(joints),
-                                                velocity=[0.0] * len(joints)))
-        reader = _Reader(template)
-        _parse(reader)
-        # Up to where the message ends: rclpy's buffer may hold a few bytes more, which
-        # readers as strict as rosbags' refuse.
-        self._bytes = bytearray(template[:reader.at])
-        self._count = len(joints)
-        # The velocities end where the last field, the empty efforts' count, begins.
-        self._velocity_at = reader.at - 4 - 8 * self._count
-
-    def serialize(self, sec: int, nanosec: int, velocity: np.ndarray) -> bytes:
-        """The command's bytes with stamp `sec`, `nanosec` and `velocity` (rad/s, one per joint)."""
-        if len(velocity) != self._count:
-            raise ValueError(f"{len(velocity)} velocities for {self._count} joints")
-        _STAMP.pack_into(self._bytes, _HEADER, sec, nanosec)
-        start = self._velocity_at
-        self._bytes[start:start + 8 * self._count] = np.asarray(velocity, "<f8").tobytes()
-        return bytes(self._bytes)
+__all__ = ["CDR_LE", "CommandWriter", "Header", "JointStateReader", "JointStateView", "Stamp"]
