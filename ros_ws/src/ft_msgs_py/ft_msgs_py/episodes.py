@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from ft_msgs_py.messages import Stamp
 
 #: Stamps up to this far (s) ahead of the node's clock are accepted: clock skew, and
-#: with simulated time the node's /clock lagging the publisher's (0.1-0.6 s measured
+#: with simulated time the node's /clock lagging the publisher's (tenths of a second
 #: between processes on a loaded machine).
 FUTURE_TOLERANCE = 0.05
 FUTURE_TOLERANCE_SIM_TIME = 1.0

@@ -139,7 +139,7 @@ class SuiteNode(Node):
         most its QoS depth) to its callback, as the executor would have on their arrival.
         For a loop that reads its inputs at the top of each cycle, as ros2_control's
         controllers read their state interfaces (`ControllerNode.cycle_on_loop_ticks`):
-        a message no longer wakes the executor, whose every wake-up costs the process
+        a message does not wake the executor, whose every wake-up costs the process
         CPU (docs/benchmarks.md). The subscription stays the node's: in the graph,
         remapped, with its QoS events, destroyed with the node.
         Executors read `subscriptions`, and the messages are taken beneath rclpy's public

@@ -1,10 +1,10 @@
 """Whom to believe on a topic only one node should publish (the locked set).
 
-rclpy (Jazzy) tells a subscriber nothing of a message's sender, only the graph does:
-the publishers of the topic, by full node name. `judge` decides from them how much of
-a message to take. Reading taken for issue 31 (a stray publisher on `ft/locked_joints`
-made the controller deaf to the monitor): while the configured monitor publishes beside
-a stranger, a message's new locks are taken once the monitor's own command path shows
+rclpy (Jazzy) tells a subscriber nothing of a message's sender, only the graph does: the
+publishers of the topic, by full node name. `judge` decides from them how much of a
+message to take. A stray publisher on `ft/locked_joints` neither makes the controller
+deaf to the monitor nor forges a lock: while the configured monitor publishes beside a
+stranger, a message's new locks are taken once the monitor's own command path shows
 them. The monitor zeros a locked joint in each command it forwards, and the controller
 recognises those forwards by their stamps (`ft_msgs_py.monitor_guard`): a stranger that
 merely publishes cannot make them. So the monitor's new locks still arrive, a forged one
