@@ -3,6 +3,7 @@
 Joint vectors are matched by name: any order, extra joints ignored; a missing,
 unknown-only or duplicate name, a length mismatch or a non-finite value raises
 `MessageError` naming the problem, so the caller can log it and stop the arm.
+`MessageError` and `MAX_NAMES` are `ft_msgs_py.messages`'s, named here too.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ import functools
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -19,16 +19,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, Twist
 from sensor_msgs.msg import JointState
 
-if TYPE_CHECKING:  # wire reads messages with this module's checks: no import at run time
-    from ft_msgs_py.wire import JointStateView, Stamp
-
-#: Most joint names a message may carry: a whole robot's joint_state_broadcaster has
-#: tens; more is an attack or a bug, refused before any per-name work.
-MAX_NAMES = 1024
-
-
-class MessageError(ValueError):
-    """A message that cannot be used; the text says why."""
+from ft_msgs_py.messages import MAX_NAMES, JointStateView, MessageError, Stamp
 
 
 def stamp_seconds(stamp: Time | Stamp) -> float:

@@ -10,18 +10,17 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from builtin_interfaces.msg import Time
-from rclpy.impl.rcutils_logger import RcutilsLogger
 
 from ft_msgs_py import convert
 
 if TYPE_CHECKING:
-    from ft_msgs_py.wire import Stamp
+    from ft_msgs_py.messages import Stamp
 
 #: Stamps up to this far (s) ahead of the node's clock are accepted: clock skew, and
-#: with simulated time the node's /clock lagging the publisher's (0.1-0.6 s measured
+#: with simulated time the node's /clock lagging the publisher's (tenths of a second
 #: between processes on a loaded machine).
 FUTURE_TOLERANCE = 0.05
 FUTURE_TOLERANCE_SIM_TIME = 1.0
@@ -29,10 +28,23 @@ FUTURE_TOLERANCE_SIM_TIME = 1.0
 RECUR_WINDOW = 10.0
 
 
+class Logger(Protocol):
+    """What `Episodes` needs of a logger: a node's (`Node.get_logger()`) has it."""
+
+    def info(self, message: str) -> object:
+        """Log `message` at INFO."""
+
+    def warning(self, message: str) -> object:
+        """Log `message` at WARN."""
+
+    def error(self, message: str) -> object:
+        """Log `message` at ERROR."""
+
+
 class Episodes:
     """The node's current problems, by kind, each logged once when it starts and ends."""
 
-    def __init__(self, logger: RcutilsLogger, future_tolerance: float = FUTURE_TOLERANCE):
+    def __init__(self, logger: Logger, future_tolerance: float = FUTURE_TOLERANCE):
         self.logger, self.future_tolerance = logger, future_tolerance
         self.active: dict[str, str] = {}
         self._ended: dict[str, float] = {}  # kind -> steady time its last episode ended

@@ -1,12 +1,12 @@
-"""Whether the monitor still answers: the controller's guard for a dead monitor (issue 31).
+"""Whether the monitor still answers: the controller's guard for a dead monitor.
 
 The monitor forwards each `ft/command_raw` to `ft/command` with the same stamp. If it
-dies (kill -9, a crash), a driver that holds its last command keeps the arm moving
-(1.22 rad in 3 s were measured), and nothing else would stop it. The monitor also
-publishes what it sent on `ft/command` to `ft/command_echo`, at most once per
-`ECHO_PERIOD`: taking every `ft/command` at 1 kHz cost the controller's process a fifth
-of its CPU (docs/benchmarks.md), and the guard needs to hear from the monitor a few
-times per timeout, not every cycle. The controller remembers the stamps of the commands
+dies (kill -9, a crash), a driver that holds its last command keeps the arm moving at
+that velocity, and nothing else would stop it. The monitor also publishes what it sent
+on `ft/command` to `ft/command_echo`, at most once per `ECHO_PERIOD`: taking every
+`ft/command` at 1 kHz would take much of the controller's process's CPU
+(docs/benchmarks.md), and the guard needs to hear from the monitor a few times per
+timeout, not every cycle. The controller remembers the stamps of the commands
 it sent; an echo carrying one of them is the monitor's answer. Once an echo has been
 seen (a graph without a monitor never triggers the guard), commands left unanswered for
 `timeout` s of steady time mean the monitor is gone or stalled: the controller then
@@ -14,8 +14,8 @@ publishes explicit zeros on the plant's command topics itself, until an echo com
 Times are steady seconds. The controller asks (`silent`) every cycle; a longer gap
 between two questions than `timeout` is the controller's own stall (stopped, starved of
 the CPU), not the monitor's: echoes that arrived meanwhile may still wait in its queue
-behind the question, so the wait starts again (a deployment test paused the controller
-for 0.3 s and the guard fired on a live monitor).
+behind the question, so the wait starts again: a pause of the controller alone never
+fires the guard on a live monitor.
 
 The echoes also say which joints the monitor holds locked, in a way no other node can
 forge by merely publishing: it zeros them on the command path (`zeroed`). The controller

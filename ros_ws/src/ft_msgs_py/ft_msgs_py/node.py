@@ -17,7 +17,7 @@ from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 from sensor_msgs.msg import JointState
 
-from ft_msgs_py import convert, diagnostics, parameters, thread_priority, wire
+from ft_msgs_py import convert, diagnostics, parameters, rclpy_private, thread_priority, wire
 from ft_msgs_py.audience import Audience
 from ft_msgs_py.episodes import FUTURE_TOLERANCE, FUTURE_TOLERANCE_SIM_TIME, Episodes
 
@@ -47,7 +47,7 @@ class SuiteNode(Node):
         self.problems = Episodes(self.get_logger(), FUTURE_TOLERANCE_SIM_TIME if sim_time
                                  else FUTURE_TOLERANCE)
         self.state_stamp = -math.inf  #: stamp (s) of the last joint state accepted
-        self._clock_handle = self.get_clock().handle  # rcl's clock: `now_ns` reads it
+        self._read_clock = rclpy_private.clock_nanoseconds(self.get_clock())  # `now_ns`
         self._on_demand: set[Subscription] = set()  # kept from executors (`take_on_demand`)
         self._ramp_timer: Timer | None = None  # the stop ramp under way (`ramp`)
 
@@ -122,11 +122,10 @@ class SuiteNode(Node):
     def now_ns(self) -> int:
         """The node clock (wall or simulated) in nanoseconds.
 
-        rcl's clock read without building an `rclpy.time.Time` (which checks its
-        arguments in Python): the same value `get_clock().now()` has, in a control
-        cycle's budget.
+        The same value `get_clock().now()` has, read without building an
+        `rclpy.time.Time` (`rclpy_private.clock_nanoseconds`).
         """
-        return self._clock_handle.get_now().nanoseconds
+        return self._read_clock()
 
     @property
     def subscriptions(self) -> Iterator[Subscription]:
@@ -140,24 +139,23 @@ class SuiteNode(Node):
         most its QoS depth) to its callback, as the executor would have on their arrival.
         For a loop that reads its inputs at the top of each cycle, as ros2_control's
         controllers read their state interfaces (`ControllerNode.cycle_on_loop_ticks`):
-        a message no longer wakes the executor, which at 1 kHz of joint states cost a
-        controller some 0.04 ms of its 0.3 ms of CPU per cycle (docs/benchmarks.md). The
-        subscription stays the node's: in the graph, remapped, with its QoS events,
-        destroyed with the node.
-        Executors read `subscriptions`; call this before the node spins (an executor
+        a message does not wake the executor, whose every wake-up costs the process
+        CPU (docs/benchmarks.md). The subscription stays the node's: in the graph,
+        remapped, with its QoS events, destroyed with the node.
+        Executors read `subscriptions`, and the messages are taken beneath rclpy's public
+        API (`rclpy_private.message_taker`); call this before the node spins (an executor
         spinning already keeps dispatching it until the node's next change of entities).
         """
         self._on_demand.add(subscription)
-        handle, msg_type, raw = subscription.handle, subscription.msg_type, subscription.raw
+        take_one = rclpy_private.message_taker(subscription)
         callback, depth = subscription.callback, max(subscription.qos_profile.depth, 1)
 
         def take() -> None:
             for _ in range(depth):  # bounded: what arrives meanwhile waits for the next call
-                with handle:
-                    taken = handle.take_message(msg_type, raw)
-                if taken is None:
+                msg = take_one()
+                if msg is None:
                     return
-                callback(taken[0])
+                callback(msg)
         return take
 
     def create_counted_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile,

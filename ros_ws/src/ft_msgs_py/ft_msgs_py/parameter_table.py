@@ -156,11 +156,11 @@ def declare(node: Node, table: Table) -> None:
             _use_default(node, setting, error)
             node.declare_parameter(name, setting.default, descriptor, ignore_override=True)
         if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:
-            rclpy_private.set_declared(node, Parameter(name, setting.type, []))
+            rclpy_private.set_as_declared(node, Parameter(name, setting.type, []))
         reason = setting.refusal(name, node.get_parameter(name).value)
         if reason is not None:
             _use_default(node, setting, reason)
-            rclpy_private.set_declared(node, Parameter(name, setting.type, _value(setting)))
+            rclpy_private.set_as_declared(node, Parameter(name, setting.type, _value(setting)))
 
 
 def _use_default(node: Node, setting: Setting, error: object) -> None:

@@ -9,21 +9,21 @@ cannot happen, and the node always gets to run its `stop()` (e.g. command zeros)
 The executor is rclpy's EventsExecutor (`rclpy.experimental`, shipped with Jazzy):
 it queues ready entities in C++ instead of rebuilding a wait set in Python on
 every spin, which at 500 Hz is the difference between keeping the control rate and
-losing some 2 % of the cycles (`make bench`, docs/benchmarks.md). Timers on simulated time
+losing cycles (docs/benchmarks.md). Timers on simulated time
 (`use_sim_time`) fire as with the SingleThreadedExecutor: node tests run on both.
 
 Once every node has stopped (its zeros sent and acknowledged), the middleware's
 teardown gets TEARDOWN_TIMEOUT s; after that the process exits anyway, saying so on
 stderr. Fast DDS 2.14 can deadlock destroying a participant while its discovery thread
-handles a remote endpoint going away (seen in `make bench`: the main thread waiting in
+handles a remote endpoint going away (the main thread waiting in
 `DomainParticipant::set_listener` for a listener blocked on a mutex it holds, at
 most of a core, forever): a process asked to stop must not outlive its work.
 
 Before spinning, the objects built at start-up (the robot model, numba's compiled
-code, rclpy's entities: some 140 000 in the one-process bench) are frozen out of
-the cyclic garbage collector's sight (`settle_heap`). Otherwise every full
-collection walks all of them: 40-60 ms with the control loop stalled (20-30 missed
-cycles at 500 Hz), about once every one or two minutes.
+code, rclpy's entities: over a hundred thousand objects in one process running the
+whole stack) are frozen out of the cyclic garbage collector's sight (`settle_heap`).
+Otherwise every full collection, every minute or two, walks all of them: tens of
+milliseconds with the control loop stalled, some tens of missed cycles at 500 Hz.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def settle_heap() -> None:
     """Collect start-up garbage, then exclude every live object from later collections.
 
     `gc.freeze()`: full collections then walk only what was allocated since, so
-    they take microseconds instead of tens of milliseconds (`make bench`, docs/benchmarks.md).
+    they take microseconds instead of tens of milliseconds (docs/benchmarks.md).
     Frozen objects are still freed by reference counting.
     """
     gc.collect()
@@ -81,8 +81,8 @@ class LockStepExecutor(SingleThreadedExecutor):
     some 9 times a simulated step, at a cost that grows with its entities. It drops
     the QoS-event handlers rclpy gives every publisher and subscription by default
     (incompatible QoS or type): in one process, on topics whose QoS the harness chose,
-    they never fire, and they were 68 of the wait set's entities: a step took 4.6 ms
-    with them, 2.8 ms without (one core, the demo's scenario). Entities created after
+    they never fire, and they are many of the wait set's entities, each adding to every
+    spin's cost. Entities created after
     `add_node` lose theirs at the next spin. A publisher's matched events stay: a node
     asked for them, to count its subscribers (`ft_msgs_py.audience`).
     """

@@ -2,9 +2,9 @@
 
 On a busy Linux machine the normal scheduler may hold a runnable process back for
 a few milliseconds; an rclpy timer that runs more than one period late skips the
-missed periods (rcl's rule), so a 1 kHz control loop on a 2-core machine loses up
-to 2 % of its cycles with only the sim beside it, and a quarter to a half with a busy
-process per core (`make bench`, docs/benchmarks.md). As ros2_control's
+missed periods (rcl's rule), so a 1 kHz control loop on a 2-core machine loses
+cycles even with only the sim beside it, and many with a busy process per core
+(docs/benchmarks.md has the figures). As ros2_control's
 controller manager does with its `thread_priority`, the controller and the monitor
 can put the thread that runs their callbacks on SCHED_FIFO: it then runs as soon
 as it is ready, ahead of every normal process.

@@ -4,9 +4,9 @@ Fast DDS (Jazzy's default middleware) delivers to a reader on the same machine t
 shared-memory port guarded by a mutex shared between processes. A process killed while
 it held that mutex (kill -9, a crash) leaves it locked: every writer to it then waits in
 `publish` for the mutex's 1 s timeout, again at each publication, and rclpy keeps the
-interpreter lock meanwhile. So a killed monitor stalled the controller's control loop
-(and the sim's joint states) for about a second, in some 16 % of kills. On UDP no such
-lock exists: in 50 kills nothing stalled for more than 63 ms.
+interpreter lock meanwhile. So a killed monitor can stall the controller's control
+loop (and the sim's joint states) for about a second. On UDP no such lock exists
+(docs/controller.md has the figures of both).
 
 `avoid_shared_memory` sets this process's environment, before its participant is made,
 so that Fast DDS uses UDPv4 alone:
