@@ -75,8 +75,8 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, unlocked: bool
     [min(0, low), max(0, high)] over the plausible predictions ([0, 0] for a locked
     joint), with no command or one against it. Faster than commanded in the commanded
     direction (a servo's tracking error or overshoot) never counts. Maciejewski et al.
-    name a joint that lost its torque by motion under gravity the command does not
-    explain: with the arm's gravity known (`gravity_known`), v must also have the sign
+    (sec. 2.3) name a joint that lost its torque by motion under gravity the command does
+    not explain: with the arm's gravity known (`gravity_known`), v must also have the sign
     of `falling`, the direction gravity accelerates the joint (0 where it hardly can).
     """
     # A locked joint should not move at all: its healthy range is [0, 0].
