@@ -35,9 +35,10 @@ build: $(STAMP)
 	cd ros_ws && ../$(BIN)/colcon --log-base log build --base-paths src \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
 	# numba's cache of a function is checked against that function's file only, not the
-	# files of the functions it calls: when any ft_core source changed, drop every cached
-	# compilation, or the engine's cycle would keep an old postfailure.
-	@sources=$$(cat ros_ws/src/ft_core/ft_core/*.py | sha256sum); \
+	# files of the functions it calls: when any ft_core source (subpackages included)
+	# changed, drop every cached compilation, or the engine's cycle would keep an old
+	# postfailure.
+	@sources=$$(find ros_ws/src/ft_core/ft_core -name '*.py' | LC_ALL=C sort | xargs cat | sha256sum); \
 	if [ "$$sources" != "$$(cat $(NUMBA_STAMP) 2>/dev/null)" ]; then \
 		find ros_ws/src/ft_core ros_ws/install/ft_core -name '*.nb[ic]' -delete; \
 		echo "$$sources" > $(NUMBA_STAMP); fi

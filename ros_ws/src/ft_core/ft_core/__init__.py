@@ -17,7 +17,8 @@ The online path (what the nodes call every cycle, and what they need to start):
     controller: the controller's per-cycle logic around the engine: `Controller.step`.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
     workers: worker processes that end with their parent, started off a real-time thread.
-    detection: locked-joint detection from commanded and measured motion.
+    detection: locked-joint detection from commanded and measured motion (a package:
+        plant model, window fits, identification, rules, detector).
     remap: reduced-Jacobian remapping of commands around locked joints.
     command_limits: an arm's velocity, acceleration and jerk limits; a driver's test.
     smoothing: every command within those limits (Ruckig's velocity interface).

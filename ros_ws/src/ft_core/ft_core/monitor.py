@@ -38,6 +38,7 @@ file go to `report` as with the controller's core.
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
@@ -49,6 +50,7 @@ from ft_core import limits, locked_set, remap, swing
 from ft_core.command_limits import LimitsConfig
 from ft_core.detection import (
     Confirmation,
+    Decision,
     DetectorConfig,
     JointEvidence,
     LockDetector,
@@ -111,16 +113,25 @@ class Change:
                       changes[-1].time if changes else math.nan)
 
 
+class JointCondition(enum.StrEnum):
+    """A joint's state for diagnostics (`JointReport.state`)."""
+
+    OK = "ok"
+    LOCKED = "locked"
+    FREE_SWINGING = "free-swinging"
+    AT_LIMIT = "stalled at a joint limit"
+
+
 @dataclass(frozen=True)
 class JointReport:
     """One joint's state for diagnostics.
 
     Attributes:
-        state: "ok", "locked", "free-swinging" or "stalled at a joint limit".
+        state: ok, locked, free-swinging or stalled at a joint limit (`JointCondition`).
         evidence: the detector's evidence at its last update (a copy).
     """
 
-    state: str
+    state: JointCondition
     evidence: JointEvidence
 
 
@@ -318,9 +329,9 @@ class Monitor:
     def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
         """Decide on a lock of `joint` suspected elsewhere, on the detector's own evidence."""
         if self.q is None:
-            return Confirmation("refused", JointEvidence()), Change()
+            return Confirmation(Decision.REFUSED, JointEvidence()), Change()
         answer = self.detector.confirm(joint, float(self.q[joint]), now)
-        if answer.decision != "locked":
+        if answer.decision != Decision.LOCKED:
             return answer, Change()
         evidence = answer.evidence
         self._hold(Change(True, [
@@ -356,13 +367,13 @@ class Monitor:
         """The state of `joint` (chain index) for diagnostics."""
         evidence = self.detector.joints[joint]
         if evidence.locked_at is not None:
-            state = "locked"
+            state = JointCondition.LOCKED
         elif joint in self.detector.swinging:
-            state = "free-swinging"
+            state = JointCondition.FREE_SWINGING
         elif evidence.at_limit:
-            state = "stalled at a joint limit"
+            state = JointCondition.AT_LIMIT
         else:
-            state = "ok"
+            state = JointCondition.OK
         return JointReport(state, replace(evidence))
 
     def plant_values(self) -> dict[str, object]:

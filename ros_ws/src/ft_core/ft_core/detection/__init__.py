@@ -1,0 +1,68 @@
+"""Locked-joint detection against an identified model of the plant (docs/detection.md).
+
+One concept per module:
+    plant_model: the commands sent and the positions a candidate model predicts from them.
+    buffers: the growing arrays the streams of commands, measurements and offsets use.
+    window: the sliding window of measurements, its least-squares fits and offsets.
+    identification: the bank of candidate models, their scores and the plausible set.
+    rules: the decision rules (observable, stalled, following, at a limit, on its own,
+        lost position, plant fault, no decision without evidence), one function each.
+    detector: `LockDetector`, which applies them to streams of commands and measurements.
+"""
+
+from ft_core.detection.detector import (
+    DECISION_PERIOD,
+    SLOW_SPAN,
+    Confirmation,
+    Decision,
+    DetectorConfig,
+    JointEvidence,
+    LockDetector,
+    Update,
+    compile_ahead,
+)
+from ft_core.detection.identification import (
+    IDENTIFY_PERIOD,
+    LATENCY_GRID,
+    LATENCY_MARGIN,
+    RESPONSE_STEPS,
+    RESPONSE_TIME_GRID,
+    PlantEstimate,
+)
+from ft_core.detection.plant_model import CommandHistory, _add_command
+from ft_core.detection.rules import classify as _classify
+from ft_core.detection.window import (
+    Offsets,
+    Samples,
+    _accumulate,
+    _ingest,
+    _largest_step,
+    _window_fit,
+)
+
+__all__ = [
+    "DECISION_PERIOD",
+    "IDENTIFY_PERIOD",
+    "LATENCY_GRID",
+    "LATENCY_MARGIN",
+    "RESPONSE_STEPS",
+    "RESPONSE_TIME_GRID",
+    "SLOW_SPAN",
+    "CommandHistory",
+    "Confirmation",
+    "Decision",
+    "DetectorConfig",
+    "JointEvidence",
+    "LockDetector",
+    "Offsets",
+    "PlantEstimate",
+    "Samples",
+    "Update",
+    "_accumulate",
+    "_add_command",
+    "_classify",
+    "_ingest",
+    "_largest_step",
+    "_window_fit",
+    "compile_ahead",
+]

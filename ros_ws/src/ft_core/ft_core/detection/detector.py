@@ -1,0 +1,485 @@
+"""The lock detector: streams of commands and measurements in, declared locks out.
+
+`LockDetector` keeps the command history (`plant_model`), the window of measurements
+(`window`) and the identification (`identification`), and applies the rules (`rules`)
+at each decision (docs/detection.md).
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ft_core.detection import rules
+from ft_core.detection.identification import (
+    LATENCY_GRID,
+    RESPONSE_TIME_GRID,
+    PlantEstimate,
+    PlantIdentification,
+)
+from ft_core.detection.plant_model import CommandHistory
+from ft_core.detection.window import Offsets, Samples, _ingest, _window_fit
+
+#: Shortest time (s) between two decisions (`LockDetector.measure`). Every measurement
+#: goes into the window; the fits and rules run at every measurement up to 250 Hz, at
+#: every second one at 500 Hz and every third at 1 kHz, where the window (80 ms by
+#: default) moves by 1 ms per measurement. Well short of 250 Hz's 4 ms, so that streams
+#: up to that rate, with up to 1.5 ms of jitter, are judged at every measurement, and no
+#: exact multiple of a common period, so that rounding in the stamps' differences
+#: (3 ms coming out as 2.9999 ms) cannot skip one more.
+DECISION_PERIOD = 0.0025
+#: s over which a suspect from elsewhere, commanded too slowly for the window's test, is
+#: judged (`LockDetector.confirm`): the task-space channel's window, over which it
+#: suspected the joint.
+SLOW_SPAN = 0.5
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Detector parameters (docs/detection.md).
+
+    Attributes:
+        window: sliding window (s), > 0.
+        min_command: smallest observable predicted velocity (rad/s or m/s), >= 0.
+        latency: plant latency (s) if known (fixes the model); None: identified.
+        response_time: plant response time (s) if known; None: identified.
+        persistence: how long lock evidence must hold before a lock is declared (s).
+        ratio: measured over predicted velocity below which a joint looks stalled, in (0, 1).
+        following_ratio: measured over predicted velocity from which a joint follows.
+        confidence: separation in standard errors (z), > 0.
+        min_samples: fewest positions in the window for a decision, >= 3.
+        limit_margin: distance to a physical limit counting as "at the limit" (rad).
+        follow_time: s the plant must be seen following before decisions.
+        memory: s, forgetting time of the identification.
+        min_excitation: s of informative data before the identified set replaces the prior.
+    """
+
+    window: float = 0.08
+    min_command: float = 0.05
+    latency: float | None = None
+    response_time: float | None = None
+    persistence: float = 0.03
+    ratio: float = 0.3
+    following_ratio: float = 0.7
+    confidence: float = 5.0
+    min_samples: int = 5
+    limit_margin: float = 0.01
+    follow_time: float = 0.2
+    memory: float = 10.0
+    min_excitation: float = 0.5
+
+    def __post_init__(self) -> None:
+        checks = {"window": self.window > 0, "min_command": self.min_command >= 0,
+                  "persistence": self.persistence >= 0, "ratio": 0 < self.ratio < 1,
+                  "following_ratio": self.ratio <= self.following_ratio <= 1,
+                  "confidence": self.confidence > 0, "min_samples": self.min_samples >= 3,
+                  "limit_margin": self.limit_margin >= 0, "follow_time": self.follow_time >= 0,
+                  "memory": self.memory > 0, "min_excitation": self.min_excitation >= 0}
+        for name in ("latency", "response_time"):
+            value = getattr(self, name)
+            checks[name] = value is None or 0 <= value <= 1.0
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not ok or (value is not None and not math.isfinite(value)):
+                raise ValueError(f"detection {name} = {value} is out of range")
+
+    def grids(self) -> tuple[np.ndarray, np.ndarray]:
+        """(latencies, response times) of the candidate models (s)."""
+        return (LATENCY_GRID if self.latency is None else np.array([self.latency]),
+                RESPONSE_TIME_GRID if self.response_time is None
+                else np.array([self.response_time]))
+
+
+@dataclass
+class JointEvidence:
+    """What the detector saw of one joint at its last update."""
+
+    observable: bool = False
+    following: bool = False
+    measured: float = 0.0  #: slope of the measured positions (rad/s)
+    commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
+    standard_error: float = 0.0  #: of the slope (rad/s)
+    #: position lost against the best plant model during the window (rad, along the
+    #: command; computed only when a never-swinging joint stalls, else 0)
+    deficit: float = 0.0
+    evidence_since: float | None = None  #: when the current lock evidence started (s)
+    at_limit: bool = False  #: stalled at a physical limit
+    #: a lock candidate at the last update: stalled beyond the noise, not at a limit, not
+    #: moving on its own, no plant fault (whether or not a following joint vouches for the
+    #: plant, which the detector's own decision also needs)
+    candidate: bool = False
+    swing_since: float | None = None  #: when the current free-swing evidence started (s)
+    swinging_at: float | None = None  #: time free-swinging was declared (s)
+    locked_at: float | None = None  #: time the lock was declared (s)
+    position: float = 0.0  #: position when locked (rad)
+
+
+@dataclass(frozen=True)
+class Update:
+    """What one measurement decided: joints newly declared locked and free-swinging.
+
+    `released`: those of `swinging` that were declared locked (a swing takes the lock back).
+    """
+
+    locked: tuple[int, ...] = ()
+    swinging: tuple[int, ...] = ()
+    released: tuple[int, ...] = ()
+
+
+class Decision(enum.StrEnum):
+    """The detector's answer to a suspected lock (`Confirmation.decision`)."""
+
+    LOCKED = "locked"  #: declared now
+    KNOWN = "known"  #: already locked
+    REFUSED = "refused"  #: not a lock candidate at the last update
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """The detector's answer to a suspect from elsewhere (the controller's task channel).
+
+    Attributes:
+        decision: `Decision.LOCKED` (declared now), `KNOWN` (already locked) or
+            `REFUSED` (not a lock candidate at the last update: following, within the
+            noise, moving on its own, or at a limit). A joint declared free-swinging is
+            decided like any other: locked if it has stopped while commanded.
+        evidence: the joint's evidence at the decision (a copy).
+    """
+
+    decision: Decision
+    evidence: JointEvidence
+
+
+@dataclass
+class LockDetector:
+    """Streams of commands and measurements in, declared locks out."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    config: DetectorConfig = field(default_factory=DetectorConfig)
+
+    def __post_init__(self) -> None:
+        self.lower = np.asarray(self.lower, dtype=float)
+        self.upper = np.asarray(self.upper, dtype=float)
+        self.n = self.lower.size
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every lock and all history (after a repair or a new configuration)."""
+        self._latencies, response_times = self.config.grids()
+        self._longest_latency = float(self._latencies.max())
+        self._plant = PlantIdentification(self._latencies, response_times)
+        models = self._plant.all_models.size
+        self.history = CommandHistory(self.n, response_times)
+        self._samples = Samples(self.n, models)
+        self._offsets = Offsets(self.n, models)
+        self._resumed_at = -math.inf  # when commands last resumed after a gap (or began)
+        self._seen_following = 0.0
+        self._last_update = -math.inf
+        self.not_observing: str | None = "no command yet"
+        self.plant_fault: str | None = None
+        self.joints = [JointEvidence() for _ in range(self.n)]
+
+    def configure(self, config: DetectorConfig) -> None:
+        """New parameters; a change of the model grid restarts identification (locks kept)."""
+        old = self.config
+        self.config = config
+        if config.grids()[0].tolist() != old.grids()[0].tolist() or (
+                config.grids()[1].tolist() != old.grids()[1].tolist()):
+            locked = [(j, e.position, e.locked_at) for j, e in enumerate(self.joints)
+                      if e.locked_at is not None]
+            self.reset()
+            for j, position, time in locked:
+                self.lock(j, position, time)
+
+    # ----------------------------------------------------------------- state
+    @property
+    def latest_time(self) -> float:
+        """Time (s) of the newest measurement; -inf before any."""
+        samples = self._samples
+        return float(samples.times[samples.end - 1]) if len(samples) else -math.inf
+
+    @property
+    def locked(self) -> dict[int, float]:
+        """{joint index: position at lock} of every locked joint."""
+        return {i: e.position for i, e in enumerate(self.joints) if e.locked_at is not None}
+
+    @property
+    def swinging(self) -> dict[int, float]:
+        """{joint index: time declared} of the joints declared free-swinging (not locked)."""
+        return {i: e.swinging_at for i, e in enumerate(self.joints)
+                if e.swinging_at is not None and e.locked_at is None}
+
+    def lock(self, joint: int, position: float, time: float) -> None:
+        """Mark a joint locked (a failure declared on purpose, or restored from storage)."""
+        evidence = self.joints[joint]
+        if evidence.locked_at is None:
+            evidence.locked_at, evidence.position = time, position
+
+    def fill_unknown_positions(self, position: np.ndarray) -> bool:
+        """Give locked joints of unknown position (nan) this measured one; True if any."""
+        filled = False
+        for j, evidence in enumerate(self.joints):
+            if evidence.locked_at is not None and not math.isfinite(evidence.position):
+                evidence.position, filled = float(position[j]), True
+        return filled
+
+    def estimate(self) -> PlantEstimate:
+        """The identified plant model (the prior's ranges until identified)."""
+        return self._plant.estimate(self.config.min_excitation)
+
+    # ---------------------------------------------------------------- inputs
+    def command(self, time: float, velocity: np.ndarray) -> None:
+        """The velocity sent to the plant from `time` on (rad/s)."""
+        last = self.history.last_time  # -inf before any command
+        if time < last:
+            return  # out of order: ignored
+        if time - last > self.config.window / 2:
+            self._resumed_at = time  # the first command, or the first after a gap
+            self._seen_following = 0.0
+        # Floats and contiguous arrays: the types `compile_ahead` compiled for.
+        self.history.append(float(time), np.ascontiguousarray(velocity, dtype=float),
+                            time - 2 * self.config.window - self._longest_latency)
+
+    def measure(self, time: float, position: np.ndarray, blind: str | None = None,
+                falling: Callable[[], np.ndarray | None] | None = None) -> Update:
+        """A measured configuration; the joints it newly declares locked or free-swinging.
+
+        `blind` (a reason) forbids decisions and identification at this update.
+        `falling` returns (n,) the sign of the acceleration gravity gives each joint at
+        `position` were its torque lost, 0 where it is too weak to move it
+        (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
+        it is called only when a joint moves on its own by the other tests (gravity's
+        test can only clear a joint), so a healthy cycle pays nothing for it.
+        """
+        if time <= self.latest_time:
+            return Update()  # out of order or repeated: ignored
+        self._into_window(float(time), np.ascontiguousarray(position, dtype=float))
+        if blind is None and time - self._last_update < DECISION_PERIOD:
+            return Update()  # in the window; judged at the next decision
+        dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
+        self._last_update = time
+        reason = blind or rules.not_observing(
+            time, self.history.last_time, self._resumed_at, self._settling_time(),
+            self._samples.window()[0], self.config.window, self.config.min_samples)
+        self.not_observing = reason
+        if reason is not None:
+            self.plant_fault = None  # no evidence either way
+            self._clear_evidence()
+            return Update()
+        return self._update(time, dt, falling)
+
+    def _into_window(self, time: float, position: np.ndarray) -> None:
+        """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
+        samples, offsets, history = self._samples, self._offsets, self.history
+        samples.make_room_for(time)
+        offsets.make_room_for_one()
+        samples.start, offsets.start = _ingest(
+            time, position, self._latencies,
+            (history.times, history.values, history.integrals, history.lagged, history.rate,
+             history.response_times), (history.start, history.end),
+            samples.times, samples.positions, samples.predicted, samples.predicted_sum,
+            samples.timed_sum, (samples.start, samples.end), samples.base,
+            time - self.config.window, offsets.times, offsets.values, offsets.means,
+            (offsets.start, offsets.end), time - max(self._horizon(), SLOW_SPAN))
+        samples.end += 1
+        offsets.end += 1
+
+    def confirm(self, joint: int, position: float, time: float) -> Confirmation:
+        """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.
+
+        Locked when the joint is a candidate of the detector's own stall test at the
+        last update, without the witness of another joint seen following (a suspect
+        comes exactly where no such witness exists: a joint the task-space channel
+        suspects is often the only one commanded); the noise tests, the joint-limit rule
+        and the plant-fault rule all apply. Or, for a joint commanded too slowly for the
+        window's test, when it lost its motion over the last `SLOW_SPAN` s
+        (`rules.slow_stall`).
+        """
+        evidence = self.joints[joint]
+        if evidence.locked_at is not None:
+            return Confirmation(Decision.KNOWN, replace(evidence))
+        if not evidence.candidate:
+            slow = self._slow_stall(joint)
+            if slow is None:
+                return Confirmation(Decision.REFUSED, replace(evidence))
+            evidence = slow
+        self.lock(joint, position, time)
+        return Confirmation(Decision.LOCKED,
+                            replace(evidence, locked_at=time, position=position))
+
+    def _slow_stall(self, j: int) -> JointEvidence | None:
+        """Joint j's evidence over the last `SLOW_SPAN` s if it lost its motion there.
+
+        Over each half of the span (window means `SLOW_SPAN` / 2 apart) the best model
+        predicts a displacement d = (change of the window-mean position) - (change of
+        its offset); `rules.slow_stall` judges them. Only with decisions allowed and
+        commands flowing for the whole span. The evidence's velocities are the span's
+        (rad/s), its deficit the position lost (rad). None: not stalled.
+        """
+        cfg, offsets = self.config, self._offsets
+        now = self.latest_time
+        if (self.not_observing is not None or self.plant_fault is not None
+                or self._resumed_at + self._settling_time() > now - SLOW_SPAN
+                or offsets.times[offsets.start] > now - SLOW_SPAN + self.config.window):
+            return None
+        times = offsets.times[offsets.start:offsets.end]
+        marks = offsets.start + np.searchsorted(
+            times, [now - SLOW_SPAN, now - SLOW_SPAN / 2, now], side="left")
+        marks[-1] = offsets.end - 1
+        best = self._plant.best
+        moved = np.diff(offsets.means[marks, j])
+        predicted = moved - np.diff(offsets.values[marks, best, j])
+        evidence = self.joints[j]
+        sigma = rules.mean_difference_error(evidence.standard_error, self._samples.window()[0])
+        if not rules.slow_stall(
+                moved, predicted, offsets.means[marks[0]:marks[-1] + 1, j],
+                float(self._samples.positions[self._samples.end - 1, j]),
+                self.lower[j], self.upper[j], sigma, cfg.ratio, cfg.confidence,
+                cfg.limit_margin):
+            return None
+        total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
+        span = float(offsets.times[marks[-1]] - offsets.times[marks[0]])
+        return replace(evidence, measured=float(moved.sum()) / span, commanded=total / span,
+                       deficit=abs(total) - along * float(moved.sum()), candidate=True)
+
+    # -------------------------------------------------------------- decisions
+    def _settling_time(self) -> float:
+        """The window and the plausible set's slowest settling time (s)."""
+        return self.config.window + self._plant.slowest
+
+    def _horizon(self) -> float:
+        """How long (s) window offsets are kept: the window and twice the slowest settling."""
+        return self.config.window + 2 * self._plant.slowest
+
+    def _clear_evidence(self) -> None:
+        for evidence in self.joints:
+            evidence.evidence_since = evidence.swing_since = None
+
+    def _update(self, now: float, dt: float,
+                falling: Callable[[], np.ndarray | None] | None) -> Update:
+        cfg, plant = self.config, self._plant
+        samples = self._samples
+        times, positions, _predicted = window = samples.window()
+        fit = (*window, samples.predicted_sum, samples.timed_sum, samples.base)
+        best = plant.best  # always plausible
+        # Identification (every model) at most every IDENTIFY_PERIOD; decisions need only
+        # the plausible models, far fewer once identified.
+        identify = plant.due(now)
+        if identify:
+            measured, slopes, error = _window_fit(*fit, plant.all_models, best)  # (models, n)
+            plausible = slopes[plant.plausible]
+        else:
+            measured, plausible, error = _window_fit(*fit, plant.plausible_models, best)
+        joints = self.joints
+        unlocked = np.array([e.locked_at is None for e in joints])
+        undeclared = np.array([e.swinging_at is None for e in joints])
+        latest = positions[-1]
+        evidence_of = (measured, plausible, error, latest, self.lower, self.upper, unlocked,
+                       undeclared)
+        limits = (cfg.min_command, cfg.confidence, cfg.ratio, cfg.following_ratio,
+                  cfg.limit_margin)
+        flags = rules.classify(*evidence_of, np.zeros(self.n), False, *limits)
+        directions = falling() if falling is not None and flags[-1].any() else None
+        if directions is not None:  # gravity's test only clears joints: now it matters
+            flags = rules.classify(*evidence_of, np.asarray(directions, dtype=float), True,
+                                   *limits)
+        weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
+        deficit = np.zeros(self.n)
+        if (candidates & undeclared).any():
+            # The best model alone: the plausible models' offsets differ by their lags
+            # times the change of command, which is no loss of position. (A joint once
+            # seen swinging moved on its own: stopping is its test.)
+            offsets = self._offsets
+            past = offsets.between(now - self._horizon(), now - cfg.window)
+            deficit, lost = rules.lost_position(
+                offsets.values[offsets.end - 1, best], past[:, best], weakest,
+                rules.mean_difference_error(error, times), cfg.confidence)
+            candidates = candidates & (lost | ~undeclared)
+        # Python lists from here on: per-joint bookkeeping on numpy scalars costs more
+        # than the fits.
+        measured_of, weakest_of, error_of = measured.tolist(), weakest.tolist(), error.tolist()
+        candidate_of, following_of = candidates.tolist(), following.tolist()
+        own_of = on_its_own.tolist()
+        for evidence, observes, follows, v, c, s, at_limit, candidate, lost_position in zip(
+                joints, observable.tolist(), following_of, measured_of, weakest_of, error_of,
+                (stalled & pushing).tolist(), candidate_of, deficit.tolist(), strict=True):
+            evidence.observable, evidence.following = observes, follows
+            evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
+            evidence.at_limit, evidence.candidate = at_limit, candidate
+            evidence.deficit = lost_position
+        n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
+        if n_stalled == 0 and n_own == 0 and identify:
+            plant.identify(now, measured, slopes, error, unlocked & ~pushing,
+                           window=cfg.window, min_command=cfg.min_command,
+                           memory=cfg.memory, min_excitation=cfg.min_excitation)
+        odd = rules.plant_fault(candidate_of, following_of, own_of)
+        if odd is not None:
+            self.plant_fault = "plant not following commands: " + ", ".join(
+                f"joint {j} measured {measured_of[j]:.3f} rad/s, expected {weakest_of[j]:.3f}"
+                for j, is_odd in enumerate(odd) if is_odd)
+            self._seen_following = 0.0
+            self._clear_evidence()
+            for evidence in joints:
+                evidence.candidate = False
+            return Update()
+        self.plant_fault = None
+        if self._seen_following < cfg.follow_time:
+            if n_following and not n_stalled:
+                self._seen_following += dt
+            self.not_observing = "plant not yet seen following commands"
+            self._clear_evidence()
+            return Update()
+        swinging, released = [], []
+        for j, evidence in enumerate(joints):
+            if not own_of[j]:
+                evidence.swing_since = None
+            elif evidence.swinging_at is None:
+                if evidence.swing_since is None:
+                    evidence.swing_since = now
+                if now - evidence.swing_since >= cfg.persistence + rules.swing_wait(
+                        measured_of[j], error_of[j], plausible, plant.settling_time(best),
+                        cfg.confidence, cfg.min_command):
+                    # A joint declared locked that moves was never locked: it swings.
+                    if evidence.locked_at is not None:
+                        released.append(j)
+                    evidence.swinging_at, evidence.locked_at = now, None
+                    swinging.append(j)
+        newly = []
+        for j, evidence in enumerate(joints):
+            # A stalled joint's evidence counts only while another joint follows.
+            supported = candidate_of[j] and n_following - following_of[j] >= 1
+            if not supported:
+                evidence.evidence_since = None
+                continue
+            if evidence.evidence_since is None:
+                evidence.evidence_since = now
+            if now - evidence.evidence_since >= cfg.persistence:
+                evidence.locked_at, evidence.position = now, float(latest[j])
+                # Seen swinging before: should it move on its own again, it swings again.
+                evidence.swinging_at = None
+                newly.append(j)
+        return Update(tuple(newly), tuple(swinging), tuple(released))
+
+
+@functools.cache
+def compile_ahead() -> None:
+    """Run the detector's compiled functions once, so numba compiles (or loads) them now.
+
+    Once per process, on the types the detector passes them. `make build` calls it, so
+    that they are compiled and cached on disk, not inside the first monitor's joint-state
+    callback (seconds on 2 cores, its commands held meanwhile). Every
+    `ft_core.monitor.Monitor` calls it on construction, so that they are loaded from that
+    cache before its first callback rather than one by one as the detector first needs
+    each, holding the callbacks that need them.
+    """
+    detector = LockDetector(np.full(2, -1.0), np.full(2, 1.0))
+    for k in range(300):  # 1.2 s: past the settling time, so that decisions run
+        t = 0.004 * k
+        detector.command(t, np.full(2, 0.1))
+        detector.measure(t + 0.004, np.full(2, 0.0004 * k))

@@ -1,0 +1,285 @@
+"""The detector's decision rules, one function each (docs/detection.md, "How it decides").
+
+Velocities are rad/s (m/s for prismatic joints), positions rad, times s. Per joint: v is
+the measured velocity (the least-squares slope of the window's positions), s its
+standard error, c the weakest plausible prediction. The scalar rules are compiled and
+called by `classify`, one joint at a time; the others run in Python at an update.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TypeVar
+
+import numpy as np
+from numba import njit
+
+from ft_core.detection.window import _largest_step
+
+#: A float or an array of them (per joint).
+Values = TypeVar("Values", float, np.ndarray)
+
+
+@njit(cache=True, error_model="numpy")
+def weakest_prediction(low: float, high: float) -> float:
+    """The weakest prediction c from the plausible models' extremes `low` <= `high`.
+
+    The smallest in magnitude when all agree in sign; 0 when they disagree (or one
+    predicts no motion): what the joint must at least have done.
+    """
+    if low > 0:
+        return low
+    if high < 0:
+        return high
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def is_observable(c: float, s: float, unlocked: bool, min_command: float,
+                  confidence: float) -> bool:
+    """Observable: not locked, |c| >= `min_command` and |c| >= 2 `confidence` s."""
+    return unlocked and abs(c) >= min_command and abs(c) >= 2 * confidence * s
+
+
+@njit(cache=True, error_model="numpy")
+def is_stalled(v: float, c: float, s: float, observable: bool, ratio: float,
+               confidence: float) -> bool:
+    """Stalled by velocity: observable, v / c < `ratio` and |v - c| > `confidence` s."""
+    share = v / c if observable else 0.0
+    return observable and share < ratio and abs(v - c) > confidence * s
+
+
+@njit(cache=True, error_model="numpy")
+def is_following(v: float, c: float, observable: bool, following_ratio: float) -> bool:
+    """Following the model: observable and v / c >= `following_ratio`."""
+    share = v / c if observable else 0.0
+    return observable and share >= following_ratio
+
+
+@njit(cache=True, error_model="numpy")
+def is_pushing(c: float, position: float, lower: float, upper: float,
+               limit_margin: float) -> bool:
+    """Pushing into a limit: within `limit_margin` (rad) of it, c pointing into it."""
+    return ((c > 0 and position >= upper - limit_margin)
+            or (c < 0 and position <= lower + limit_margin))
+
+
+@njit(cache=True, error_model="numpy")
+def moves_on_its_own(v: float, s: float, low: float, high: float, unlocked: bool,
+                     undeclared: bool, falling: float, gravity_known: bool,
+                     min_command: float, confidence: float) -> bool:
+    """Moving on its own: the motion of a joint that lost its torque.
+
+    A joint not yet declared free-swinging with |v| >= `min_command`, and v further than
+    max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
+    [min(0, low), max(0, high)] over the plausible predictions ([0, 0] for a locked
+    joint), with no command or one against it. Faster than commanded in the commanded
+    direction (a servo's tracking error or overshoot) never counts. Maciejewski et al.
+    (sec. 2.3) name a joint that lost its torque by motion under gravity the command does
+    not explain: with the arm's gravity known (`gravity_known`), v must also have the sign
+    of `falling`, the direction gravity accelerates the joint (0 where it hardly can).
+    """
+    # A locked joint should not move at all: its healthy range is [0, 0].
+    healthy_low = min(low, 0.0) if unlocked else 0.0
+    healthy_high = max(high, 0.0) if unlocked else 0.0
+    outside = max(healthy_low - v, v - healthy_high)
+    beyond = unlocked and ((v > healthy_high and high >= min_command)
+                           or (v < healthy_low and low <= -min_command))
+    noise = max(confidence * s, min_command)
+    downhill = not gravity_known or falling * v > 0
+    return (undeclared and abs(v) >= min_command and outside > noise
+            and not beyond and downhill)
+
+
+@njit(cache=True, error_model="numpy")
+def is_candidate(v: float, s: float, stalled: bool, pushing: bool, on_its_own: bool,
+                 undeclared: bool, min_command: float, confidence: float) -> bool:
+    """A lock candidate by velocity: stalled, not pushing into a limit, not on its own.
+
+    A joint once declared free-swinging is a candidate again only once it stops:
+    |v| <= max(`confidence` s, `min_command`). Whether a never-swinging candidate also
+    lost position is `lost_position`'s test.
+    """
+    noise = max(confidence * s, min_command)
+    return stalled and not pushing and not on_its_own and (undeclared or abs(v) <= noise)
+
+
+@njit(cache=True, error_model="numpy")
+def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
+             latest: np.ndarray, lower: np.ndarray, upper: np.ndarray, unlocked: np.ndarray,
+             undeclared: np.ndarray, falling: np.ndarray, gravity_known: bool,
+             min_command: float, confidence: float,
+             ratio: float, following_ratio: float, limit_margin: float,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                        np.ndarray, np.ndarray]:
+    """Every joint's evidence at one update, by the scalar rules above.
+
+    Args:
+        measured: v per joint (n,).
+        plausible: the plausible models' predicted velocities (models, n).
+        error: s per joint (n,).
+        latest: the newest measured positions (n,) (rad).
+        lower: lower position limits (n,) (rad).
+        upper: upper position limits (n,) (rad).
+        unlocked: joints not declared locked (n,).
+        undeclared: joints not declared free-swinging (n,).
+        falling: the direction gravity accelerates each joint (n,), read only when
+            `gravity_known`.
+        gravity_known: whether `falling` is known.
+        min_command: see `is_observable`.
+        confidence: see `is_observable`.
+        ratio: see `is_stalled`.
+        following_ratio: see `is_following`.
+        limit_margin: see `is_pushing`.
+
+    Returns:
+        (weakest prediction, observable, following, stalled, pushing into a limit, lock
+        candidate, moving on its own), per joint.
+    """
+    n = measured.size
+    weakest = np.zeros(n)
+    flags = np.zeros((6, n), dtype=np.bool_)
+    observable, following, stalled, pushing, candidate, on_its_own = flags
+    for j in range(n):
+        low, high = plausible[:, j].min(), plausible[:, j].max()
+        weakest[j] = weakest_prediction(low, high)
+        c, v, s = weakest[j], measured[j], error[j]
+        observable[j] = is_observable(c, s, unlocked[j], min_command, confidence)
+        stalled[j] = is_stalled(v, c, s, observable[j], ratio, confidence)
+        pushing[j] = is_pushing(c, latest[j], lower[j], upper[j], limit_margin)
+        following[j] = is_following(v, c, observable[j], following_ratio)
+        on_its_own[j] = moves_on_its_own(v, s, low, high, unlocked[j], undeclared[j],
+                                         falling[j], gravity_known, min_command, confidence)
+        candidate[j] = is_candidate(v, s, stalled[j], pushing[j], on_its_own[j],
+                                    undeclared[j], min_command, confidence)
+    return weakest, observable, following, stalled, pushing, candidate, on_its_own
+
+
+def mean_difference_error(slope_error: Values, times: np.ndarray) -> Values:
+    """Standard error (rad) of a difference of two window means of positions.
+
+    From the window's slope standard errors (rad/s, a float or per joint) and its
+    sample `times` (s): one position's scatter is the slope's error times the root of
+    the times' spread, and a mean of the window's samples has sqrt(1 / samples) of it,
+    twice over.
+    """
+    centred = times - times.mean()
+    return slope_error * math.sqrt(centred @ centred) * math.sqrt(2.0 / times.size)
+
+
+def lost_position(current: np.ndarray, past: np.ndarray, weakest: np.ndarray,
+                  sigma: np.ndarray, confidence: float) -> tuple[np.ndarray, np.ndarray]:
+    """How far (rad) each joint fell behind the model, and whether that is a lost position.
+
+    A lock loses position from its first instant; a servo that integrates its command
+    into a position reference and pauses after it ran ahead, until the reference catches
+    up, stalls by velocity without losing any. The deficit is the window's mean offset
+    (measured minus predicted position, one model) `current` (n,) against the
+    most-behind of the earlier windows' offsets `past` (k, n), counted along the weakest
+    prediction `weakest` (n,); +inf with no earlier window. Lost: deficit >
+    `confidence` `sigma`, the standard error of a difference of two window means (n,).
+    The papers define a lock as a joint held in place (Lewis & Maciejewski 1997, sec. I;
+    Maciejewski et al., sec. 2.2); this rule asks that its stillness cost the position
+    its command asked for.
+    """
+    if not len(past):
+        deficit = np.full(current.size, math.inf)
+    else:
+        direction = -np.sign(weakest)  # behind: measured short of predicted, along c
+        deficit = direction * current - (direction * past).max(axis=0)
+    return deficit, deficit > confidence * sigma
+
+
+def swing_wait(measured: float, error: float, plausible: np.ndarray, settling: float,
+               confidence: float, min_command: float) -> float:
+    """How long (s) motion on its own must last beyond `persistence` to be a swing.
+
+    A servo's transient (overshoot, the spring back after a stop, a joint dragged by
+    the others) dies within the plant's settling time `settling` (s) and is no faster
+    than twice the largest plausible prediction of any joint (`plausible`, rad/s). A
+    joint faster than that by more than max(`confidence` `error`, `min_command`) need
+    not wait: 0; otherwise `settling`.
+    """
+    transient = 2 * float(np.abs(plausible).max(initial=0.0))
+    noise = max(confidence * error, min_command)
+    if abs(measured) > transient + noise:
+        return 0.0
+    return settling
+
+
+def slow_stall(moved: np.ndarray, predicted: np.ndarray, reached: np.ndarray,
+               latest: float, lower: float, upper: float, sigma: float, ratio: float,
+               confidence: float, limit_margin: float) -> bool:
+    """Whether a slowly commanded joint lost its motion over a span of two halves.
+
+    `moved` (2,) is how far the joint's window-mean position moved over each half
+    (rad), `predicted` (2,) what the model predicted there, `reached` the window means
+    over the span and `latest` the newest position (rad), `sigma` the standard error of
+    a difference of two window means (rad). Stalled when, in both halves, |predicted| >=
+    `confidence` `sigma` and the joint moved less than `ratio` of it (along the span's
+    prediction), the whole span's |predicted| is at least twice that, and the joint
+    came within 2 `limit_margin` of no limit the prediction points into. Both halves:
+    a servo that ran ahead and then waits for its reference lost nothing over the half
+    that holds its lead; a lock loses steadily. At the equilibrium of Maciejewski et al.
+    Theorem 1 an undetected lock leaves the arm short of its goal with the null space
+    commanding the locked joint at a few hundredths of a rad/s, below what the window
+    can judge through the noise.
+    """
+    total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
+    # A limit that stopped the commanded part of a to-and-fro motion takes it out of the
+    # measured motion: pushing at any time of the span counts. Window means come within
+    # `limit_margin` of where the joint touched the limit at most 2 x `limit_margin` away.
+    pushing = ((total > 0 and max(latest, float(reached.max())) >= upper - 2 * limit_margin)
+               or (total < 0 and min(latest, float(reached.min()))
+                   <= lower + 2 * limit_margin))
+    lost = (along * predicted >= confidence * sigma) & (
+        along * moved < ratio * along * predicted)
+    return not (pushing or not lost.all() or abs(total) < 2 * confidence * sigma)
+
+
+def not_observing(now: float, last_command: float, resumed_at: float, settling: float,
+                  times: np.ndarray, window: float, min_samples: int) -> str | None:
+    """Why nothing can be decided at `now` (s), or None: no decision without evidence.
+
+    Args:
+        now: the update's time (s).
+        last_command: start of the newest command (s); -inf: none yet.
+        resumed_at: when the command stream last (re)started (s).
+        settling: window + the plausible set's slowest settling time (s).
+        times: the window's measurement times (s).
+        window: the detector's window (s).
+        min_samples: fewest measurements in the window.
+
+    Returns:
+        The reason: no command yet, a command gap longer than half a window, the
+        settling time after commands (re)started, too few measurements over less than
+        half a window, or a gap between measurements longer than half a window.
+    """
+    if last_command == -math.inf:
+        return "no command yet"
+    gap = now - last_command
+    if gap > window / 2:
+        return f"command stream paused for {gap:.3f} s"
+    if now < resumed_at + settling:
+        return "settling after the command stream (re)started"
+    if times.size < min_samples or times[-1] - times[0] < window / 2:
+        return "too few joint states in the window"
+    if _largest_step(times) > window / 2:
+        return "joint states arrive with gaps"
+    return None
+
+
+def plant_fault(candidate: list[bool], following: list[bool],
+                on_its_own: list[bool]) -> list[bool] | None:
+    """The joints that show the plant as a whole not following, or None.
+
+    A plant fault (a stopped driver, an emergency stop, a lost command path) when two
+    or more joints are lock candidates and they outnumber the joints following (those
+    are named), or else when two or more move on their own and outnumber them.
+    """
+    n_stalled, n_following, n_own = sum(candidate), sum(following), sum(on_its_own)
+    if n_stalled >= 2 and n_stalled > n_following:
+        return candidate
+    if n_own >= 2 and n_own > n_following:
+        return on_its_own
+    return None
