@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import pinocchio as pin
 
 from ft_core.robots import Robot
+from ft_core.rotations import quaternion_from_rotation, rotation_from_quaternion
 from ft_core.selfmotion.manifold import check_target
 
 
@@ -37,7 +37,7 @@ def targets_from_flat(robot: Robot, flat: Sequence[float]) -> list[np.ndarray]:
             raise ValueError("a pose critical point's quaternion must be non-zero (and its "
                              "norm finite)")
         pose = np.eye(4)
-        pose[:3, :3] = pin.Quaternion(*(quaternion[[3, 0, 1, 2]] / norm)).toRotationMatrix()
+        pose[:3, :3] = rotation_from_quaternion(quaternion)
         pose[:3, 3] = chunk[:3]
         targets.append(check_target(robot, pose))
     return targets
@@ -51,10 +51,8 @@ def flat_from_targets(robot: Robot, targets: Sequence[np.ndarray]) -> list[float
         if robot.task_space != "pose":
             flat += [float(v) for v in target]
             continue
-        quaternion = pin.Quaternion(target[:3, :3]).coeffs()  # x, y, z, w
-        flat += [float(v) for v in (*target[:3, 3], *quaternion)]
+        flat += [float(v) for v in (*target[:3, 3], *quaternion_from_rotation(target[:3, :3]))]
     return flat
-
 
 
 def bent_configuration(robot: Robot) -> np.ndarray:
