@@ -49,8 +49,23 @@ from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Kinematics, Robot
 
-RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
 
+class Resolution(enum.StrEnum):
+    """The null-space preference of a cycle (`EngineConfig.resolution`; docs/engine.md).
+
+    LEAST_NORM: limit avoidance only; MAX_KFM: ascent on the fault-tolerance measure
+    (Maciejewski et al. eq 8); MIN_JUMP: the minimum velocity jump at the next failure
+    (Zhao & Li eq 5); BLEND: both.
+    """
+
+    LEAST_NORM = "least_norm"
+    MAX_KFM = "max_kfm"
+    MIN_JUMP = "min_jump"
+    BLEND = "blend"
+
+
+#: The resolution names, as plain strings (parameter validation, messages).
+RESOLUTIONS = tuple(r.value for r in Resolution)
 
 
 class Status(enum.StrEnum):
@@ -88,7 +103,7 @@ class EngineConfig:
     """Parameters of the engine; invalid values raise ValueError with the reason.
 
     Attributes:
-        resolution: "least_norm", "max_kfm", "min_jump" or "blend".
+        resolution: a `Resolution` value: "least_norm", "max_kfm", "min_jump" or "blend".
         kfm_gain: gain of the kfm gradient ascent, rad/s per (m/rad) of grad K, >= 0.
         swing_gain: gain of the swing-measure descent, rad/s per rad of grad h, >= 0.
         jump_gain: gain of the minimum-jump term (1 = exact minimum), >= 0.
@@ -404,9 +419,11 @@ class ResolutionEngine:
                 box=np.array([lower[healthy], upper[healthy],
                               robot.velocity_limits[healthy] * cfg.velocity_scale,
                               measures.failure_weights(p, nh) if nh else np.zeros(0)]),
-                use_kfm=(next_failure and cfg.resolution in ("max_kfm", "blend")
+                use_kfm=(next_failure
+                         and cfg.resolution in (Resolution.MAX_KFM, Resolution.BLEND)
                          and cfg.kfm_gain > 0),
-                use_jump=next_failure and cfg.resolution in ("min_jump", "blend"),
+                use_jump=(next_failure
+                          and cfg.resolution in (Resolution.MIN_JUMP, Resolution.BLEND)),
                 zeros=np.zeros(nh))
         return view
 

@@ -21,6 +21,7 @@ Conventions (docs/robots.md):
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 from importlib import resources
@@ -35,11 +36,24 @@ from ft_core.input_checks import all_finite
 from ft_core.urdf_model import MAX_URDF_BYTES, MAX_URDF_JOINTS, RobotModelError, read_chain
 
 __all__ = ["BUILTINS", "HOME", "MAX_URDF_BYTES", "MAX_URDF_JOINTS", "TASK_DIMENSIONS",
-           "Kinematics", "Robot", "RobotModelError", "builtin_urdf", "configuration", "load",
-           "task_jacobians"]
+           "Kinematics", "Robot", "RobotModelError", "TaskSpace", "builtin_urdf",
+           "configuration", "load", "task_jacobians"]
 
-#: Task-space name -> number of task coordinates m.
-TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
+
+class TaskSpace(enum.StrEnum):
+    """The task coordinates of the tool point, in `base_link` (equal to their names).
+
+    POSE: position and orientation (m = 6); POSITION: the position (m = 3); PLANAR:
+    x and y (m = 2).
+    """
+
+    POSE = "pose"
+    POSITION = "position"
+    PLANAR = "planar"
+
+
+#: Task space -> number of task coordinates m.
+TASK_DIMENSIONS = {TaskSpace.POSE: 6, TaskSpace.POSITION: 3, TaskSpace.PLANAR: 2}
 
 #: Built-in models: URDF resource in ft_core/urdf and the default task space. All but
 #: two are kinematic (no inertias). "planar3r_rods" is "planar3r" with a uniform 1 kg
@@ -50,12 +64,12 @@ TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
 #: fixed joints and `package://` mesh URIs, i.e. what a user's `robot_description`
 #: looks like; its kinematics agree with "panda"'s.
 BUILTINS = {
-    "planar3r": ("planar3r.urdf", "planar"),
-    "planar3r_rods": ("planar3r_rods.urdf", "planar"),
-    "puma560": ("puma560.urdf", "position"),
-    "panda": ("panda.urdf", "pose"),
-    "panda_inertial": ("panda_from_example_robot_data.urdf", "pose"),
-    "iiwa14": ("iiwa14.urdf", "pose"),
+    "planar3r": ("planar3r.urdf", TaskSpace.PLANAR),
+    "planar3r_rods": ("planar3r_rods.urdf", TaskSpace.PLANAR),
+    "puma560": ("puma560.urdf", TaskSpace.POSITION),
+    "panda": ("panda.urdf", TaskSpace.POSE),
+    "panda_inertial": ("panda_from_example_robot_data.urdf", TaskSpace.POSE),
+    "iiwa14": ("iiwa14.urdf", TaskSpace.POSE),
 }
 
 #: A typical working configuration of each built-in (rad), by URDF robot name, so a
@@ -163,7 +177,7 @@ class Robot:
         lower, upper: position limits (rad or m; +-inf for continuous joints).
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
         base_link, tip_link: the chain's end links; task coordinates are in base_link.
-        task_space: "pose", "position" or "planar"; m is the task dimension, n the joint count.
+        task_space: the `TaskSpace`; m is the task dimension, n the joint count.
         has_inertias: whether any link that the chain moves has a mass in the URDF (its
             gravity and dynamics are known).
         urdf: the URDF the model was built from, its chain's continuous joints rewritten
@@ -174,7 +188,7 @@ class Robot:
     """
 
     def __init__(self, xml: str, base_link: str | None = None, tip_link: str | None = None,
-                 task_space: str = "pose", characteristic_length: float | None = None):
+                 task_space: str = TaskSpace.POSE, characteristic_length: float | None = None):
         if task_space not in TASK_DIMENSIONS:
             raise RobotModelError(
                 f"task_space {task_space!r} is not one of {', '.join(TASK_DIMENSIONS)}"
@@ -185,8 +199,8 @@ class Robot:
         self.lower, self.upper = chain.lower, chain.upper
         self.velocity_limits = chain.velocity_limits
         self.base_link, self.tip_link = chain.base_link, chain.tip_link
-        self.task_space = task_space
-        self.n, self.m = len(chain.joint_names), TASK_DIMENSIONS[task_space]
+        self.task_space = TaskSpace(task_space)
+        self.n, self.m = len(chain.joint_names), TASK_DIMENSIONS[self.task_space]
         self.urdf = chain.urdf
         self._build_model(self.urdf)
         self.reach = self._reach()
@@ -228,9 +242,8 @@ class Robot:
         self._rotate = np.zeros((6, 6))
         self._rotate[:3, :3] = self._rotate[3:, 3:] = rotation
         self._base_aligned = bool(np.array_equal(rotation, np.eye(3)))
-        self._rows = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[
-            self.task_space
-        ]
+        self._rows = {TaskSpace.POSE: slice(0, 6), TaskSpace.POSITION: slice(0, 3),
+                      TaskSpace.PLANAR: slice(0, 2)}[self.task_space]
 
     def task_error(self, target: np.ndarray, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task error e (m,) from q to `target`, in the rows of `jacobian`.
@@ -247,7 +260,7 @@ class Robot:
         The difference; for pose the position's and log3(R_end R_start^T) (rad, base
         axes), which a constant angular velocity integrates to.
         """
-        if self.task_space != "pose":
+        if self.task_space != TaskSpace.POSE:
             return end - start
         return np.concatenate([end[:3, 3] - start[:3, 3],
                                pin.log3(end[:3, :3] @ start[:3, :3].T)])
@@ -346,7 +359,7 @@ class Robot:
 
     def task_coordinates(self, pose: np.ndarray) -> np.ndarray:
         """A tool transform (4x4, base frame) as `forward` gives it for this task space."""
-        if self.task_space == "pose":
+        if self.task_space == TaskSpace.POSE:
             return pose
         return pose[self._rows, 3].copy()
 
@@ -414,12 +427,13 @@ def load(spec: str, base_link: str | None = None, tip_link: str | None = None,
         spec: "planar3r", "puma560", "panda", "iiwa14", a path to a .urdf file or the XML.
         base_link: first link of the chain (default: the URDF's root link).
         tip_link: tool link (default: walk down from base_link until the tree branches).
-        task_space: "pose", "position" or "planar" (default: the built-in's own, else pose).
+        task_space: a `TaskSpace` value, "pose", "position" or "planar" (default: the
+            built-in's own, else pose).
         characteristic_length: L in m for angular rows (default: the robot's reach).
 
     Raises:
         RobotModelError: unknown spec, URDF that does not parse, missing link, no joint.
     """
     xml, default_space = _resolve(spec)
-    return Robot(xml, base_link, tip_link, task_space or default_space or "pose",
+    return Robot(xml, base_link, tip_link, task_space or default_space or TaskSpace.POSE,
                  characteristic_length)

@@ -6,14 +6,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ft_core.robots import Robot
+from ft_core.robots import Robot, TaskSpace
 from ft_core.rotations import quaternion_from_rotation, rotation_from_quaternion
 from ft_core.selfmotion.manifold import check_target
 
 
 def point_size(robot: Robot) -> int:
     """Numbers per critical point in a flat list: m, or 7 (x, y, z, qx, qy, qz, qw) for pose."""
-    return 7 if robot.task_space == "pose" else robot.m
+    return 7 if robot.task_space == TaskSpace.POSE else robot.m
 
 
 def targets_from_flat(robot: Robot, flat: Sequence[float]) -> list[np.ndarray]:
@@ -27,7 +27,7 @@ def targets_from_flat(robot: Robot, flat: Sequence[float]) -> list[np.ndarray]:
         raise ValueError("critical points must be finite")
     targets = []
     for chunk in values.reshape(-1, size):
-        if robot.task_space != "pose":
+        if robot.task_space != TaskSpace.POSE:
             targets.append(check_target(robot, chunk.copy()))
             continue
         quaternion = chunk[3:]
@@ -48,7 +48,7 @@ def flat_from_targets(robot: Robot, targets: Sequence[np.ndarray]) -> list[float
     flat: list[float] = []
     for target in targets:
         target = np.asarray(target, dtype=float)
-        if robot.task_space != "pose":
+        if robot.task_space != TaskSpace.POSE:
             flat += [float(v) for v in target]
             continue
         flat += [float(v) for v in (*target[:3, 3], *quaternion_from_rotation(target[:3, :3]))]
@@ -84,7 +84,7 @@ def points_around(robot: Robot, q: np.ndarray, count: int = 3, step: float | Non
     of points 0.3 rad apart on the Panda do not all contain each point.
     """
     if step is None:
-        step = 0.15 if robot.task_space == "pose" else 0.3
+        step = 0.15 if robot.task_space == TaskSpace.POSE else 0.3
     points, moved = [robot.forward(q)], q.copy()
     for k in range(1, count):
         joint = (k - 1) % robot.n

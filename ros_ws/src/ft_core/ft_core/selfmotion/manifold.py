@@ -17,7 +17,7 @@ import numpy as np
 
 from ft_core import limits
 from ft_core.pseudoinverse import Damping, damped_pinv
-from ft_core.robots import Robot
+from ft_core.robots import Robot, TaskSpace
 
 #: Task error (m or rad) under which a configuration is on the manifold.
 TOLERANCE = 1e-9
@@ -74,13 +74,13 @@ class Manifold:
 def check_target(robot: Robot, target: np.ndarray) -> np.ndarray:
     """Return the target as an array of the task's shape, or raise ValueError."""
     target = np.asarray(target, dtype=float)
-    shape = (4, 4) if robot.task_space == "pose" else (robot.m,)
+    shape = (4, 4) if robot.task_space == TaskSpace.POSE else (robot.m,)
     if target.shape != shape:
         raise ValueError(f"a {robot.task_space} target must have shape {shape}, got "
                          f"{target.shape}")
     if not np.all(np.isfinite(target)):
         raise ValueError("the target has non-finite entries")
-    position = target[:3, 3] if robot.task_space == "pose" else target
+    position = target[:3, 3] if robot.task_space == TaskSpace.POSE else target
     if not np.all(np.abs(position) <= limits.ABSURD_DISTANCE):
         raise ValueError(f"the target is further than {limits.ABSURD_DISTANCE:g} m: no arm's")
     return target
