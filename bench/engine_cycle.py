@@ -5,9 +5,9 @@ Robot: the built-in Panda (our URDF, for every candidate), pose task (m = 6) at
 joint limits and the same task velocities xd (|xd| ~ 0.1), and is used as its
 authors recommend for a control loop:
 
-* ft engine, each mode: `ResolutionEngine.step(q, xd)` (J, and dJ/dq where the
-  mode needs it, computed inside), position limits over dt = 0.004 s and the URDF
-  velocity limits.
+* ft engine, each mode: `ResolutionEngine.step(robot.kinematics(q), xd)` (the
+  snapshot's Pinocchio pass, dJ/dq where the mode needs it, computed inside), position
+  limits over dt = 0.004 s and the URDF velocity limits.
 * pink (pin-pink, DAQP): one `pink.Configuration` made once and updated each cycle
   (`configuration.update(q)`: forward kinematics and Jacobians); a frame task whose
   target is the current tool pose moved by xd over dt (so the task asks for the
@@ -101,7 +101,7 @@ def engine_call(robot: robots.Robot, mode: str, qs: list,
                 xds: list) -> Callable[[int], object]:
     """One engine cycle per workload entry."""
     engine = ResolutionEngine(robot, EngineConfig(resolution=mode, dt=DT))
-    return lambda i: engine.step(qs[i], xds[i])
+    return lambda i: engine.step(robot.kinematics(qs[i]), xds[i])
 
 
 def pink_call(xml: str, tip: str, qs: list, xds: list) -> Callable[[int], np.ndarray]:

@@ -18,6 +18,11 @@ ROBOTS = {name: robots.load(name) for name in ("planar3r", "puma560", "panda")}
 PANDA_POSITION = robots.load("panda", task_space="position")
 
 
+def snapshot(q: np.ndarray) -> robots.Kinematics:
+    """A snapshot made by hand, for a q that `Robot.kinematics` itself would refuse."""
+    return robots.Kinematics(q, np.eye(4), np.zeros((6, q.size)))
+
+
 def in_bounds(robot: robots.Robot, q: np.ndarray, qd: np.ndarray, dt: float,
               velocity_scale: float = 1.0, tol: float = 1e-9) -> bool:
     nxt = q + qd * dt
@@ -36,7 +41,7 @@ def test_task_is_tracked_exactly_when_no_limit_is_active(name: str, mode: str) -
     while checked < 5:
         q = robot.random_configuration(rng, margin=0.4)
         xd = rng.normal(scale=0.05, size=robot.m)
-        result = engine.step(q, xd)
+        result = engine.step(robot.kinematics(q), xd)
         if result.saturated.any() or result.status != "ok":
             continue
         np.testing.assert_allclose(robot.jacobian(q) @ result.qd, xd, atol=1e-9)
@@ -49,7 +54,7 @@ def test_min_jump_with_all_probability_on_one_joint_keeps_it_still() -> None:
     engine = ResolutionEngine(robot, EngineConfig(resolution="min_jump",
                                                   failure_probabilities=[0, 1, 0]))
     q, xd = np.array([0.3, 1.2, 1.0]), np.array([0.1, -0.05])
-    result = engine.step(q, xd)
+    result = engine.step(robot.kinematics(q), xd)
     assert result.qd[1] == pytest.approx(0.0, abs=1e-10)
     assert result.jump_index == pytest.approx(0.0, abs=1e-15)
     np.testing.assert_allclose(robot.jacobian(q) @ result.qd, xd, atol=1e-10)
@@ -62,12 +67,12 @@ def test_locked_joints_get_exactly_zero_and_the_rest_track(mode: str) -> None:
     q = np.array([0.2, 0.3, -0.4, -1.8, 0.5, 1.6, 0.3])
     xd = np.array([0.05, -0.03, 0.02])
     for locked in ([1], [0, 4], [2, 3, 6]):
-        result = engine.step(q, xd, locked)
+        result = engine.step(robot.kinematics(q), xd, locked)
         assert np.all(result.qd[locked] == 0.0)
         np.testing.assert_allclose(robot.jacobian(q) @ result.qd, xd, atol=1e-9)
         assert np.isnan(result.post_failure_sigmas[locked]).all()
     # n - |locked| - 1 < m: nothing can tolerate a further failure, exactly.
-    assert engine.step(q, xd, [0, 2, 3, 6]).kfm == 0.0
+    assert engine.step(robot.kinematics(q), xd, [0, 2, 3, 6]).kfm == 0.0
 
 
 @pytest.mark.parametrize("task", ["position", "pose"])
@@ -95,7 +100,7 @@ def test_kfm_is_exactly_zero_by_structure_and_an_svd_elsewhere(name: str, task: 
                 sigmas = measures.post_failure_sigmas(Js, locked)
                 smallest = np.linalg.svd(Js[:, healthy], compute_uv=False)[-1]
                 for engine in engines:
-                    result = engine.step(q, np.zeros(m), locked)
+                    result = engine.step(robot.kinematics(q), np.zeros(m), locked)
                     if n - count < m + 1:
                         structural += 1
                         assert result.kfm == 0.0, (locked, result.kfm)
@@ -112,7 +117,7 @@ def test_too_many_locks_give_a_least_squares_best_effort_marked_infeasible() -> 
     engine = ResolutionEngine(robot)
     q = np.array([0.2, 0.3, -0.4, -1.8, 0.5, 1.6, 0.3])
     xd = np.array([0.05, -0.03, 0.02, 0.1, 0.0, -0.1])
-    result = engine.step(q, xd, locked=[1, 5])
+    result = engine.step(robot.kinematics(q), xd, locked=[1, 5])
     assert result.status == "infeasible"
     assert np.all(np.isfinite(result.qd)) and np.all(result.qd[[1, 5]] == 0.0)
     healthy = [0, 2, 3, 4, 6]
@@ -127,7 +132,7 @@ def test_exact_singularity_gives_finite_bounded_velocities() -> None:
     robot = ROBOTS["planar3r"]
     engine = ResolutionEngine(robot)
     for xd in (np.array([1.0, 0.0]), np.array([0.0, 1.0]), np.zeros(2)):
-        result = engine.step(np.zeros(3), xd)  # stretched out: rank 1
+        result = engine.step(robot.kinematics(np.zeros(3)), xd)  # stretched out: rank 1
         assert np.all(np.isfinite(result.qd))
         assert result.status in ("near_singularity", "limited")
         assert in_bounds(robot, np.zeros(3), result.qd, engine.config.dt)
@@ -140,7 +145,7 @@ def test_configuration_exactly_on_a_limit_never_goes_further() -> None:
     rng = np.random.default_rng(5)
     for _ in range(20):
         xd = rng.normal(scale=0.2, size=6)
-        result = engine.step(q, xd)
+        result = engine.step(robot.kinematics(q), xd)
         assert result.qd[1] <= 1e-12 and result.qd[3] >= -1e-12
         assert in_bounds(robot, q, result.qd, engine.config.dt)
         assert result.at_hard_limit[[1, 3]].all()
@@ -151,7 +156,7 @@ def test_fast_task_is_scaled_with_its_direction_kept() -> None:
     engine = ResolutionEngine(robot, EngineConfig(velocity_scale=0.5))
     q = np.array([0.2, 0.3, -0.4, -1.8, 0.5, 1.6, 0.3])
     xd = np.array([1.5, -1.0, 0.8, 2.0, 0.0, -2.0])
-    result = engine.step(q, xd)
+    result = engine.step(robot.kinematics(q), xd)
     assert result.status == "limited" and 0 < result.task_scale < 1
     assert result.saturated.any()
     np.testing.assert_allclose(robot.jacobian(q) @ result.qd, result.task_scale * xd, atol=1e-9)
@@ -168,18 +173,18 @@ def test_soft_limits_hold_while_healthy_and_are_released_on_failure() -> None:
     for step in range(400):  # a circle wider than the box allows
         t = step * 0.01
         xd = 0.4 * np.array([-math.sin(t * 2), math.cos(t * 2)])
-        result = engine.step(q, xd)
+        result = engine.step(robot.kinematics(q), xd)
         statuses.add(result.status)
         q = q + result.qd * config.dt
         assert np.all(q >= lower - 1e-9) and np.all(q <= upper + 1e-9), step
         assert result.soft_limit_margin >= -1e-9
     assert "limited" in statuses  # the null space alone could not keep the joints inside
     # After a failure the box is released (default) and only the URDF limits remain.
-    released = engine.step(q, np.array([0.0, 0.4]), locked=[2])
+    released = engine.step(robot.kinematics(q), np.array([0.0, 0.4]), locked=[2])
     assert released.soft_limit_margin == math.inf
     kept = ResolutionEngine(robot, EngineConfig(soft_lower=lower, soft_upper=upper,
                                                 release_soft_limits_on_failure=False))
-    assert kept.step(q, np.zeros(2), locked=[2]).soft_limit_margin < math.inf
+    assert kept.step(robot.kinematics(q), np.zeros(2), locked=[2]).soft_limit_margin < math.inf
 
 
 def test_avoidance_is_zero_away_from_the_edges_and_smooth() -> None:
@@ -276,15 +281,15 @@ def test_invalid_engine_inputs_are_rejected_before_arithmetic() -> None:
     assert probabilities.tolist() == [1, 2, 1] and soft[0].size == 0
     engine = ResolutionEngine(robot)
     with pytest.raises(ValueError, match="finite"):
-        engine.step(np.array([0.0, np.nan, 0.0]), np.zeros(2))
+        engine.step(snapshot(np.array([0.0, np.nan, 0.0])), np.zeros(2))
     with pytest.raises(ValueError, match="finite"):
-        engine.step(np.zeros(3), np.array([np.inf, 0.0]))
+        engine.step(robot.kinematics(np.zeros(3)), np.array([np.inf, 0.0]))
     with pytest.raises(ValueError, match="xd must have 2"):
-        engine.step(np.zeros(3), np.zeros(3))
+        engine.step(robot.kinematics(np.zeros(3)), np.zeros(3))
     with pytest.raises(ValueError, match="q must have 3"):
-        engine.step(np.zeros(2), np.zeros(2))
+        engine.step(snapshot(np.zeros(2)), np.zeros(2))
     with pytest.raises(ValueError, match="locked joint index"):
-        engine.step(np.zeros(3), np.zeros(2), locked=[3])
+        engine.step(robot.kinematics(np.zeros(3)), np.zeros(2), locked=[3])
 
 
 @settings(max_examples=80, deadline=None)
@@ -302,7 +307,7 @@ def test_invariants_hold_everywhere(name: str, mode: str, seed: int, speed: floa
         q[0] = robot.upper[0]
     xd = rng.normal(size=robot.m) * speed
     engine = ResolutionEngine(robot, EngineConfig(resolution=mode))
-    result = engine.step(q, xd, locked)
+    result = engine.step(robot.kinematics(q), xd, locked)
     assert np.all(np.isfinite(result.qd))
     assert np.all(result.qd[locked] == 0.0)
     assert in_bounds(robot, q, result.qd, engine.config.dt)
@@ -327,7 +332,7 @@ def simulate_panda(mode: str) -> dict[str, float]:
         w = 2 * math.pi / 5
         t = step * dt
         xd = np.array([0.0, 0.1 * w * math.cos(w * t), -0.1 * w * math.sin(w * t)])
-        result = engine.step(q, xd)
+        result = engine.step(robot.kinematics(q), xd)
         assert result.status == "ok"
         assert in_bounds(robot, q, result.qd, dt)
         J = robot.jacobian(q)
@@ -372,7 +377,7 @@ def test_compiled_cycle_equals_the_svd_reference_composition(robot: robots.Robot
     for _ in range(30):
         q = robot.random_configuration(rng, margin=0.3)
         xd = rng.normal(scale=0.05, size=robot.m)
-        result = engine.step(q, xd, locked)
+        result = engine.step(robot.kinematics(q), xd, locked)
         J, dJ = robot.jacobian_and_derivatives(q)
         J = robot.scale_task(J)[:, healthy]
         dJ = robot.scale_task(dJ)[np.ix_(healthy, np.arange(robot.m), healthy)]
@@ -403,7 +408,7 @@ def test_engine_starts_from_exactly_singular_straight_chains(axes: str, mode: st
     engine = ResolutionEngine(robot, EngineConfig(resolution=mode))
     q = np.zeros(robot.n)
     for xd in (np.zeros(robot.m), np.array([0.1, 0.0, 0.0, 0.0, 0.0, 0.2])):
-        result = engine.step(q, xd)
+        result = engine.step(robot.kinematics(q), xd)
         assert np.all(np.isfinite(result.qd))
         assert np.all(np.abs(result.qd) <= robot.velocity_limits + 1e-12)
         assert np.all(np.isfinite(result.post_failure_sigmas))
@@ -417,7 +422,8 @@ def test_relative_failure_probabilities_up_to_1e308_give_finite_commands() -> No
         engine = ResolutionEngine(robot, EngineConfig(resolution=resolution,
                                                       failure_probabilities=[1e308] * 7))
         for locked in ((), (2,)):
-            result = engine.step(robot.home(), np.array([0.05, 0, 0, 0, 0, 0.1]), locked)
+            result = engine.step(robot.kinematics(robot.home()), np.array([0.05, 0, 0, 0, 0, 0.1]),
+                                 locked)
             assert np.all(np.isfinite(result.qd)) and np.any(result.qd != 0)
 
 
@@ -431,8 +437,8 @@ def test_a_continuous_joint_beyond_a_million_radians_is_absurd() -> None:
                                     planar.joint_names)
     assert reason is not None and reason.startswith(planar.joint_names[0])
     with pytest.raises(ValueError, match="beyond 1e\\+06 rad"):
-        ResolutionEngine(planar, EngineConfig()).step(np.array([0.0, 0.0, 1e300]),
-                                                      np.zeros(planar.m))
+        ResolutionEngine(planar, EngineConfig()).step(
+            planar.kinematics(np.array([0.0, 0.0, 1e300])), np.zeros(planar.m))
 
 
 @pytest.mark.parametrize("mode", RESOLUTIONS)
@@ -452,11 +458,11 @@ def test_huge_inputs_are_refused_or_bounded_and_never_hang(mode: str) -> None:
     def work() -> None:
         for q, xd in absurd:
             try:
-                engine.step(q, xd)
+                engine.step(robot.kinematics(q), xd)
                 outcomes.append("accepted")
             except ValueError as error:
                 outcomes.append(str(error))
-        outcomes.extend(engine.step(q, xd) for q, xd in largest)
+        outcomes.extend(engine.step(robot.kinematics(q), xd) for q, xd in largest)
 
     worker = threading.Thread(target=work)
     worker.start()

@@ -50,9 +50,9 @@ def test_an_excursion_moves_its_joint_and_not_the_tool(task: str) -> None:
     moved_joints = 0
     for _ in range(20):
         q = robot.random_configuration(rng, margin=0.3)
-        qd = cycle.step(q, rng.normal(scale=0.05, size=robot.m)).qd
+        qd = cycle.step(robot.kinematics(q), rng.normal(scale=0.05, size=robot.m)).qd
         for joint in range(robot.n):
-            out = cycle.excursion(q, qd, joint, 0.15)
+            out = cycle.excursion(robot.kinematics(q), qd, joint, 0.15)
             if out is None:  # no null-space share: nothing is changed
                 continue
             moved_joints += 1
@@ -69,13 +69,15 @@ def test_an_excursion_stays_inside_the_soft_limits_and_skips_what_cannot_move() 
     lower[6] = q[6] - 1e-4  # joint 7 sits on its soft lower limit
     cycle = engine.ResolutionEngine(PANDA, engine.EngineConfig(
         dt=0.004, soft_lower=lower, soft_upper=upper))
-    out = cycle.excursion(q, np.zeros(7), 6, -0.15)  # towards the limit: cut to the edge
+    at = PANDA.kinematics(q)
+    out = cycle.excursion(at, np.zeros(7), 6, -0.15)  # towards the limit: cut to the edge
     assert out is not None and q[6] + 0.004 * out[6] >= lower[6] - 1e-12
-    assert cycle.excursion(q, np.zeros(7), 6, 0.15)[6] == pytest.approx(0.15)
+    assert cycle.excursion(at, np.zeros(7), 6, 0.15)[6] == pytest.approx(0.15)
     # Six healthy joints for a pose task: no null space, nothing to excite.
     pose = engine.ResolutionEngine(robots.load("panda", task_space="pose"))
-    assert pose.excursion(q, np.zeros(7), 6, 0.15, locked=[0]) is None
-    assert pose.excursion(q, np.zeros(7), 0, 0.15, locked=[0]) is None  # a locked joint
+    at = pose.robot.kinematics(q)
+    assert pose.excursion(at, np.zeros(7), 6, 0.15, locked=[0]) is None
+    assert pose.excursion(at, np.zeros(7), 0, 0.15, locked=[0]) is None  # a locked joint
 
 
 

@@ -64,7 +64,8 @@ def test_a_healthy_stall_or_a_slow_approach_is_not_suspected() -> None:
         error = np.array([5.0, 0.0]) - PLANAR.forward(q)  # 5 m: beyond the 3 m reach
         qd = np.linalg.pinv(PLANAR.jacobian(q)) @ error
         qd *= min(1.0, 0.5 / np.linalg.norm(qd))
-        assert channel.update(k * DT, q, qd, float(np.linalg.norm(error))) is None
+        assert channel.update(k * DT, PLANAR.kinematics(q), qd,
+                              float(np.linalg.norm(error))) is None
         q = q + DT * qd
 
 
@@ -87,7 +88,7 @@ def test_a_pose_task_explains_rotation_and_names_a_lone_locked_joint() -> None:
     channel, q = TaskChannel(panda), panda.home()
     qd = np.array([0.3, -0.2, 0.25, 0.2, -0.3, 0.3, 0.4])
     for k in range(200):  # an error that does not shrink: the test runs at every update
-        assert channel.update(k * DT, q, qd, 0.1) is None
+        assert channel.update(k * DT, panda.kinematics(q), qd, 0.1) is None
         q = q + DT * qd
     path = [panda.home() + k * DT * qd for k in range(201)]  # 0.8 s, 0.9 rad of turn
     integrated = sum(panda.jacobian(p) @ qd * DT for p in path[:-1])
@@ -97,5 +98,5 @@ def test_a_pose_task_explains_rotation_and_names_a_lone_locked_joint() -> None:
     assert np.linalg.norm(summed - integrated) < 0.01 * np.linalg.norm(integrated)
     channel, qd = TaskChannel(panda), np.zeros(7)
     qd[1] = 0.05
-    suspects = [channel.update(k * DT, panda.home(), qd, 0.1) for k in range(200)]
+    suspects = [channel.update(k * DT, panda.kinematics(panda.home()), qd, 0.1) for k in range(200)]
     assert suspects[-1] == 1

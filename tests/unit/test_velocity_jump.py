@@ -89,7 +89,7 @@ def simulate_004(resolution_mode: str, probabilities: tuple = ()) -> dict[str, f
     for step in range(1000):
         t = step * 0.001
         xd = 0.2 * math.pi * np.array([math.sin(2 * math.pi * t), math.cos(2 * math.pi * t)])
-        result = engine.step(q, xd)
+        result = engine.step(arm.kinematics(q), xd)
         J = arm.jacobian(q)
         np.testing.assert_allclose(J @ result.qd, xd, atol=1e-9)
         jumps.append(velocity_jump.jump_index(J, result.qd, xd, probabilities or None))

@@ -2,6 +2,8 @@
 
 The online path (what the nodes call every cycle, and what they need to start):
     robots: URDF chains through Pinocchio, forward kinematics, Jacobians and their derivatives.
+    urdf_model: URDF parsing: the serial chain between two links, its limits.
+    rotations: quaternions (x, y, z, w) to rotation matrices and back.
     input_checks: input checks of the per-cycle path (compiled).
     measures: post-failure singular values, kfm, weighted and relative measures.
     pseudoinverse: damped pseudo-inverse acting only near singularities.

@@ -1,7 +1,8 @@
 """One control cycle of fault-tolerant redundancy resolution.
 
-`ResolutionEngine.step(q, xd, locked)` turns joint positions, a desired task
-velocity and the set of locked joints into joint velocities (docs/engine.md):
+`ResolutionEngine.step(kinematics, xd, locked)` turns the kinematics at the joint
+positions (`Robot.kinematics`, one snapshot a cycle), a desired task velocity and the
+set of locked joints into joint velocities (docs/engine.md):
 
     qd = J# xd + (I - J# J) z            (Lewis & Maciejewski 1997 eq 4, Maciejewski et al. eq 3)
 
@@ -48,8 +49,23 @@ from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Kinematics, Robot
 
-RESOLUTIONS = ("least_norm", "max_kfm", "min_jump", "blend")
 
+class Resolution(enum.StrEnum):
+    """The null-space preference of a cycle (`EngineConfig.resolution`; docs/engine.md).
+
+    LEAST_NORM: limit avoidance only; MAX_KFM: ascent on the fault-tolerance measure
+    (Maciejewski et al. eq 8); MIN_JUMP: the minimum velocity jump at the next failure
+    (Zhao & Li eq 5); BLEND: both.
+    """
+
+    LEAST_NORM = "least_norm"
+    MAX_KFM = "max_kfm"
+    MIN_JUMP = "min_jump"
+    BLEND = "blend"
+
+
+#: The resolution names, as plain strings (parameter validation, messages).
+RESOLUTIONS = tuple(r.value for r in Resolution)
 
 
 class Status(enum.StrEnum):
@@ -87,7 +103,7 @@ class EngineConfig:
     """Parameters of the engine; invalid values raise ValueError with the reason.
 
     Attributes:
-        resolution: "least_norm", "max_kfm", "min_jump" or "blend".
+        resolution: a `Resolution` value: "least_norm", "max_kfm", "min_jump" or "blend".
         kfm_gain: gain of the kfm gradient ascent, rad/s per (m/rad) of grad K, >= 0.
         swing_gain: gain of the swing-measure descent, rad/s per rad of grad h, >= 0.
         jump_gain: gain of the minimum-jump term (1 = exact minimum), >= 0.
@@ -365,8 +381,9 @@ class ResolutionEngine:
                                     *(self._soft if self._soft[0].size else (robot.lower,
                                                                              robot.upper))])
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
-        self.step(robot.home(), np.zeros(robot.m))
-        self.step(robot.home(), np.zeros(robot.m), range(min(robot.n, robot.n - robot.m + 1)))
+        home = robot.kinematics(robot.home())
+        self.step(home, np.zeros(robot.m))
+        self.step(home, np.zeros(robot.m), range(min(robot.n, robot.n - robot.m + 1)))
 
     def soft_limits_active(self, any_locked: bool) -> bool:
         """Whether the soft box applies (configured, and not released by a failure)."""
@@ -402,9 +419,11 @@ class ResolutionEngine:
                 box=np.array([lower[healthy], upper[healthy],
                               robot.velocity_limits[healthy] * cfg.velocity_scale,
                               measures.failure_weights(p, nh) if nh else np.zeros(0)]),
-                use_kfm=(next_failure and cfg.resolution in ("max_kfm", "blend")
+                use_kfm=(next_failure
+                         and cfg.resolution in (Resolution.MAX_KFM, Resolution.BLEND)
                          and cfg.kfm_gain > 0),
-                use_jump=next_failure and cfg.resolution in ("min_jump", "blend"),
+                use_jump=(next_failure
+                          and cfg.resolution in (Resolution.MIN_JUMP, Resolution.BLEND)),
                 zeros=np.zeros(nh))
         return view
 
@@ -417,11 +436,11 @@ class ResolutionEngine:
         weights[healthy] = 1.0  # a locked joint is braked: it does not swing
         return -self.config.swing_gain * swing.swing_gradient(self.robot, q, weights)[healthy]
 
-    def excursion(self, at: np.ndarray | Kinematics, qd: np.ndarray, joint: int, speed: float,
+    def excursion(self, kinematics: Kinematics, qd: np.ndarray, joint: int, speed: float,
                   locked: Iterable[int] = ()) -> np.ndarray | None:
         """The command qd plus a null-space motion moving `joint` at `speed` (rad/s), or None.
 
-        `at`: the configuration q (rad) or its snapshot (`Robot.kinematics`).
+        `kinematics`: the cycle's snapshot at the configuration q (`Robot.kinematics`).
 
         The motion is N e_j speed / N_jj with N = V V^T the projector on the null space of
         the healthy joints' Jacobian (V from its SVD), so J of the motion is 0 to numerical
@@ -435,8 +454,8 @@ class ResolutionEngine:
         index = view.healthy
         if joint not in index:
             return None
-        q = robots.configuration(at)
-        J = self.robot.scale_task(self.robot.jacobian(at))[:, index]
+        q = kinematics.q
+        J = self.robot.scale_task(self.robot.jacobian(kinematics))[:, index]
         _, sigmas, Vt = np.linalg.svd(J)
         rank = int(np.sum(sigmas > 1e-12 * max(sigmas.max(initial=0.0), 1.0)))
         null = Vt[rank:].T
@@ -452,11 +471,11 @@ class ResolutionEngine:
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
-    def step(self, at: np.ndarray | Kinematics, xd: np.ndarray,
+    def step(self, kinematics: Kinematics, xd: np.ndarray,
              locked: Iterable[int] = ()) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
 
-        `at`: the configuration q (rad) or its snapshot (`Robot.kinematics`).
+        `kinematics`: the cycle's snapshot at the configuration q (`Robot.kinematics`).
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
@@ -466,7 +485,7 @@ class ResolutionEngine:
         """
         cfg, robot = self.config, self.robot
         n, m = robot.n, robot.m
-        q, xd = robots.configuration(at), np.asarray(xd, dtype=float)
+        q, xd = kinematics.q, np.asarray(xd, dtype=float)
         if q.shape != (n,):
             raise ValueError(f"q must have {n} entries, got shape {q.shape}")
         if xd.shape != (m,):
@@ -479,8 +498,7 @@ class ResolutionEngine:
         if nh < m:
             return self._infeasible(q, xd, view)
         (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
-         margin) = _cycle(robot.base_jacobian(at if isinstance(at, Kinematics) else q),
-                          xd, q, index, robot.task_scale, view.box,
+         margin) = _cycle(kinematics.base_jacobian, xd, q, index, robot.task_scale, view.box,
                           self._gains, view.use_kfm, view.use_jump,
                           self._probabilities is not None, self._swing_descent(q, view),
                           self._limit_box, view.soft)

@@ -64,7 +64,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 from ft_core import measures, robots, selfmotion
-from ft_core.robots import Robot
+from ft_core.robots import Robot, TaskSpace
 
 #: Share of the best error whose drop counts as progress, when less than `progress`.
 RELATIVE_PROGRESS = 0.25
@@ -258,7 +258,7 @@ def reachable(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Sequence[in
 
 def mismatch(robot: Robot, goal: np.ndarray, other: np.ndarray) -> tuple[float, float]:
     """(m, rad) between two task targets (`Robot.forward`): positions, orientations (pose)."""
-    if robot.task_space != "pose":
+    if robot.task_space != TaskSpace.POSE:
         return float(np.linalg.norm(other - goal)), 0.0
     cosine = (np.trace(goal[:3, :3].T @ other[:3, :3]) - 1) / 2
     return (float(np.linalg.norm(other[:3, 3] - goal[:3, 3])),
@@ -279,9 +279,9 @@ def nearest_reachable(robot: Robot, goal: np.ndarray, q: np.ndarray, locked: Seq
     """
     pinned = list(locked)
     candidates: list[np.ndarray] = []
-    if robot.task_space == "pose":
+    if robot.task_space == TaskSpace.POSE:
         position = robots.load(robot.urdf, robot.base_link, robot.tip_link,
-                               task_space="position")
+                               task_space=TaskSpace.POSITION)
         candidates = solutions(position, goal[:3, 3], q, pinned, robot.lower, robot.upper,
                                attempts, seed)
     if not candidates:

@@ -1,7 +1,8 @@
 """Robot models: a serial chain of a URDF, its forward kinematics and task Jacobians.
 
 `load` accepts a built-in name, a URDF file path or URDF XML and returns a
-`Robot` for the chain from `base_link` to `tip_link`. All kinematics goes through
+`Robot` for the chain from `base_link` to `tip_link` (the URDF is read by
+`ft_core.urdf_model`). All kinematics goes through
 Pinocchio; the rest of the URDF (gripper fingers, other branches, joints above
 `base_link`) is locked at its neutral value with `pinocchio.buildReducedModel`.
 
@@ -20,8 +21,8 @@ Conventions (docs/robots.md):
 
 from __future__ import annotations
 
+import enum
 import math
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from importlib import resources
 from itertools import pairwise
@@ -32,9 +33,27 @@ import pinocchio as pin
 from numba import njit
 
 from ft_core.input_checks import all_finite
+from ft_core.urdf_model import MAX_URDF_BYTES, MAX_URDF_JOINTS, RobotModelError, read_chain
 
-#: Task-space name -> number of task coordinates m.
-TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
+__all__ = ["BUILTINS", "HOME", "MAX_URDF_BYTES", "MAX_URDF_JOINTS", "TASK_DIMENSIONS",
+           "Kinematics", "Robot", "RobotModelError", "TaskSpace", "builtin_urdf",
+           "configuration", "load", "task_jacobians"]
+
+
+class TaskSpace(enum.StrEnum):
+    """The task coordinates of the tool point, in `base_link` (equal to their names).
+
+    POSE: position and orientation (m = 6); POSITION: the position (m = 3); PLANAR:
+    x and y (m = 2).
+    """
+
+    POSE = "pose"
+    POSITION = "position"
+    PLANAR = "planar"
+
+
+#: Task space -> number of task coordinates m.
+TASK_DIMENSIONS = {TaskSpace.POSE: 6, TaskSpace.POSITION: 3, TaskSpace.PLANAR: 2}
 
 #: Built-in models: URDF resource in ft_core/urdf and the default task space. All but
 #: two are kinematic (no inertias). "planar3r_rods" is "planar3r" with a uniform 1 kg
@@ -45,12 +64,12 @@ TASK_DIMENSIONS = {"pose": 6, "position": 3, "planar": 2}
 #: fixed joints and `package://` mesh URIs, i.e. what a user's `robot_description`
 #: looks like; its kinematics agree with "panda"'s.
 BUILTINS = {
-    "planar3r": ("planar3r.urdf", "planar"),
-    "planar3r_rods": ("planar3r_rods.urdf", "planar"),
-    "puma560": ("puma560.urdf", "position"),
-    "panda": ("panda.urdf", "pose"),
-    "panda_inertial": ("panda_from_example_robot_data.urdf", "pose"),
-    "iiwa14": ("iiwa14.urdf", "pose"),
+    "planar3r": ("planar3r.urdf", TaskSpace.PLANAR),
+    "planar3r_rods": ("planar3r_rods.urdf", TaskSpace.PLANAR),
+    "puma560": ("puma560.urdf", TaskSpace.POSITION),
+    "panda": ("panda.urdf", TaskSpace.POSE),
+    "panda_inertial": ("panda_from_example_robot_data.urdf", TaskSpace.POSE),
+    "iiwa14": ("iiwa14.urdf", TaskSpace.POSE),
 }
 
 #: A typical working configuration of each built-in (rad), by URDF robot name, so a
@@ -62,10 +81,6 @@ HOME = {
     "panda": (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4),
     "iiwa14": (0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0),
 }
-
-_MOVABLE = {"revolute", "continuous", "prismatic"}
-_SUPPORTED = _MOVABLE | {"fixed"}
-
 
 @njit(cache=True, error_model="numpy")
 def task_jacobians(J: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -123,27 +138,9 @@ def configuration(at: np.ndarray | Kinematics) -> np.ndarray:
     return at.q if isinstance(at, Kinematics) else np.asarray(at, dtype=float)
 
 
-class RobotModelError(ValueError):
-    """A robot model could not be built; the message names the problem."""
-
-
-@dataclass(frozen=True)
-class _UrdfJoint:
-    name: str
-    kind: str
-    parent: str
-    child: str
-
-
 def builtin_urdf(name: str) -> str:
     """Return the URDF XML of a built-in model (`BUILTINS`)."""
     return resources.files("ft_core").joinpath("urdf").joinpath(BUILTINS[name][0]).read_text()
-
-
-#: Largest URDF accepted (bytes): real arms' URDFs are tens of kilobytes.
-MAX_URDF_BYTES = 10_000_000
-#: Most joints a URDF may declare (the tree walks are quadratic in them at worst).
-MAX_URDF_JOINTS = 2000
 
 
 def _resolve(spec: str) -> tuple[str, str | None]:
@@ -171,193 +168,6 @@ def _resolve(spec: str) -> tuple[str, str | None]:
     )
 
 
-def _parse_tree(xml: str) -> tuple[ET.Element, dict[str, _UrdfJoint], set[str]]:
-    """Parse URDF XML into (root element, joints by child link, link names)."""
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError as exc:
-        raise RobotModelError(f"URDF does not parse: {exc}") from exc
-    if root.tag != "robot":
-        raise RobotModelError(f"URDF root element is <{root.tag}>, expected <robot>")
-    links = {link.get("name", "") for link in root.findall("link")}
-    by_child: dict[str, _UrdfJoint] = {}
-    elements = root.findall("joint")
-    if len(elements) > MAX_URDF_JOINTS:
-        raise RobotModelError(f"URDF declares {len(elements)} joints (at most "
-                              f"{MAX_URDF_JOINTS})")
-    for element in elements:
-        parent, child = element.find("parent"), element.find("child")
-        if parent is None or child is None:
-            raise RobotModelError(f"URDF joint {element.get('name')!r} lacks <parent> or <child>")
-        joint = _UrdfJoint(element.get("name", ""), element.get("type", ""),
-                           parent.get("link", ""), child.get("link", ""))
-        if joint.child in by_child:
-            raise RobotModelError(f"URDF link {joint.child!r} has two parent joints")
-        by_child[joint.child] = joint
-    if not links:
-        raise RobotModelError("URDF has no links")
-    _check_acyclic(by_child)
-    return root, by_child, links
-
-
-def _check_acyclic(by_child: dict[str, _UrdfJoint]) -> None:
-    """Raise RobotModelError if the joints form a cycle (the tree walks would not end).
-
-    Each link has one parent at most, so a cycle is a walk up the parents that comes
-    back to a link of the same walk. Every link is walked once: linear in the joints.
-    """
-    done: set[str] = set()
-    for start in by_child:
-        walk: list[str] = []
-        seen: set[str] = set()
-        link = start
-        while link in by_child and link not in done:
-            if link in seen:
-                cycle = walk[walk.index(link):]
-                raise RobotModelError(f"URDF joints form a cycle through links "
-                                      f"{[name[:64] for name in cycle[:6]]}"
-                                      f"{' ...' if len(cycle) > 6 else ''}")
-            seen.add(link)
-            walk.append(link)
-            link = by_child[link].parent
-        done.update(walk)
-
-
-def _children(by_child: dict[str, _UrdfJoint]) -> dict[str, list[_UrdfJoint]]:
-    """Joints below each link."""
-    children: dict[str, list[_UrdfJoint]] = {}
-    for joint in by_child.values():
-        children.setdefault(joint.parent, []).append(joint)
-    return children
-
-
-def _below(link: str, children: dict[str, list[_UrdfJoint]]) -> list[_UrdfJoint]:
-    """Every joint of the subtree below `link`, without recursion (a URDF may be deep)."""
-    found, stack = [], list(children.get(link, []))
-    while stack:
-        joint = stack.pop()
-        found.append(joint)
-        stack.extend(children.get(joint.child, []))
-    return found
-
-
-def _moving_subtrees(link: str, children: dict[str, list[_UrdfJoint]]) -> list[_UrdfJoint]:
-    """The joints below `link` whose subtree holds at least one movable joint."""
-    return [j for j in children.get(link, []) if j.kind in _MOVABLE
-            or any(k.kind in _MOVABLE for k in _below(j.child, children))]
-
-
-def _leaves(link: str, children: dict[str, list[_UrdfJoint]]) -> list[str]:
-    """The links without children below `link` (candidate tool links)."""
-    leaves = [j.child for j in _below(link, children) if j.child not in children]
-    return leaves or [link]
-
-
-def _is_gripper(joint: _UrdfJoint) -> bool:
-    """A movable joint named as a gripper's or a finger's (Unitree Z1's `jointGripper`)."""
-    return joint.kind in _MOVABLE and any(word in joint.name.lower()
-                                          for word in ("gripper", "finger"))
-
-
-def _default_tip(base: str, by_child: dict[str, _UrdfJoint]) -> str:
-    """Walk down from `base` along the only subtree that moves; return where that ends.
-
-    Branches with fixed joints only (sensor frames, UR's `base` frame) are passed
-    by; past the last movable joint a lone chain of fixed joints (the tool frame) is
-    followed to its end. A lone movable joint named like a gripper's or a finger's
-    after the arm (Unitree Z1's `jointGripper`) ends the arm: it is not a joint of
-    the task (give `tip_link` to include it). A two-finger gripper makes the tree
-    branch into moving subtrees at the hand, so the default tip of a Panda with
-    fingers is `panda_hand`, the link that carries them.
-    Raises RobotModelError, naming the branch and candidate tips, when the tree
-    branches into moving subtrees before any movable joint (a mobile base, two arms).
-    """
-    children = _children(by_child)
-    tip, moved = base, False
-    while True:
-        moving = _moving_subtrees(tip, children)
-        below = children.get(tip, [])
-        if len(moving) == 1 and not (moved and _is_gripper(moving[0])):
-            step = moving[0]
-        elif not moving and len(below) == 1:  # a fixed tool frame past the last joint
-            step = below[0]
-        else:
-            break
-        moved = moved or step.kind in _MOVABLE
-        tip = step.child
-    if len(moving) > 1 and not moved:
-        candidates = sorted({leaf for j in moving for leaf in _leaves(j.child, children)})
-        raise RobotModelError(
-            f"the URDF tree branches at {tip!r} into {len(moving)} moving subtrees "
-            f"({', '.join(j.child for j in moving)}) before any movable joint: set tip_link "
-            f"(and base_link if needed) to choose the arm; candidate tip links: "
-            f"{candidates[:12]}{' ...' if len(candidates) > 12 else ''}")
-    return tip
-
-
-def _chain(base: str, tip: str, by_child: dict[str, _UrdfJoint]) -> list[_UrdfJoint]:
-    """Joints on the path from `base` down to `tip`, base first (fixed ones included)."""
-    path, link = [], tip
-    while link != base:
-        if link not in by_child:
-            raise RobotModelError(f"tip_link {tip!r} is not below base_link {base!r} in the URDF")
-        joint = by_child[link]
-        path.append(joint)
-        link = joint.parent
-    return path[::-1]
-
-
-def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Position (lower, upper) and velocity limits of the named joints, from <limit>.
-
-    Continuous joints have infinite position limits; a missing velocity limit is
-    infinite (no limit).
-    """
-    elements = {j.get("name"): j for j in root.findall("joint")}
-    lower, upper, velocity = [], [], []
-    for name in names:
-        joint = elements[name]
-        limit = joint.find("limit")
-        if joint.get("type") == "continuous":
-            lo, hi = -math.inf, math.inf
-        elif limit is None or limit.get("lower") is None or limit.get("upper") is None:
-            raise RobotModelError(f"URDF joint {name!r} has no position <limit>")
-        else:
-            lo, hi = float(limit.get("lower", "")), float(limit.get("upper", ""))
-        vel = float(limit.get("velocity", "0") or 0.0) if limit is not None else 0.0
-        if not lo <= hi:
-            raise RobotModelError(f"URDF joint {name!r} has lower limit {lo} above upper {hi}")
-        lower.append(lo)
-        upper.append(hi)
-        velocity.append(vel if vel > 0 else math.inf)
-    return np.array(lower), np.array(upper), np.array(velocity)
-
-
-def _as_revolute(root: ET.Element, names: list[str]) -> str:
-    """Rewrite the named continuous joints as revolute ones, so that q has one entry each.
-
-    Joints off the chain named like a link are renamed (see below).
-
-    Pinocchio models a continuous joint by (cos, sin); the suite works with angles.
-    The wide placeholder limits written here are never used: `_limits` reports them
-    as infinite.
-    """
-    links = {link.get("name", "") for link in root.findall("link")}
-    for joint in root.findall("joint"):
-        if joint.get("name") in links and joint.get("name") not in names:
-            # A joint named like a link (Unitree Z1) makes Pinocchio's frame lookups by
-            # name ambiguous; joints off the chain are never referred to by name.
-            joint.set("name", f"{joint.get('name')}__joint")
-        if joint.get("name") in names and joint.get("type") == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
-            limit.set("lower", "-1e9")
-            limit.set("upper", "1e9")
-    return ET.tostring(root, encoding="unicode")
-
-
 class Robot:
     """Kinematics of one serial chain for one task space.
 
@@ -367,7 +177,7 @@ class Robot:
         lower, upper: position limits (rad or m; +-inf for continuous joints).
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
         base_link, tip_link: the chain's end links; task coordinates are in base_link.
-        task_space: "pose", "position" or "planar"; m is the task dimension, n the joint count.
+        task_space: the `TaskSpace`; m is the task dimension, n the joint count.
         has_inertias: whether any link that the chain moves has a mass in the URDF (its
             gravity and dynamics are known).
         urdf: the URDF the model was built from, its chain's continuous joints rewritten
@@ -378,36 +188,20 @@ class Robot:
     """
 
     def __init__(self, xml: str, base_link: str | None = None, tip_link: str | None = None,
-                 task_space: str = "pose", characteristic_length: float | None = None):
+                 task_space: str = TaskSpace.POSE, characteristic_length: float | None = None):
         if task_space not in TASK_DIMENSIONS:
             raise RobotModelError(
                 f"task_space {task_space!r} is not one of {', '.join(TASK_DIMENSIONS)}"
             )
-        root, by_child, links = _parse_tree(xml)
-        roots = sorted(links - set(by_child))
-        if len(roots) != 1:
-            raise RobotModelError(f"URDF must have exactly one root link, found {roots}")
-        base = base_link or roots[0]
-        for role, link in (("base_link", base), ("tip_link", tip_link)):
-            if link is not None and link not in links:
-                raise RobotModelError(f"{role} {link!r} is not a link of the URDF")
-        tip = tip_link or _default_tip(base, by_child)
-        chain = _chain(base, tip, by_child)
-        for joint in chain:
-            if joint.kind not in _SUPPORTED:
-                raise RobotModelError(
-                    f"joint {joint.name!r} of type {joint.kind!r} on the chain is not supported"
-                )
-        names = [j.name for j in chain if j.kind in _MOVABLE]
-        if not names:
-            raise RobotModelError(f"the chain from {base!r} to {tip!r} has no movable joint")
-
-        self.name = root.get("name", "robot")
-        self.joint_names = tuple(names)
-        self.lower, self.upper, self.velocity_limits = _limits(root, names)
-        self.base_link, self.tip_link, self.task_space = base, tip, task_space
-        self.n, self.m = len(names), TASK_DIMENSIONS[task_space]
-        self.urdf = _as_revolute(root, names)
+        chain = read_chain(xml, base_link, tip_link)
+        self.name = chain.name
+        self.joint_names = chain.joint_names
+        self.lower, self.upper = chain.lower, chain.upper
+        self.velocity_limits = chain.velocity_limits
+        self.base_link, self.tip_link = chain.base_link, chain.tip_link
+        self.task_space = TaskSpace(task_space)
+        self.n, self.m = len(chain.joint_names), TASK_DIMENSIONS[self.task_space]
+        self.urdf = chain.urdf
         self._build_model(self.urdf)
         self.reach = self._reach()
         length = self.reach if characteristic_length is None else float(characteristic_length)
@@ -448,9 +242,8 @@ class Robot:
         self._rotate = np.zeros((6, 6))
         self._rotate[:3, :3] = self._rotate[3:, 3:] = rotation
         self._base_aligned = bool(np.array_equal(rotation, np.eye(3)))
-        self._rows = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[
-            self.task_space
-        ]
+        self._rows = {TaskSpace.POSE: slice(0, 6), TaskSpace.POSITION: slice(0, 3),
+                      TaskSpace.PLANAR: slice(0, 2)}[self.task_space]
 
     def task_error(self, target: np.ndarray, q: np.ndarray | Kinematics) -> np.ndarray:
         """Task error e (m,) from q to `target`, in the rows of `jacobian`.
@@ -467,7 +260,7 @@ class Robot:
         The difference; for pose the position's and log3(R_end R_start^T) (rad, base
         axes), which a constant angular velocity integrates to.
         """
-        if self.task_space != "pose":
+        if self.task_space != TaskSpace.POSE:
             return end - start
         return np.concatenate([end[:3, 3] - start[:3, 3],
                                pin.log3(end[:3, :3] @ start[:3, :3].T)])
@@ -566,7 +359,7 @@ class Robot:
 
     def task_coordinates(self, pose: np.ndarray) -> np.ndarray:
         """A tool transform (4x4, base frame) as `forward` gives it for this task space."""
-        if self.task_space == "pose":
+        if self.task_space == TaskSpace.POSE:
             return pose
         return pose[self._rows, 3].copy()
 
@@ -634,12 +427,13 @@ def load(spec: str, base_link: str | None = None, tip_link: str | None = None,
         spec: "planar3r", "puma560", "panda", "iiwa14", a path to a .urdf file or the XML.
         base_link: first link of the chain (default: the URDF's root link).
         tip_link: tool link (default: walk down from base_link until the tree branches).
-        task_space: "pose", "position" or "planar" (default: the built-in's own, else pose).
+        task_space: a `TaskSpace` value, "pose", "position" or "planar" (default: the
+            built-in's own, else pose).
         characteristic_length: L in m for angular rows (default: the robot's reach).
 
     Raises:
         RobotModelError: unknown spec, URDF that does not parse, missing link, no joint.
     """
     xml, default_space = _resolve(spec)
-    return Robot(xml, base_link, tip_link, task_space or default_space or "pose",
+    return Robot(xml, base_link, tip_link, task_space or default_space or TaskSpace.POSE,
                  characteristic_length)

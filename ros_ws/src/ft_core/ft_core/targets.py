@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ft_core.robots import Robot
+from ft_core.robots import Robot, TaskSpace
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ class PoseTracking:
 
 def goal_from_transform(robot: Robot, transform: np.ndarray) -> np.ndarray:
     """The task goal of a 4x4 pose (base frame): the pose, the position, or x-y."""
-    if robot.task_space == "pose":
+    if robot.task_space == TaskSpace.POSE:
         return np.asarray(transform, dtype=float)
     return np.asarray(transform, dtype=float)[: robot.m, 3].copy()
 
@@ -86,7 +86,7 @@ def pose_velocity(robot: Robot, error: np.ndarray,
 def twist_velocity(robot: Robot, twist: np.ndarray) -> np.ndarray:
     """The task rows of a base-frame twist [vx, vy, vz, wx, wy, wz]."""
     twist = np.asarray(twist, dtype=float)
-    return twist.copy() if robot.task_space == "pose" else twist[: robot.m].copy()
+    return twist.copy() if robot.task_space == TaskSpace.POSE else twist[: robot.m].copy()
 
 
 def staleness_scale(age: float, timeout: float) -> float:

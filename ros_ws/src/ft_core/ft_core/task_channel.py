@@ -87,25 +87,27 @@ class TaskChannel:
         self.suspect: int | None = None  #: the joint whose loss explains the motion, if any
         self.residuals: np.ndarray = np.zeros(robot.n)  #: |r - c_i| / |r| at the last test
 
-    def update(self, t: float, at: np.ndarray | Kinematics, qd: np.ndarray, error: float,
+    def update(self, t: float, kinematics: Kinematics, qd: np.ndarray, error: float,
                locked: tuple[int, ...] = ()) -> int | None:
         """Add a cycle (s, rad, commanded rad/s, task error norm); return the suspect.
 
-        `at`: the configuration (rad) or its snapshot (`Robot.kinematics`). Joints in
+        `kinematics`: the cycle's snapshot at the configuration (`Robot.kinematics`). Joints in
         `locked` are already known and never suspected. Out-of-order times restart the
         window.
         """
         robot = self.robot
         if self._last is not None and t <= self._last[0]:
             self.restart()
-        motion, moved, x = np.zeros((robot.m, robot.n)), np.zeros(robot.m), robot.forward(at)
+        x = robot.forward(kinematics)
+        motion, moved = np.zeros((robot.m, robot.n)), np.zeros(robot.m)
         if self._last is not None:
             motion = self._last[1] * (t - self._last[0])
             moved = robot.task_scale * robot.displacement(self._last[2], x)
             self._columns += motion
             self._measured += moved
         self._samples.append((t, float(error), motion, moved))
-        self._last = (t, robot.scale_task(robot.jacobian(at)) * np.asarray(qd, dtype=float), x)
+        commanded = robot.scale_task(robot.jacobian(kinematics)) * np.asarray(qd, dtype=float)
+        self._last = (t, commanded, x)
         while self._samples[0][0] < t - self.config.window:
             self._samples.popleft()
             # The motion that led to the new first sample leaves the window.

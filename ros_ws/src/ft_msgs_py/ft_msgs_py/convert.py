@@ -14,8 +14,8 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import pinocchio as pin
 from builtin_interfaces.msg import Time
+from ft_core.rotations import quaternion_from_rotation, rotation_from_quaternion
 from geometry_msgs.msg import Pose, Twist
 from sensor_msgs.msg import JointState
 
@@ -166,10 +166,8 @@ def pose_matrix(msg: Pose) -> np.ndarray:
     largest = np.max(np.abs(values[3:]))
     if largest < 1e-9:
         raise MessageError("pose has a zero quaternion")
-    x, y, z, w = values[3:] / largest  # scaled first: squares of 1e200 overflow
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
     matrix = np.eye(4)
-    matrix[:3, :3] = pin.Quaternion(w / norm, x / norm, y / norm, z / norm).toRotationMatrix()
+    matrix[:3, :3] = rotation_from_quaternion(values[3:])
     matrix[:3, 3] = values[:3]
     return matrix
 
@@ -178,9 +176,8 @@ def pose_message(matrix: np.ndarray) -> Pose:
     """Pose of a 4x4 transform."""
     msg = Pose()
     msg.position.x, msg.position.y, msg.position.z = (float(v) for v in matrix[:3, 3])
-    quaternion = pin.Quaternion(np.asarray(matrix[:3, :3]))
-    msg.orientation.x, msg.orientation.y = float(quaternion.x), float(quaternion.y)
-    msg.orientation.z, msg.orientation.w = float(quaternion.z), float(quaternion.w)
+    x, y, z, w = (float(v) for v in quaternion_from_rotation(matrix[:3, :3]))
+    msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = x, y, z, w
     return msg
 
 

@@ -36,7 +36,8 @@ STEP_RANGE = (1e-4, 0.5)
 
 def add_model_arguments(parser: argparse.ArgumentParser, robot: str | None = None,
                         task: str | None = None,
-                        tasks: Sequence[str] = tuple(sorted(robots.TASK_DIMENSIONS))) -> None:
+                        tasks: Sequence[str] = tuple(sorted(map(str, robots.TaskSpace))),
+                        ) -> None:
     """Add `--robot`, `--base-link`, `--tip-link` and `--task` to `parser`.
 
     Args:

@@ -144,7 +144,7 @@ def continuation_seed(robot: robots.Robot, target: np.ndarray, q_start: np.ndarr
     """
     q = np.clip(np.asarray(q_start, dtype=float), robot.lower, robot.upper)
     start = robot.forward(q)
-    if robot.task_space == "pose":
+    if robot.task_space == robots.TaskSpace.POSE:
         motion = pin.log6(pin.SE3(start).inverse() * pin.SE3(target)).vector
         length = float(np.linalg.norm(motion))
     else:
@@ -152,7 +152,7 @@ def continuation_seed(robot: robots.Robot, target: np.ndarray, q_start: np.ndarr
     steps = min(MAX_CONTINUATION_STEPS, max(1, math.ceil(length / CONTINUATION_STEP)))
     for k in range(1, steps + 1):
         fraction = k / steps
-        if robot.task_space == "pose":
+        if robot.task_space == robots.TaskSpace.POSE:
             waypoint = (pin.SE3(start) * pin.exp6(fraction * motion)).homogeneous
         else:
             waypoint = start + fraction * (target - start)
@@ -333,7 +333,7 @@ class Grid:
 def task_target(robot: robots.Robot, position: np.ndarray,
                 orientation: np.ndarray | None) -> np.ndarray:
     """The target `robot.forward` would return at `position` (with `orientation`, pose)."""
-    if robot.task_space != "pose":
+    if robot.task_space != robots.TaskSpace.POSE:
         return np.asarray(position, dtype=float).copy()
     pose = np.eye(4)
     pose[:3, :3] = orientation
@@ -537,8 +537,8 @@ def _parser() -> argparse.ArgumentParser:
 def _setup(args: argparse.Namespace) -> tuple:
     """Validate the arguments; return robot, grid, offsets, start, joints, orientation."""
     robot = cli.load_robot(args)
-    names = AXES[:2] if robot.task_space == "planar" else AXES
-    if robot.task_space == "planar" and args.z is not None:
+    names = AXES[:2] if robot.task_space == robots.TaskSpace.PLANAR else AXES
+    if robot.task_space == robots.TaskSpace.PLANAR and args.z is not None:
         raise ValueError("a planar task has no --z")
     missing = [f"--{name}" for name in names if getattr(args, name) is None]
     if missing:
@@ -563,7 +563,7 @@ def _setup(args: argparse.Namespace) -> tuple:
                              f"got {len(flat)} numbers")
         offsets = np.array(flat).reshape(-1, d)
     orientation = None
-    if robot.task_space == "pose":
+    if robot.task_space == robots.TaskSpace.POSE:
         if args.orientation is None:
             orientation = robot.transform(start)[:3, :3]
         else:

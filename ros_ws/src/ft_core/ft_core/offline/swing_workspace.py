@@ -47,7 +47,7 @@ from scipy.optimize import least_squares
 
 from ft_core import swing
 from ft_core.offline import cli
-from ft_core.robots import Robot
+from ft_core.robots import Robot, TaskSpace
 
 #: Largest number of samples or grid vertices a call evaluates (each costs one Pinocchio
 #: pass for the swing angle and one per stationary configuration).
@@ -192,7 +192,7 @@ def volume_shares(healthy: SampledWorkspace, failed: dict[int, SampledWorkspace]
 
 
 def _planar(robot: Robot) -> None:
-    if robot.task_space != "planar" or robot.n != 3:
+    if robot.task_space != TaskSpace.PLANAR or robot.n != 3:
         raise ValueError("solution counts need a planar arm of three joints (its stationary "
                          f"configurations are then isolated); {robot.name} has {robot.n} "
                          f"joints and a {robot.task_space} task")
@@ -371,7 +371,7 @@ def parser() -> argparse.ArgumentParser:
 
 def _gravity(args: argparse.Namespace, robot: Robot) -> tuple[float, ...]:
     if not args.gravity:
-        return PLANAR_GRAVITY if robot.task_space == "planar" else swing.STANDARD_GRAVITY
+        return PLANAR_GRAVITY if robot.task_space == TaskSpace.PLANAR else swing.STANDARD_GRAVITY
     values = cli.numbers(args.gravity)
     if len(values) != 3 or not 0 < math.hypot(*values) <= 1e3:
         raise ValueError(f"--gravity needs 3 numbers of norm in (0, 1000] m/s^2: {args.gravity}")
@@ -460,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['neutral']:.2f} |" for r in table]
     planar: dict | None = None
     solutions = np.zeros((0, 3))
-    if robot.task_space == "planar" and robot.n == 3:
+    if robot.task_space == TaskSpace.PLANAR and robot.n == 3:
         # The counts need one failed joint: the first asked for, else the paper's joint 2.
         joint = joints[0] if args.joints else 1
         mesh = planar_mesh(robot, joint, args.grid, gravity)
