@@ -507,19 +507,19 @@ def _parser() -> argparse.ArgumentParser:
         parser.add_argument(f"--{name}", metavar="V|START:STOP:COUNT",
                             help=f"{name} of the task points (m): a value or a range"
                             + (" (not for a planar task)" if name == "z" else ""))
-    parser.add_argument("--orientation", metavar="QX,QY,QZ,QW",
+    parser.add_argument("--orientation", metavar="QX,QY,QZ,QW", type=cli.nonempty,
                         help="pose task: the tool orientation at every point (default: "
                         "the start configuration's)")
-    parser.add_argument("--seed", metavar="Q1,...,QN",
+    parser.add_argument("--seed", metavar="Q1,...,QN", type=cli.nonempty,
                         help="start configuration (rad) the seeds are continued from "
                         "(default: the built-in's home, else a bent configuration)")
-    parser.add_argument("--joints", metavar="I,J,...",
+    parser.add_argument("--joints", metavar="I,J,...", type=cli.nonempty,
                         help="joints (1-based) spanning the volume, e.g. 1,2,3,4,5 for "
                         "the PUMA's rad^5 of Lewis & Maciejewski 1997 Table II (default: all)")
     parser.add_argument("--restarts", type=cli.bounded(int, 0, 100), default=0,
                         help="further components traced from random configurations per "
                         "point, for best_volume (default %(default)s)")
-    parser.add_argument("--suggest", metavar="DX,DY,DZ;...",
+    parser.add_argument("--suggest", metavar="DX,DY,DZ;...", type=cli.nonempty,
                         help="critical points as offsets (m) from a reference point: the grid "
                         "is then of placements of the reference, scored by the volume of "
                         "the intersection of the points' boxes")

@@ -347,9 +347,9 @@ def parser() -> argparse.ArgumentParser:
     """`ft-swing`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-swing", description=__doc__.splitlines()[0])
     cli.add_model_arguments(parser, robot="planar3r_rods")
-    parser.add_argument("--joints", default="",
+    parser.add_argument("--joints", type=cli.nonempty,
                         help="failed joints, 1-based, e.g. '2,4' (default: each in turn)")
-    parser.add_argument("--gravity", default="",
+    parser.add_argument("--gravity", type=cli.nonempty,
                         help="gravity 'gx,gy,gz' (m/s^2, URDF root frame); default -y for a "
                         "planar arm (its plane vertical), else -z")
     parser.add_argument("--samples", type=cli.bounded(int, 1, 200_000), default=20_000,
@@ -359,7 +359,7 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--voxel", type=cli.bounded(float, 0.01, 1.0), default=0.1,
                         help="edge of the cubes the volumes are counted in (m, 0.01 to 1), "
                         "default %(default)s")
-    parser.add_argument("--point", default="",
+    parser.add_argument("--point", type=cli.nonempty,
                         help="planar arm of 3 joints: list the stationary configurations "
                         "reaching 'x,y' (m)")
     parser.add_argument("--grid", type=cli.bounded(int, 10, 1000), default=200,
@@ -370,7 +370,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _gravity(args: argparse.Namespace, robot: Robot) -> tuple[float, ...]:
-    if not args.gravity:
+    if args.gravity is None:
         return PLANAR_GRAVITY if robot.task_space == "planar" else swing.STANDARD_GRAVITY
     values = cli.numbers(args.gravity)
     if len(values) != 3 or not 0 < math.hypot(*values) <= 1e3:
@@ -379,7 +379,7 @@ def _gravity(args: argparse.Namespace, robot: Robot) -> tuple[float, ...]:
 
 
 def _joints(args: argparse.Namespace, robot: Robot) -> list[int]:
-    if not args.joints:
+    if args.joints is None:
         return list(range(robot.n))
     joints = [int(v) - 1 for v in cli.numbers(args.joints)]
     if any(not 0 <= j < robot.n for j in joints) or len(set(joints)) != len(joints):
@@ -437,7 +437,7 @@ def main(argv: list[str] | None = None) -> int:
         robot = cli.load_robot(args)
         gravity = _gravity(args, robot)
         joints = _joints(args, robot)
-        point = cli.numbers(args.point) if args.point else None
+        point = None if args.point is None else cli.numbers(args.point)
         if point is not None and len(point) != 2:
             raise ValueError(f"--point needs 'x,y': {args.point}")
         if point is not None:
@@ -462,7 +462,7 @@ def main(argv: list[str] | None = None) -> int:
     solutions = np.zeros((0, 3))
     if robot.task_space == "planar" and robot.n == 3:
         # The counts need one failed joint: the first asked for, else the paper's joint 2.
-        joint = joints[0] if args.joints else 1
+        joint = 1 if args.joints is None else joints[0]
         mesh = planar_mesh(robot, joint, args.grid, gravity)
         reach = float(np.nanmax(np.abs(mesh.tools)))
         counts, centres = solution_counts(mesh, 1.05 * reach, 300)
