@@ -74,8 +74,8 @@ def load_robot(args: argparse.Namespace) -> robots.Robot:
 def trackable(robot: robots.Robot) -> robots.Robot:
     """`robot`, if it has at least as many joints as task coordinates, else RobotModelError.
 
-    Fewer cannot follow the task at all (a URDF with a single joint, pose task by
-    default, gave the tools a shape error deep inside).
+    Fewer cannot follow the task at all (a URDF with a single joint and the default pose
+    task, say); the tools' array shapes assume n >= m.
     """
     if robot.n < robot.m:
         raise robots.RobotModelError(

@@ -71,7 +71,7 @@ def _verify_chunk(args: tuple[np.ndarray, list[int]]) -> int:
 
 
 def _verify_all(J: np.ndarray, family: Any, where: batch.Where) -> int:
-    """Recompute every design's DH table (about 7 s on one core), in chunks (`batch`)."""
+    """Recompute every design's DH table, in chunks (`batch`); return how many were checked."""
     chunks = [c.tolist() for c in np.array_split(np.arange(len(family.permutations)), 40)]
     return sum(batch.results(_verify_chunk, [(J, c) for c in chunks], where, what="chunk"))
 
@@ -278,7 +278,8 @@ def _load_jacobian(path: Path | None) -> np.ndarray:
     return J
 
 
-#: Most joints a design may have (`--probabilities`): 10 000 hung the redundant design.
+#: Most joints a design may have (`--probabilities`): the redundant design applies up to
+#: n rotations as dense n x n products (`projection_with_diagonal`), O(n^4) time.
 MAX_JOINTS = 64
 
 
@@ -346,7 +347,8 @@ def _parser() -> argparse.ArgumentParser:
     multi = commands.add_parser("multicase", parents=[common, workers],
                                 help="planar 3R design for several cases (eq 3.30)")
     multi.add_argument("--step", type=cli.bounded(float, 1e-3, 0.5), default=0.02,
-                       help="link-length step (0.001 to 0.5, default 0.02; 1e-9 took 24 GB)")
+                       help="link-length step (0.001 to 0.5, default 0.02; the designs scored "
+                       "grow as 1/step^2)")
     multi.add_argument("--radii", type=cli.bounded(int, 1, 10000), default=100,
                        help="task-point distances (1 to 10000, default 100)")
     multi.add_argument("--samples", type=cli.bounded(int, 4, 100000), default=360,
