@@ -39,7 +39,7 @@ def test_an_empty_list_value_is_a_usage_error(main, argv, option, tmp_path, caps
               else "-o", str(tmp_path / "out")])
     assert stop.value.code == 2
     error = capsys.readouterr().err
-    assert f"argument {option}: no value in" in error
+    assert f"argument {option}: no number in" in error
     assert "Traceback" not in error
     assert list(tmp_path.iterdir()) == []
 

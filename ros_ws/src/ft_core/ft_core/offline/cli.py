@@ -102,11 +102,11 @@ def nonempty(text: str) -> str:
     """An argparse type: `text` unchanged if it holds a value, else a usage error.
 
     Values are the words left once ',', ';' and blanks are taken out: '', ' ' and ';'
-    hold none. The tool parses the words itself (`numbers`, `parse_points`).
+    hold none. The tool parses the words itself (`numbers`, `parse_points`); an optional
+    list option left out takes its default, given empty it is refused.
     """
     if not text.replace(",", " ").replace(";", " ").split():
-        raise argparse.ArgumentTypeError(f"no value in {text[:80]!r}: leave the option out "
-                                         "for its default")
+        raise argparse.ArgumentTypeError(f"no number in {text[:80]!r}")
     return text
 
 
