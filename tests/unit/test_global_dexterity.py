@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from ft_core import measures
-from ft_core.offline import design, design7r, dh
+from ft_core.offline import design, design7r, design_measures, dh
 from ft_core.offline import global_dexterity as gd
 
 SIGMA = math.sqrt(7 / 3)  # singular value of an isotropic 6 x 7 design Jacobian (eq 3.21)
@@ -192,8 +192,8 @@ def test_cli_writes_the_report_the_table_and_the_figure(tmp_path: Path,
                                                         monkeypatch: pytest.MonkeyPatch,
                                                         capsys: pytest.CaptureFixture) -> None:
     """All 5040 designs on 10 samples, one pose each, short reach search and traces."""
-    monkeypatch.setattr(gd, "REACH_SAMPLES", 20)
-    monkeypatch.setattr(gd, "MAX_STEPS", 40)
+    monkeypatch.setattr(design_measures, "REACH_SAMPLES", 20)
+    monkeypatch.setattr(design_measures, "MAX_STEPS", 40)
     out, png = tmp_path / "global.json", tmp_path / "global.png"
     assert design.main(["global", "--samples", "10", "--poses", "1", "--workers", "1",
                         "-o", str(out), "--figure", str(png)]) == 0

@@ -124,8 +124,8 @@ def _in_pool(function: Callable[[Any], Any], jobs: Sequence[Any], workers: int,
              ) -> Iterator[Outcome]:
     # Spawned `QuietProcess`es, not multiprocessing.Pool's daemons: a daemon cannot start
     # the processes a job may need (the controller's worker in a campaign run). One BLAS
-    # thread each (unless the user chose): a job's matrices are 7 x 7, and a worker per core
-    # with OpenBLAS's threads beside it took 6 campaign runs from 41 s to 53 s on 2 cores.
+    # thread each (unless the user chose): a job's matrices are 7 x 7, too small to gain
+    # from threads, which beside a worker per core only compete with the workers.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     with ProcessPoolExecutor(workers, mp_context=SPAWN) as pool:
         futures = {pool.submit(function, job): index for index, job in enumerate(jobs)}

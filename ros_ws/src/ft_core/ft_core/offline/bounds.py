@@ -13,9 +13,10 @@ success it writes a ROS 2 parameters file that the controller accepts
 (`soft_limits.lower`, `soft_limits.upper`, `critical_points`, with the model
 selection), for every node (`/**`).
 
-Exit status: 0 success; 1 bad input (robot model, points, seed); 2 usage; 3 a point
-is out of reach; 4 the boxes do not intersect or a point cannot be reached inside
-the intersection. Nothing is written unless the status is 0.
+Exit status: 0 success; 1 bad input (robot model, points, seed) or an output file
+that cannot be written (checked before the tracing); 2 usage (an empty list value
+too); 3 a point is out of reach; 4 the boxes do not intersect or a point cannot be
+reached inside the intersection. Nothing is written unless the status is 0.
 """
 
 from __future__ import annotations
@@ -83,9 +84,11 @@ def parser() -> argparse.ArgumentParser:
     """`ft-bounds`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-bounds", description=__doc__.splitlines()[0])
     cli.add_model_arguments(parser, task="position")
-    parser.add_argument("--points", help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: "
-                        "x,y,z,qx,qy,qz,qw); default: three points around the seed")
-    parser.add_argument("--seed", help="seed configuration 'q1,...,qn' (rad) for the tracing "
+    parser.add_argument("--points", type=cli.nonempty,
+                        help="'x,y,z;x,y,z' (planar: 'x,y;...'; pose: x,y,z,qx,qy,qz,qw); "
+                        "default: three points around the seed")
+    parser.add_argument("--seed", type=cli.nonempty,
+                        help="seed configuration 'q1,...,qn' (rad) for the tracing "
                         "(default: the built-in's home, else a bent configuration)")
     parser.add_argument("--step", **cli.tracing_step())
     parser.add_argument("--output", "-o", type=Path, default=Path("ft_bounds.yaml"),
@@ -97,6 +100,7 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args = parser().parse_args(argv)
+    cli.check_file(args.output)  # an unwritable output fails now, not after the tracing
     try:
         robot = cli.load_robot(args)
         seed = None if args.seed is None else cli.configuration(args.seed, robot, "--seed")

@@ -3,10 +3,13 @@
 Every tool that works on an arm takes the model the way the nodes do: `--robot`
 (a built-in name or a URDF path), `--base-link`, `--tip-link` and `--task`.
 
-Every number a tool takes has a documented bound, checked where it comes in (issue 31):
+Every number a tool takes has a documented bound, checked where it comes in:
 `bounded` for one number (argparse refuses it with exit status 2 and says the range),
-`numbers` for a list (finite, at most `MAX_NUMBERS`). A file that cannot be written is
-one line and exit status 1 (`clear_file_errors`), never a traceback.
+`numbers` for a list (finite, at most `MAX_NUMBERS`). An option that takes a list refuses
+an empty value as a usage error (`nonempty`, exit status 2): leaving the option out is how
+a default is asked for. A file that cannot be written is one line and exit status 1
+(`clear_file_errors`; `check_file` and `check_folder` find it before the work), never a
+traceback.
 """
 
 from __future__ import annotations
@@ -72,8 +75,8 @@ def load_robot(args: argparse.Namespace) -> robots.Robot:
 def trackable(robot: robots.Robot) -> robots.Robot:
     """`robot`, if it has at least as many joints as task coordinates, else RobotModelError.
 
-    Fewer cannot follow the task at all (a URDF with a single joint, pose task by
-    default, gave the tools a shape error deep inside).
+    Fewer cannot follow the task at all (a URDF with a single joint and the default pose
+    task, say); the tools' array shapes assume n >= m.
     """
     if robot.n < robot.m:
         raise robots.RobotModelError(
@@ -94,6 +97,18 @@ def numbers(text: str) -> list[float]:
     if not all(math.isfinite(v) for v in values):
         raise ValueError(f"non-finite number in {text[:80]!r}")
     return values
+
+
+def nonempty(text: str) -> str:
+    """An argparse type: `text` unchanged if it holds a value, else a usage error.
+
+    Values are the words left once ',', ';' and blanks are taken out: '', ' ' and ';'
+    hold none. The tool parses the words itself (`numbers`, `parse_points`); an optional
+    list option left out takes its default, given empty it is refused.
+    """
+    if not text.replace(",", " ").replace(";", " ").split():
+        raise argparse.ArgumentTypeError(f"no number in {text[:80]!r}")
+    return text
 
 
 def bounded(kind: type[int] | type[float], low: float, high: float,
@@ -147,6 +162,25 @@ def check_folder(path: Path) -> None:
         if not os.access(existing, os.W_OK):
             raise PermissionError(f"{existing} cannot be written")
         return
+
+
+def check_file(path: Path) -> None:
+    """Raise OSError now if `path` cannot be written as a file, before the tool's work.
+
+    Its folder must exist, the path must not name a folder, and the file must open for
+    writing: the probe opens it for appending (an existing file keeps its content, a new
+    one is removed again), without waiting for a reader if it is a FIFO.
+    """
+    if path.is_dir():
+        raise IsADirectoryError(f"{path} is a folder, not a file")
+    if not path.parent.exists():
+        raise FileNotFoundError(f"{path.parent}: no such folder")
+    if not path.parent.is_dir():
+        raise NotADirectoryError(f"{path.parent} is a file, not a folder")
+    existed = path.exists()
+    os.close(os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK, 0o666))
+    if not existed:
+        path.unlink()
 
 
 def clear_file_errors(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:

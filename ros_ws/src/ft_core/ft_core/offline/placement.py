@@ -51,6 +51,9 @@ point at offset 0 and the score is its volume; the best grid point is printed.
 Writes PREFIX.npz (every array, by grid point), PREFIX.csv (a row per grid point)
 and PREFIX.png (a line plot for a 1-D grid, a heat map for 2-D, slices for 3-D).
 
+One point's evaluation is `ft_core.offline.placement_points`, the grid and the outputs
+`ft_core.offline.placement_map`; their public names are importable from here too.
+
 Exit status: 0 success; 1 bad input (model, grid, seed, joints, offsets); 2 usage;
 3 no grid point is reachable; 4 (`--suggest`) no placement keeps every point
 reachable inside a non-empty intersection. The files are written for 0, 3 and 4.
@@ -59,431 +62,43 @@ reachable inside a non-empty intersection. The files are written for 0, 3 and 4.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import math
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from ft_core import limits, measures, robots, selfmotion
+from ft_core import limits, selfmotion
 from ft_core.offline import batch, cli, fault_tolerant_workspace
+from ft_core.offline.placement_map import (
+    AXES,
+    MAX_PANELS,
+    MAX_TASKS,
+    Grid,
+    collect,
+    parse_axis,
+    plot,
+    scores,
+    task_target,
+    write_csv,
+)
+from ft_core.offline.placement_points import (
+    CONTINUATION_STEP,
+    KFM_SAMPLES,
+    MAX_CONTINUATION_STEPS,
+    PointResult,
+    continuation_seed,
+    evaluate_point,
+    evaluate_targets,
+    kfm_of,
+)
 
-#: Longest straight move (m) of the tool per continuation step when seeding.
-CONTINUATION_STEP = 0.05
-#: Most continuation steps (the move is cut into more, shorter steps only up to this).
-MAX_CONTINUATION_STEPS = 200
-#: Most manifold samples at which kfm is evaluated for `kfm_max`.
-KFM_SAMPLES = 100
-#: Most grid points x critical points in one run.
-MAX_TASKS = 200_000
-#: Most heat-map panels (slices) of a 3-D grid.
-MAX_PANELS = 12
-#: Axis names of the task positions.
-AXES = ("x", "y", "z")
+__all__ = ["AXES", "CONTINUATION_STEP", "KFM_SAMPLES", "MAX_CONTINUATION_STEPS", "MAX_PANELS",
+           "MAX_TASKS", "Grid", "PointResult", "collect", "continuation_seed", "evaluate_point",
+           "evaluate_targets", "kfm_of", "main", "parse_axis", "plot", "scores", "task_target",
+           "write_csv"]
 
-
-@dataclass
-class PointResult:
-    """Fault tolerance of one task point (NaN where unreachable).
-
-    Attributes:
-        reachable: a seed configuration was found.
-        continued: the seed came from continuation (else from `find_seed`).
-        volume: normalised volume of the traced component's box over the chosen joints.
-        volume_rad: the same box's volume in rad^k (k chosen joints; m for prismatic).
-        best_volume: largest normalised volume over the traced components (restarts).
-        components: components traced (1 + distinct restarts; 0 if unreachable).
-        kfm: kfm (Lewis & Maciejewski 1997 eq 5) at the seed, m/rad (scaled task rows).
-        kfm_max: largest kfm over at most `KFM_SAMPLES` samples of the component.
-        seed: the seed configuration (n,), rad.
-        q_kfm: the sample where kfm_max was found (n,), rad.
-        lower, upper: the component's box (n,), rad (+-inf for a joint without
-            limits that turns fully).
-    """
-
-    reachable: bool
-    continued: bool
-    volume: float
-    volume_rad: float
-    best_volume: float
-    components: int
-    kfm: float
-    kfm_max: float
-    seed: np.ndarray
-    q_kfm: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-
-    @classmethod
-    def unreachable(cls, n: int) -> PointResult:
-        """The result of a point no configuration reaches."""
-        nan = np.full(n, np.nan)
-        return cls(False, False, 0.0, 0.0, 0.0, 0, math.nan, math.nan, nan, nan.copy(),
-                   nan.copy(), nan.copy())
-
-
-def kfm_of(robot: robots.Robot, q: np.ndarray) -> float:
-    """kfm(q) = min_i sigma_m(iJ) of the task-scaled J (Lewis & Maciejewski 1997 eq 5), m/rad."""
-    return measures.kfm(robot.scale_task(robot.jacobian(q)))
-
-
-def continuation_seed(robot: robots.Robot, target: np.ndarray, q_start: np.ndarray,
-                      ) -> np.ndarray | None:
-    """A configuration reaching `target` that keeps the posture of q_start, or None.
-
-    The tool point moves from `robot.forward(q_start)` to `target` in a straight
-    line (a geodesic for a pose: exp6 of a fraction of log6 of the relative motion),
-    in equal steps of at most `CONTINUATION_STEP` m (or rad for the rotation, at
-    most `MAX_CONTINUATION_STEPS`), each corrected by `selfmotion.project` inside
-    the physical limits. None when a step does not converge.
-    """
-    q = np.clip(np.asarray(q_start, dtype=float), robot.lower, robot.upper)
-    start = robot.forward(q)
-    if robot.task_space == robots.TaskSpace.POSE:
-        motion = pin.log6(pin.SE3(start).inverse() * pin.SE3(target)).vector
-        length = float(np.linalg.norm(motion))
-    else:
-        length = float(np.linalg.norm(target - start))
-    steps = min(MAX_CONTINUATION_STEPS, max(1, math.ceil(length / CONTINUATION_STEP)))
-    for k in range(1, steps + 1):
-        fraction = k / steps
-        if robot.task_space == robots.TaskSpace.POSE:
-            waypoint = (pin.SE3(start) * pin.exp6(fraction * motion)).homogeneous
-        else:
-            waypoint = start + fraction * (target - start)
-        q = selfmotion.project(robot, waypoint, q)
-        if q is None:
-            return None
-    return q
-
-
-def evaluate_point(robot: robots.Robot, target: np.ndarray, q_start: np.ndarray,
-                   joints: Sequence[int] | None = None, step: float = selfmotion.STEP,
-                   restarts: int = 0, index: int = 0) -> PointResult:
-    """Fault tolerance of one task point: seed, traced component, box volume and kfm.
-
-    Args:
-        robot: the arm.
-        target: the task point (as `robot.forward` returns it).
-        q_start: start configuration (rad) for the continuation seed (module notes).
-        joints: joints (0-based) of the volume; default all.
-        step: tracing step (rad).
-        restarts: further components to trace from seeded random configurations.
-        index: the grid index, seeding the restarts' random generator (determinism).
-
-    Returns:
-        The point's `PointResult`.
-    """
-    seed = continuation_seed(robot, target, q_start)
-    continued = seed is not None
-    if seed is None:
-        try:
-            seed = selfmotion.find_seed(robot, target, q_start)
-        except selfmotion.UnreachableError:
-            return PointResult.unreachable(robot.n)
-    manifold = selfmotion.trace(robot, target, seed, step=step)
-    lower, upper = manifold.box
-    volume = selfmotion.box_volume(robot, lower, upper, joints)
-    finite_lower = np.where(np.isfinite(lower), lower, -math.pi)  # unlimited: one turn
-    finite_upper = np.where(np.isfinite(upper), upper, math.pi)
-    volume_rad = selfmotion.box_volume(robot, finite_lower, finite_upper, joints,
-                                       normalized=False)
-    samples = manifold.samples
-    picked = samples[np.unique(np.linspace(0, len(samples) - 1, KFM_SAMPLES).astype(int))]
-    values = np.array([kfm_of(robot, q) for q in picked])
-    best = int(np.argmax(values))
-    best_volume, components, traced = volume, 1, samples
-    rng = np.random.default_rng(index)
-    for _ in range(restarts):
-        start = robot.random_configuration(rng)
-        try:
-            other = selfmotion.find_seed(robot, target, start, attempts=0)
-        except selfmotion.UnreachableError:
-            continue
-        if selfmotion.near(robot, traced, other, 4 * step):
-            continue  # on a component already traced
-        component = selfmotion.trace(robot, target, other, step=step)
-        best_volume = max(best_volume, selfmotion.box_volume(robot, *component.box, joints))
-        traced = np.vstack([traced, component.samples])
-        components += 1
-    return PointResult(True, continued, volume, volume_rad, best_volume, components,
-                       kfm_of(robot, seed), float(values[best]), seed, picked[best],
-                       lower, upper)
-
-
-# --- worker processes ----------------------------------------------------------------
-
-_WORKER: dict = {}
-
-
-def _run_chunk(job: tuple[tuple, dict, list[tuple[int, np.ndarray]]],
-               ) -> list[tuple[int, PointResult]]:
-    """Evaluate (index, target) pairs of `job` = (model, settings, pairs).
-
-    The robot is built once per process and model (robots do not pickle).
-    """
-    model, settings, chunk = job
-    if _WORKER.get("model") != model:
-        _WORKER.update(model=model,
-                       robot=robots.load(model[0], model[1], model[2], task_space=model[3]))
-    robot = _WORKER["robot"]
-    return [(index, evaluate_point(robot, target, settings["q_start"], settings["joints"],
-                                   settings["step"], settings["restarts"], index))
-            for index, target in chunk]
-
-
-def evaluate_targets(model: tuple[str, str | None, str | None, str | None],
-                     targets: Sequence[np.ndarray], q_start: np.ndarray,
-                     joints: Sequence[int] | None = None, step: float = selfmotion.STEP,
-                     restarts: int = 0, where: batch.Where = batch.HERE,
-                     ) -> list[PointResult]:
-    """`evaluate_point` for every target, where `where` says (`batch`).
-
-    Args:
-        model: (spec, base_link, tip_link, task_space) for `robots.load` in each worker.
-        targets: the task points.
-        q_start: start configuration (rad), as `evaluate_point`.
-        joints: joints of the volume, as `evaluate_point`.
-        step: tracing step (rad).
-        restarts: further components per point, as `evaluate_point`.
-        where: worker processes or a cluster; one worker evaluates here without a pool.
-
-    Returns:
-        The results in the order of `targets`.
-    """
-    settings = {"q_start": np.asarray(q_start, dtype=float),
-                "joints": None if joints is None else list(joints), "step": step,
-                "restarts": restarts}
-    pairs = list(enumerate(targets))
-    # Small chunks keep the load balanced (points near the boundary are quick, points
-    # with large manifolds are slow) and the bar moving.
-    size = max(1, min(16, len(pairs) // (8 * max(where.workers, 1))))
-    jobs = [(model, settings, pairs[k:k + size]) for k in range(0, len(pairs), size)]
-    results: list[PointResult | None] = [None] * len(pairs)
-    for done in batch.results(_run_chunk, jobs, where, what="chunk"):
-        for index, result in done:
-            results[index] = result
-    return results  # type: ignore[return-value]
-
-
-# --- grid ----------------------------------------------------------------------------
-
-def parse_axis(name: str, text: str) -> np.ndarray:
-    """A grid axis from 'value' or 'start:stop:count' (inclusive, like numpy.linspace).
-
-    Raises:
-        ValueError: not a number, count not an integer in 1..`MAX_TASKS`, or a value
-            beyond `limits.ABSURD_DISTANCE` (or non-finite).
-    """
-    parts = text.split(":")
-    try:
-        if len(parts) == 1:
-            values = np.array([float(parts[0])])
-        elif len(parts) == 3:
-            count, start, stop = int(parts[2]), float(parts[0]), float(parts[1])
-            if not (1 <= count <= MAX_TASKS and abs(start) <= limits.ABSURD_DISTANCE
-                    and abs(stop) <= limits.ABSURD_DISTANCE):
-                raise ValueError
-            values = np.linspace(start, stop, count)
-        else:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--{name} must be a value or start:stop:count (count an integer, "
-                         f"1 to {MAX_TASKS}; within +-{limits.ABSURD_DISTANCE:g} m), "
-                         f"got {text[:80]!r}") from None
-    if not np.all(np.abs(values) <= limits.ABSURD_DISTANCE):  # also refuses nan
-        raise ValueError(f"--{name} must be within +-{limits.ABSURD_DISTANCE:g} m, "
-                         f"got {text[:80]!r}")
-    return values
-
-
-@dataclass(frozen=True)
-class Grid:
-    """A grid of task positions: the Cartesian product of its axes.
-
-    Attributes:
-        names: axis names ("x", "y" (, "z")), the task position's coordinates.
-        axes: the values of each axis (m); fixed coordinates have one value.
-    """
-
-    names: tuple[str, ...]
-    axes: tuple[np.ndarray, ...]
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Number of values on each axis."""
-        return tuple(len(a) for a in self.axes)
-
-    @property
-    def ranged(self) -> list[int]:
-        """Indices of the axes with more than one value (the map's dimensions)."""
-        return [k for k, a in enumerate(self.axes) if len(a) > 1]
-
-    def points(self) -> np.ndarray:
-        """Every grid point (N, d), the last axis varying fastest (C order)."""
-        mesh = np.meshgrid(*self.axes, indexing="ij")
-        return np.stack([m.ravel() for m in mesh], axis=1)
-
-
-def task_target(robot: robots.Robot, position: np.ndarray,
-                orientation: np.ndarray | None) -> np.ndarray:
-    """The target `robot.forward` would return at `position` (with `orientation`, pose)."""
-    if robot.task_space != robots.TaskSpace.POSE:
-        return np.asarray(position, dtype=float).copy()
-    pose = np.eye(4)
-    pose[:3, :3] = orientation
-    pose[:3, 3] = position
-    return pose
-
-
-# --- output --------------------------------------------------------------------------
-
-_SCALARS = ("reachable", "continued", "volume", "volume_rad", "best_volume", "components",
-            "kfm", "kfm_max")
-_VECTORS = ("seed", "q_kfm", "lower", "upper")
-
-
-def collect(results: Sequence[PointResult], placements: int, points: int) -> dict:
-    """Arrays (placements, points[, n]) of every `PointResult` field."""
-    names = [f.name for f in fields(PointResult)]
-    return {name: np.array([getattr(r, name) for r in results]).reshape(
-        (placements, points, *np.shape(getattr(results[0], name)))) for name in names}
-
-
-def scores(robot: robots.Robot, data: dict, joints: Sequence[int] | None) -> np.ndarray:
-    """Per placement: normalised volume of the intersection of its points' boxes.
-
-    0 when a point is unreachable or the intersection is empty (Lewis & Maciejewski 1997 sec. III,
-    steps 3-4). With a single point, its own volume.
-    """
-    placements = data["volume"].shape[0]
-    score = np.zeros(placements)
-    for k in range(placements):
-        if not data["reachable"][k].all():
-            continue
-        box = selfmotion.intersect(zip(data["lower"][k], data["upper"][k], strict=True))
-        if not selfmotion.empty_joints(box):
-            score[k] = selfmotion.box_volume(robot, *box, joints)
-    return score
-
-
-def write_csv(path: Path, grid: Grid, data: dict, score: np.ndarray) -> None:
-    """One row per grid point: coordinates, score, then each point's scalars."""
-    points = data["volume"].shape[1]
-    suffix = (lambda j: "") if points == 1 else (lambda j: f"_{j + 1}")
-    header = [*grid.names, "score"] + [f"{name}{suffix(j)}" for j in range(points)
-                                       for name in _SCALARS]
-    with path.open("w", newline="") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(header)
-        for k, position in enumerate(grid.points()):
-            row = [f"{v:.6g}" for v in position] + [f"{score[k]:.6g}"]
-            for j in range(points):
-                for name in _SCALARS:
-                    value = data[name][k, j]
-                    row.append(str(int(value)) if data[name].dtype.kind in "bi"
-                               else f"{value:.6g}")
-            writer.writerow(row)
-
-
-def plot(path: Path, grid: Grid, score: np.ndarray, kfm: np.ndarray, title: str,
-         label: str, marks: np.ndarray | None = None, best: np.ndarray | None = None,
-         ) -> None:
-    """A line plot (1-D grid), a heat map (2-D) or heat-map slices (3-D) of `score`.
-
-    Args:
-        path: the PNG to write.
-        grid: the grid.
-        score: per grid point (N,): the normalised volume or the placement score.
-        kfm: per grid point (N,): the largest kfm on the component (m/rad), plotted
-            beside the score in 1-D and 2-D.
-        title: figure title.
-        label: name of the score.
-        marks: task positions (k, d) to mark (the suggested placement's points).
-        best: per grid point (N,): the largest volume over traced components
-            (`--restarts`), drawn dotted on a line plot.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    ranged = grid.ranged
-    shape = grid.shape
-    score_grid = score.reshape(shape)
-    kfm_grid = kfm.reshape(shape)
-    fixed = ", ".join(f"{grid.names[k]} = {grid.axes[k][0]:g} m"
-                      for k in range(len(shape)) if k not in ranged)
-    if len(ranged) <= 1:
-        axis = ranged[0] if ranged else 0
-        values = grid.axes[axis]
-        figure, left = plt.subplots(figsize=(7, 4))
-        left.plot(values, score_grid.ravel(), "o-", color="tab:blue", markersize=3,
-                  label="component through the seed")
-        if best is not None:
-            left.plot(values, best, ":", color="tab:blue",
-                      label="largest over the traced components")
-            left.legend(loc="upper left", fontsize=8)
-        left.set_xlabel(f"{grid.names[axis]} (m)" + (f"   [{fixed}]" if fixed else ""))
-        left.set_ylabel(label, color="tab:blue")
-        right = left.twinx()
-        right.plot(values, kfm_grid.ravel(), "s--", color="tab:orange", markersize=2)
-        right.set_ylabel("largest kfm on the component (m/rad)", color="tab:orange")
-        if marks is not None:
-            for mark in marks:
-                left.axvline(mark[axis], color="k", linestyle=":")
-        left.grid(True, alpha=0.3)
-    elif len(ranged) == 2:
-        a, b = ranged
-        figure, panels = plt.subplots(1, 2, figsize=(11, 4.5))
-        for panel, values, name in ((panels[0], score_grid, label),
-                                    (panels[1], kfm_grid,
-                                     "largest kfm on the component (m/rad)")):
-            image = np.squeeze(values).T  # rows: axis b, columns: axis a
-            mesh = panel.pcolormesh(grid.axes[a], grid.axes[b],
-                                    np.ma.masked_invalid(image), shading="nearest",
-                                    cmap="viridis")
-            panel.set_facecolor("0.85")  # unreachable (nan) points show grey
-            figure.colorbar(mesh, ax=panel, label=name)
-            panel.set_xlabel(f"{grid.names[a]} (m)")
-            panel.set_ylabel(f"{grid.names[b]} (m)")
-            panel.set_aspect("equal")
-            if marks is not None:
-                panel.plot(marks[:, a], marks[:, b], "r*", markersize=12)
-        if fixed:
-            panels[0].set_title(fixed, fontsize=9)
-    else:
-        a, b, c = ranged
-        slices = np.unique(np.linspace(0, shape[c] - 1, min(shape[c], MAX_PANELS)).astype(int))
-        columns = min(4, len(slices))
-        rows = math.ceil(len(slices) / columns)
-        figure, panels = plt.subplots(rows, columns, figsize=(3.4 * columns, 3.2 * rows),
-                                      squeeze=False)
-        top = float(np.nanmax(score)) if np.any(np.isfinite(score)) else 1.0
-        for panel in panels.ravel()[len(slices):]:
-            panel.axis("off")
-        for panel, s in zip(panels.ravel(), slices, strict=False):
-            image = np.take(score_grid, s, axis=c).T
-            mesh = panel.pcolormesh(grid.axes[a], grid.axes[b], np.ma.masked_invalid(image),
-                                    shading="nearest", cmap="viridis", vmin=0.0,
-                                    vmax=top or 1.0)
-            panel.set_facecolor("0.85")
-            panel.set_title(f"{grid.names[c]} = {grid.axes[c][s]:.3g} m", fontsize=9)
-            panel.set_aspect("equal")
-            if marks is not None:
-                panel.plot(marks[:, a], marks[:, b], "r*", markersize=8)
-        figure.colorbar(mesh, ax=panels.ravel().tolist(), label=label)
-    figure.suptitle(title, fontsize=10)
-    figure.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(figure)
-
-
-# --- command line --------------------------------------------------------------------
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -507,19 +122,19 @@ def _parser() -> argparse.ArgumentParser:
         parser.add_argument(f"--{name}", metavar="V|START:STOP:COUNT",
                             help=f"{name} of the task points (m): a value or a range"
                             + (" (not for a planar task)" if name == "z" else ""))
-    parser.add_argument("--orientation", metavar="QX,QY,QZ,QW",
+    parser.add_argument("--orientation", metavar="QX,QY,QZ,QW", type=cli.nonempty,
                         help="pose task: the tool orientation at every point (default: "
                         "the start configuration's)")
-    parser.add_argument("--seed", metavar="Q1,...,QN",
+    parser.add_argument("--seed", metavar="Q1,...,QN", type=cli.nonempty,
                         help="start configuration (rad) the seeds are continued from "
                         "(default: the built-in's home, else a bent configuration)")
-    parser.add_argument("--joints", metavar="I,J,...",
+    parser.add_argument("--joints", metavar="I,J,...", type=cli.nonempty,
                         help="joints (1-based) spanning the volume, e.g. 1,2,3,4,5 for "
                         "the PUMA's rad^5 of Lewis & Maciejewski 1997 Table II (default: all)")
     parser.add_argument("--restarts", type=cli.bounded(int, 0, 100), default=0,
                         help="further components traced from random configurations per "
                         "point, for best_volume (default %(default)s)")
-    parser.add_argument("--suggest", metavar="DX,DY,DZ;...",
+    parser.add_argument("--suggest", metavar="DX,DY,DZ;...", type=cli.nonempty,
                         help="critical points as offsets (m) from a reference point: the grid "
                         "is then of placements of the reference, scored by the volume of "
                         "the intersection of the points' boxes")
@@ -537,8 +152,8 @@ def _parser() -> argparse.ArgumentParser:
 def _setup(args: argparse.Namespace) -> tuple:
     """Validate the arguments; return robot, grid, offsets, start, joints, orientation."""
     robot = cli.load_robot(args)
-    names = AXES[:2] if robot.task_space == robots.TaskSpace.PLANAR else AXES
-    if robot.task_space == robots.TaskSpace.PLANAR and args.z is not None:
+    names = AXES[:2] if robot.task_space == "planar" else AXES
+    if robot.task_space == "planar" and args.z is not None:
         raise ValueError("a planar task has no --z")
     missing = [f"--{name}" for name in names if getattr(args, name) is None]
     if missing:
@@ -563,7 +178,7 @@ def _setup(args: argparse.Namespace) -> tuple:
                              f"got {len(flat)} numbers")
         offsets = np.array(flat).reshape(-1, d)
     orientation = None
-    if robot.task_space == robots.TaskSpace.POSE:
+    if robot.task_space == "pose":
         if args.orientation is None:
             orientation = robot.transform(start)[:3, :3]
         else:

@@ -243,10 +243,11 @@ def parser() -> argparse.ArgumentParser:
     """`ft-plan`'s command line (every number bounded: `cli.bounded`)."""
     parser = argparse.ArgumentParser(prog="ft-plan", description=__doc__.splitlines()[0])
     cli.add_model_arguments(parser, robot="planar3r")
-    parser.add_argument("--points", required=True,
+    parser.add_argument("--points", required=True, type=cli.nonempty,
                         help="task points in visiting order: 'x,y;x,y' (planar), 'x,y,z;...'")
-    parser.add_argument("--start", required=True, help="start configuration 'q1,...,qn' (rad)")
-    parser.add_argument("--rates", required=True,
+    parser.add_argument("--start", required=True, type=cli.nonempty,
+                        help="start configuration 'q1,...,qn' (rad)")
+    parser.add_argument("--rates", required=True, type=cli.nonempty,
                         help="failure rate per joint (1/s): one value for all, or n values")
     parser.add_argument("--speed", type=cli.bounded(float, 1e-3, 100.0), default=0.5,
                         help="joint speed v (rad/s, 0.001 to 100), default %(default)s")
