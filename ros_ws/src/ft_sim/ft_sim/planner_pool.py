@@ -20,8 +20,8 @@ def planner() -> ProcessPoolExecutor:
     """The worker process of the controllers of this process's scenarios, one after another.
 
     Started once and kept: a campaign worker runs many scenarios, and starting a worker
-    and importing the planner's modules in it cost more CPU (about 1.2 s) than some
-    runs' whole control loop. Its jobs (boxes, plans) are pure functions of their
+    and importing the planner's modules in it costs more CPU than a short run's whole
+    control loop (docs/campaign.md). Its jobs (boxes, plans) are pure functions of their
     arguments, seeded, so sharing it changes no result. Checked before each scenario (a
     job a run left behind ends first); one that died, or that cannot run (in a daemonic
     process the controller then says it cannot plan, as with a pool of its own), is

@@ -10,10 +10,10 @@ The nodes are wired as `ft-stack` wires them (`ft_sim.stack.compose`: the comman
 the joint states pass between controller and monitor by calls), the monitor hands its
 command to the sim by a call too (`MonitorNode.hand_commands_to`), the record reads
 the controller's command and metrics from the node, and no node serves parameters
-(nothing here asks). Each message and service less is one entity less in the wait set
-the executor rebuilds at every wave of a step, and one callback less: half of a run's
-CPU went there (docs/campaign.md). The topics are still published while anyone
-subscribes (`--record`, `ft-demo --live`).
+(nothing here asks): the wait set the executor rebuilds at every wave of a step holds
+only the entities a run needs, and a step runs only their callbacks (docs/campaign.md
+has what a run costs). The topics are still published while anyone subscribes
+(`--record`, `ft-demo --live`).
 
 A driver visits the task points in turn with `ft/target_pose` (the next one once the
 tool is within `goal_tolerance`, or after `goal_timeout`) and locks `lock_joint`

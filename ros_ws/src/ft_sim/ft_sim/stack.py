@@ -17,10 +17,11 @@ middleware: the controller hands each command to the monitor's command filter as
 array (`ft/command_raw` is still published while anyone else subscribes to it, for
 observers and recorders), and the monitor passes each `joint_states` message it
 takes to the controller with its reading of it, so the message is parsed once; the
-controller no longer subscribes itself. The control cycle runs as each joint state is
-taken (after the monitor observed it, `ControllerNode.cycle_on_joint_states`), as
-ros2_control reads the hardware and then updates its controllers: the command follows
-the freshest state, and the executor wakes once per cycle. A cycle then pays for
+controller does not subscribe to `joint_states` itself. The control cycle runs as each
+joint state is taken (after the monitor observed it,
+`ControllerNode.cycle_on_joint_states`), as ros2_control reads the hardware and then
+updates its controllers: the command follows the freshest state, and the executor wakes
+once per cycle. A cycle then pays for
 the messages exchanged with the plant and little else; the Python interpreter,
 Pinocchio and numba's code are loaded once (`make bench` measures both layouts:
 docs/benchmarks.md).
