@@ -9,7 +9,10 @@ here (docker/README.md): the files are checked, not built.
 from __future__ import annotations
 
 import ast
+import importlib.util
 import sys
+import tempfile
+import types
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -135,6 +138,84 @@ def test_launch_files_take_the_arguments_a_ros_user_expects() -> None:
     shipped = yaml.safe_load((SOURCES / "ft_controller" / "config" / "controller.yaml")
                              .read_text())
     assert list(shipped) == ["/**"]  # applies under any namespace
+
+
+class _Action:
+    """A stubbed launch action: it keeps what it was made with."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+class _Declare(_Action):
+    pass
+
+
+class _Configuration:
+    def __init__(self, name: str):
+        self.name = name
+
+    def perform(self, context: dict[str, str]) -> str:
+        return context[self.name]
+
+
+def demo_launch(monkeypatch: pytest.MonkeyPatch) -> types.ModuleType:
+    """demo.launch.py with `launch` and `launch_ros` stubbed (not on PyPI)."""
+    stubs = {"launch": {"LaunchDescription": list},
+             "launch.actions": {"DeclareLaunchArgument": _Declare, "OpaqueFunction": _Action},
+             "launch.substitutions": {"LaunchConfiguration": _Configuration},
+             "launch_ros": {}, "launch_ros.actions": {"Node": _Action}}
+    for name, attributes in stubs.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(attributes)
+        monkeypatch.setitem(sys.modules, name, module)
+    path = SOURCES / "ft_sim" / "launch" / "demo.launch.py"
+    spec = importlib.util.spec_from_file_location("demo_launch", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_demo_launch_makes_its_session_folder_only_when_it_runs_without_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Describing the launch (`--show-args`, or a launch with `state_directory:=`) makes none.
+
+    Without `state_directory`, running it (its OpaqueFunction) makes one new folder, the
+    monitor's; with it, the monitor gets that one and nothing is made.
+    """
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    demo = demo_launch(monkeypatch)
+    described = demo.generate_launch_description()
+    assert list(tmp_path.iterdir()) == []
+    defaults = {a.args[0]: a.kwargs["default_value"] for a in described
+                if isinstance(a, _Declare)}
+    assert defaults["state_directory"] == ""
+    kept = str(tmp_path / "kept")
+    *_, monitor = demo.nodes({**defaults, "state_directory": kept})
+    assert list(tmp_path.iterdir()) == []
+    assert monitor.kwargs["parameters"][0]["state_directory"] == kept
+    *_, monitor = demo.nodes(defaults)
+    [made] = tmp_path.iterdir()
+    assert made.name.startswith("ft_sim_session_") and made.is_dir()
+    assert monitor.kwargs["parameters"][0]["state_directory"] == str(made)
+
+
+def test_the_demo_launch_starts_from_the_controllers_shipped_parameters(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The controller gets controller.yaml's critical points, all three nodes its task space."""
+    shipped = yaml.safe_load((SOURCES / "ft_controller" / "config" / "controller.yaml")
+                             .read_text())["/**"]["ros__parameters"]
+    demo = demo_launch(monkeypatch)
+    defaults = {a.args[0]: a.kwargs["default_value"] for a in demo.generate_launch_description()
+                if isinstance(a, _Declare)}
+    sim, controller, monitor = demo.nodes({**defaults, "state_directory": str(tmp_path)})
+    values = controller.kwargs["parameters"][0]
+    assert values["critical_points"] == shipped["critical_points"]
+    assert len(values["critical_points"]) == 9  # three points of a position task
+    assert values["resolution"] == shipped["resolution"]
+    assert values["robot_model"] == defaults["robot"]
+    assert {node.kwargs["parameters"][0]["task_space"] for node in (sim, controller, monitor)} \
+        == {shipped["task_space"]}
 
 
 def test_the_rviz_view_ships_with_the_launch_file_and_shows_both_nodes_markers() -> None:

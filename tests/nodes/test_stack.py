@@ -7,6 +7,8 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+import rclpy
+import yaml
 from ft_controller.controller_node import ControllerNode
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos
@@ -14,10 +16,12 @@ from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim import stack
 from ft_sim.sim_node import SimNode
 from geometry_msgs.msg import TwistStamped
+from paths import REPO
 from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rosutil import ros_context
+from rclpy.utilities import remove_ros_args
+from rosutil import fresh_domain, ros_context
 from sensor_msgs.msg import JointState
 
 START = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]
@@ -195,3 +199,28 @@ def test_with_simulated_time_the_clock_still_drives_the_cycles() -> None:
         assert controller.cycles.timer.timer_period_ns == period
         controller.destroy_node()
         monitor.destroy_node()
+
+
+def test_the_stack_starts_on_the_task_of_the_shipped_parameters(tmp_path) -> None:
+    """`ros2 run ft_sim stack` takes controller.yaml's task space, as the launch files do.
+
+    A parameters file or `-p` on the command line overrides it; the stack's own options
+    stay its own.
+    """
+    shipped = REPO / "ros_ws" / "src" / "ft_controller" / "config" / "controller.yaml"
+    task_space = yaml.safe_load(shipped.read_text())["/**"]["ros__parameters"]["task_space"]
+    assert task_space == "position"
+    own = tmp_path / "arm.yaml"
+    own.write_text("/**:\n  ros__parameters:\n    task_space: planar\n")
+    for given, expected in (([], task_space), (["--ros-args", "-p", "task_space:=pose"], "pose"),
+                            (["--ros-args", "--params-file", str(own)], "planar")):
+        argv = stack.shipped_defaults(["ft-stack", "--sim", *given])
+        assert remove_ros_args(args=argv) == ["ft-stack", "--sim"]
+        context = Context()
+        rclpy.init(args=argv, context=context, domain_id=fresh_domain())
+        try:
+            node = SimNode(context=context)
+            assert node.get_parameter("task_space").value == expected, given
+            node.destroy_node()
+        finally:
+            rclpy.shutdown(context=context)

@@ -10,10 +10,10 @@ The nodes are wired as `ft-stack` wires them (`ft_sim.stack.compose`: the comman
 the joint states pass between controller and monitor by calls), the monitor hands its
 command to the sim by a call too (`MonitorNode.hand_commands_to`), the record reads
 the controller's command and metrics from the node, and no node serves parameters
-(nothing here asks). Each message and service less is one entity less in the wait set
-the executor rebuilds at every wave of a step, and one callback less: half of a run's
-CPU went there (docs/campaign.md). The topics are still published while anyone
-subscribes (`--record`, `ft-demo --live`).
+(nothing here asks): the wait set the executor rebuilds at every wave of a step holds
+only the entities a run needs, and a step runs only their callbacks (docs/campaign.md
+has what a run costs). The topics are still published while anyone subscribes
+(`--record`, `ft-demo --live`).
 
 A driver visits the task points in turn with `ft/target_pose` (the next one once the
 tool is within `goal_tolerance`, or after `goal_timeout`) and locks `lock_joint`
@@ -28,19 +28,15 @@ reached?), and the run ends. Every step is recorded for the report.
 from __future__ import annotations
 
 import math
-import multiprocessing.util
-import os
 import tempfile
-import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import rclpy
 from ft_controller.controller_node import ControllerNode
-from ft_core import recovery, robots, selfmotion, workers
+from ft_core import recovery, robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, spin
 from geometry_msgs.msg import PoseStamped
@@ -49,23 +45,21 @@ from sensor_msgs.msg import JointState
 
 from ft_sim.bag import Recorder
 from ft_sim.live import LiveServer
+from ft_sim.planner_pool import PLANNER_CHECK, planner, stop_planner
+from ft_sim.scenario_config import (
+    ANGLE_PER_METRE,
+    PHYSICS_ROBOT,
+    TASK_POINTS,
+    Record,
+    ScenarioConfig,
+)
 from ft_sim.sim_node import SimNode
 from ft_sim.stack import compose
 
-#: Critical points of the built-in 7-DOF arms for a position task (m, base frame): a
-#: pick place, a place place and a tool rest, all reachable inside their intersected
-#: bounding boxes from the arm's home configuration.
-TASK_POINTS = {
-    "panda": ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55)),
-    "iiwa14": ((0.55, 0.1, 0.5), (0.5, -0.15, 0.45), (0.45, 0.05, 0.65)),
-}
+__all__ = ["ANGLE_PER_METRE", "PHYSICS_ROBOT", "PLANNER_CHECK", "PLAN_WAIT", "REACH_ATTEMPTS",
+           "REACH_SAMPLES", "TASK_POINTS", "WAIT_PERIOD", "Record", "Scenario",
+           "ScenarioConfig", "planner", "run", "stop_planner"]
 
-
-#: The default model of a run on the physics plant: the built-in with inertias.
-PHYSICS_ROBOT = "panda_inertial"
-
-#: A pose goal is reached within this many rad of orientation per m of position tolerance.
-ANGLE_PER_METRE = 10.0
 #: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
 WAIT_PERIOD = 0.01
 #: Longest wall-clock wait (s) of the simulated clock for a recovery plan or a write.
@@ -75,118 +69,6 @@ REACH_ATTEMPTS = 30
 #: Random configurations searched for the nearest replacement of an unreachable point.
 REACH_SAMPLES = 2000
 
-
-@dataclass
-class ScenarioConfig:
-    """What to run.
-
-    Attributes:
-        robot: model (built-in name or URDF path); base_link, tip_link ("": the
-            defaults) choose the chain; task_space its task.
-        resolution: the controller's mode.
-        points: task points visited in turn (m: x, y, z; a pose task adds the
-            orientation qx, qy, qz, qw; default the robot's position `TASK_POINTS`, or
-            `selfmotion.points_around` its `selfmotion.bent_configuration`); all
-            critical unless `critical` says otherwise. The arm starts at
-            `selfmotion.bent_configuration` (a built-in's home).
-        critical: indices of the critical points (default: all).
-        soft_limits: give the controller the critical points (bounding-box soft limits).
-        soft_box: their box (rad, lower and upper, chain order) when it is known already:
-            the controller then takes it as its `soft_limits.lower`/`upper` instead of
-            tracing the points' self-motion manifolds at the start (a campaign traces
-            them once per design: `campaign.design_of`).
-        lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s
-            after the task starts).
-        duration: longest run (simulated s after the task starts); rate: sim, controller
-            and joint-state rate (Hz).
-        noise: position noise (rad); seed: noise seed.
-        goal_tolerance: m (a pose goal also within `ANGLE_PER_METRE` x as many rad);
-            goal_timeout: s per visit.
-        plant: the sim's plant, "kinematic" or "physics" (MuJoCo; needs a model with
-            inertias, such as "panda_inertial").
-        command_latency, response_time (s), hold_last_command: the sim's plant options.
-        start: the initial configuration (rad, chain order; default the bent one).
-        recovery: the controller's recovery after a lock (`recovery.enabled`).
-        tour_timeout: s per visit of the tour after the lock: room for the controller's
-            recovery (a stall, a plan and a joint path of a few seconds) before the point
-            counts as missed.
-        reachable_tour: at the lock, replace each tour point the locked arm cannot reach
-            (no inverse kinematics with the joint pinned at its locked value) by a
-            reachable one near it (`Scenario.keep_reachable`; `Record.replaced` says
-            which). The demo does: where a pose task leaves no redundancy after the lock, a
-            point is generally out of reach. A campaign does not: it counts such points.
-        smooth_commands: the controller's and the monitor's command smoothing.
-        refuse_over_limits: the sim's driver refuses commands over the arm's limits and
-            stops the arm, as a real one does (`Record.reflex`).
-    """
-
-    robot: str = "panda"
-    base_link: str = ""
-    tip_link: str = ""
-    task_space: str = "position"
-    resolution: str = "blend"
-    points: tuple[tuple[float, ...], ...] = ()
-    critical: tuple[int, ...] | None = None
-    soft_limits: bool = True
-    soft_box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-    lock_joint: str = "panda_joint2"
-    lock_time: float = 5.0
-    duration: float = 60.0
-    rate: float = 250.0
-    noise: float = 1e-3
-    seed: int = 0
-    goal_tolerance: float = 2e-3
-    goal_timeout: float = 4.0
-    command_latency: float = 0.0
-    response_time: float = 0.0
-    plant: str = "kinematic"
-    hold_last_command: bool = False
-    start: tuple[float, ...] = ()
-    recovery: bool = True
-    tour_timeout: float = 12.0
-    reachable_tour: bool = False
-    smooth_commands: bool = True
-    refuse_over_limits: bool = True
-
-
-@dataclass
-class Record:
-    """What happened, step by step (arrays over steps) and at the failure."""
-
-    joint_names: list[str]
-    t: list[float] = field(default_factory=list)
-    q: list[np.ndarray] = field(default_factory=list)
-    qd_actual: list[np.ndarray] = field(default_factory=list)
-    qd_command: list[np.ndarray] = field(default_factory=list)
-    kfm: list[float] = field(default_factory=list)
-    tool_velocity_error: list[float] = field(default_factory=list)
-    goal: list[int] = field(default_factory=list)
-    #: Visits before the lock: (time the visit ended, point index, reached).
-    visits: list[tuple[float, int, bool]] = field(default_factory=list)
-    started_at: float = 0.0  #: simulated time the task started (s)
-    soft_limits: str = "none"  #: the controller's soft limits when the task started
-    tour: dict[int, bool] = field(default_factory=dict)  #: critical point -> reached after lock
-    injected_at: float | None = None
-    detected_at: float | None = None
-    detected: list[str] = field(default_factory=list)
-    false_locks: list[str] = field(default_factory=list)  #: declared before the injection
-    #: Why the sim's driver stopped the arm (None: it took every command).
-    reflex: str | None = None
-    #: Largest |commanded velocity, acceleration, jerk| / limit per joint (3 lists), by
-    #: the commands' stamps (the sim's driver), the joints the plant held locked left out.
-    peaks: list[list[float]] = field(default_factory=list)
-    non_finite: int = 0
-    #: The controller's recovery notes as they changed (`Controller.recovery_note`):
-    #: (simulated time s, note).
-    recovery: list[tuple[float, str]] = field(default_factory=list)
-    #: Tour points out of the locked arm's reach, replaced (`ScenarioConfig.reachable_tour`):
-    #: index -> how far the replacement is (`recovery.mismatch`: m, rad).
-    replaced: dict[int, tuple[float, float]] = field(default_factory=dict)
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The step series as arrays."""
-        return {k: np.array(getattr(self, k)) for k in
-                ("t", "q", "qd_actual", "qd_command", "kfm", "tool_velocity_error", "goal")}
 
 
 class Scenario:
@@ -530,45 +412,6 @@ class Scenario:
         rclpy.shutdown(context=self.context)
         self._state.cleanup()
 
-
-#: The worker process the scenarios of this process share (`planner`), and its lock.
-_PLANNER: list[ProcessPoolExecutor] = []
-_PLANNER_LOCK = threading.Lock()
-#: Longest wait (s) for the shared worker to answer before a scenario starts.
-PLANNER_CHECK = 60.0
-
-
-def planner() -> ProcessPoolExecutor:
-    """The worker process of the controllers of this process's scenarios, one after another.
-
-    Started once and kept: a campaign worker runs many scenarios, and starting a worker
-    and importing the planner's modules in it cost more CPU (about 1.2 s) than some
-    runs' whole control loop. Its jobs (boxes, plans) are pure functions of their
-    arguments, seeded, so sharing it changes no result. Checked before each scenario (a
-    job a run left behind ends first); one that died, or that cannot run (in a daemonic
-    process the controller then says it cannot plan, as with a pool of its own), is
-    replaced. It ends with the process (`stop_planner`): a process of a pool (a campaign
-    worker) would otherwise wait at its exit for a child that waits for work.
-    """
-    with _PLANNER_LOCK:
-        if _PLANNER:
-            try:
-                _PLANNER[0].submit(os.getpid).result(timeout=PLANNER_CHECK)
-                return _PLANNER[0]
-            except (RuntimeError, OSError, AssertionError, TimeoutError):  # broken, no child
-                workers.stop(_PLANNER.pop())
-        _PLANNER.append(workers.pool())
-        # At the exit of a process of a pool, before multiprocessing closes the pool's
-        # queues (their finalizers have priority 10) and joins the children.
-        multiprocessing.util.Finalize(None, stop_planner, exitpriority=100)
-        return _PLANNER[0]
-
-
-def stop_planner() -> None:
-    """End the shared worker process (`planner`), if any, and wait for it."""
-    with _PLANNER_LOCK:
-        while _PLANNER:
-            _PLANNER.pop().shutdown(wait=True, cancel_futures=True)
 
 
 def run(config: ScenarioConfig, domain_id: int | None = None, bag: Path | None = None,

@@ -16,20 +16,27 @@ command watchdog (`tests/processes/test_deployment.py` runs this graph as separa
 Arguments (`--show-args`): `robot` (a built-in name or a URDF path), `namespace` (the
 three nodes and their topics under it: two arms side by side), `use_sim_time` (the sim
 publishes /clock and the controller and monitor follow it; false: the wall clock),
-`params_file` (a YAML parameters file applied to all three after the defaults below: key
-it `/**:` so that it applies under any namespace), `plant` (`kinematic`, or `physics`:
+`params_file` (a YAML parameters file applied to all three after the defaults: key it
+`/**:` so that it applies under any namespace), `plant` (`kinematic`, or `physics`:
 MuJoCo, for a robot with inertias such as `panda_inertial`), `state_directory` and `rviz`
 (also start RViz 2 with the shipped view, `config/ft_arms.rviz`, fixed on the model's base
 link: the nodes' `~/markers`, docs/sim.md "Live view"; needs the `rviz2` package, which
 the suite does not depend on).
 
-A sim session starts with no locked joint: the monitor keeps its locked set in a new
-temporary directory each launch, never in the real arm's (`state_directory:=<dir>` to
-keep it across launches).
+The controller starts from the controller's shipped parameters file, ft_controller's
+config/controller.yaml (`ft_sim.shipped`: its resolution and critical points, as
+`ros2 launch ft_controller controller.launch.py` gives them), and all three nodes from its
+task space; `robot` replaces its model.
+
+A sim session starts with no locked joint: unless `state_directory:=<dir>` is given (to
+keep the locked set across launches), the monitor keeps it in a new temporary directory,
+made when the launch runs (not when its arguments are only shown), never in the real
+arm's.
 """
 
 import tempfile
 
+from ft_sim import shipped
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
@@ -43,7 +50,7 @@ ARGUMENTS = {
     "params_file": ("", "YAML parameters for all three nodes, after the defaults (key it /**:)"),
     "plant": ("kinematic", "the sim's plant: kinematic, or physics (MuJoCo; a robot with "
               "inertias)"),
-    "state_directory": (None, "the monitor's state directory (default: a new one)"),
+    "state_directory": ("", "the monitor's state directory (empty: a new one each launch)"),
     "rviz": ("false", "also start rviz2 with the shipped view of the nodes' markers"),
 }
 
@@ -52,7 +59,9 @@ def nodes(context) -> list[Node]:
     """The three nodes (and RViz with `rviz:=true`), from the arguments' values."""
     value = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
     sim_time = value["use_sim_time"].lower() == "true"
-    model = {"robot_model": value["robot"], "task_space": "position"}
+    defaults = shipped.parameters()
+    model = {"robot_model": value["robot"], "task_space": defaults["task_space"]}
+    state = value["state_directory"] or tempfile.mkdtemp(prefix="ft_sim_session_")
     files = [value["params_file"]] if value["params_file"] else []
     common = {"namespace": value["namespace"], "output": "screen"}
     viewer = [rviz(value["robot"], sim_time, common)] if value["rviz"].lower() == "true" else []
@@ -65,12 +74,11 @@ def nodes(context) -> list[Node]:
                           "command_timeout": 0.1, "refuse_over_limits": True}, *files]),
         Node(package="ft_controller", executable="controller_node", name="controller",
              **common,
-             parameters=[{**model, "use_sim_time": sim_time, "resolution": "blend",
-                          "critical_points": [0.5, 0.1, 0.4, 0.45, -0.15, 0.35]}, *files]),
+             parameters=[{**defaults, **model, "use_sim_time": sim_time}, *files]),
         Node(package="ft_monitor", executable="monitor_node", name="monitor", **common,
              respawn=True, respawn_delay=1.0,
              parameters=[{**model, "use_sim_time": sim_time,
-                          "state_directory": value["state_directory"]}, *files]),
+                          "state_directory": state}, *files]),
     ]
 
 
@@ -89,10 +97,8 @@ def rviz(robot: str, sim_time: bool, common: dict) -> Node:
 
 def generate_launch_description():
     """Sim, controller and monitor, with the arguments of `ARGUMENTS`."""
-    defaults = {"state_directory": tempfile.mkdtemp(prefix="ft_sim_session_")}
     return LaunchDescription([
-        *[DeclareLaunchArgument(name, default_value=defaults.get(name, default),
-                                description=description)
+        *[DeclareLaunchArgument(name, default_value=default, description=description)
           for name, (default, description) in ARGUMENTS.items()],
         OpaqueFunction(function=nodes),
     ])
