@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from ft_core import selfmotion
-from ft_core.controller import Controller
+from ft_core.controller import Controller, PoseTarget
 from ft_core.engine import CycleResult, Status
 from ft_core.robots import Robot
 from ft_msgs_py import diagnostics, markers, metrics, wire
@@ -136,7 +136,7 @@ def core_values(loaded: Loaded | None, now: float) -> dict[str, object]:
 def view(loaded: Loaded, q: np.ndarray, critical_points: list[float], header) -> list:
     """The live view's markers (`ft_msgs_py.markers`): goal, critical points, locks."""
     robot, target = loaded.robot, loaded.core.target
-    goal = [robot.target_position(target.value)] if target and target.kind == "pose" else []
+    goal = [robot.target_position(target.value)] if isinstance(target, PoseTarget) else []
     critical = [robot.target_position(point)
                 for point in selfmotion.targets_from_flat(robot, critical_points)]
     locked = robot.skeleton(q)[list(loaded.core.locked)]

@@ -8,7 +8,6 @@ The online path (what the nodes call every cycle, and what they need to start):
     measures: post-failure singular values, kfm, weighted and relative measures.
     pseudoinverse: damped pseudo-inverse acting only near singularities.
     postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
-    velocity_jump: minimum joint-velocity jump (Zhao & Li).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
     swing: free-swinging joints: swing angles, their measure, the way gravity turns a joint.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
@@ -25,10 +24,15 @@ The online path (what the nodes call every cycle, and what they need to start):
     command_limits: an arm's velocity, acceleration and jerk limits; a driver's test.
     smoothing: every command within those limits (Ruckig's velocity interface).
     files: reading small input files safely (regular, bounded in size and nesting).
+    errors: `SuiteError`, the root of the errors the suite raises for inputs it refuses.
     locked_set: the persisted locked set (atomic write, keyed by robot, node and domain).
     monitor: the monitor's logic: filter commands, decide on locks, keep the set.
     plant: a velocity-commanded arm as drivers execute commands (the kinematic sim).
     physics: the arm's dynamics in MuJoCo under joint servos (the physics sim).
+
+The reference implementation of Zhao & Li's closed form, not on the online path (the
+engine's minimum-jump term is its own, `engine`; the tests check it against this):
+    velocity_jump: minimum joint-velocity jump and the jump index (Zhao & Li eqs. 5-6).
 
 The offline tools of the papers (design, placement, planning, parallel manipulators)
 are in the subpackage `ft_core.offline`.

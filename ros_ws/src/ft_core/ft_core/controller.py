@@ -1,9 +1,9 @@
 """The controller's per-cycle logic without ROS: a core with a step function.
 
 The pattern of MoveIt Servo (a `Servo` core whose node only wires topics and
-parameters): `Controller.step(q, now)` turns the latest joint positions, the latest
-target and the locked set into one command, and owns everything a cycle needs
-besides the engine's arithmetic (`ft_core.engine`):
+parameters): `Controller.step(q, state_age, now)` turns the latest joint positions and
+their age, the latest target and the locked set into one command, and owns everything a
+cycle needs besides the engine's arithmetic (`ft_core.engine`):
 
 - the target: a twist (feed-forward, decaying once stale, `targets.staleness_scale`)
   or a pose goal (tracked proportionally, `targets.pose_velocity`);
@@ -37,9 +37,9 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from functools import partial
+from typing import ClassVar
 
 import numpy as np
 
@@ -49,7 +49,7 @@ from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
-from ft_core.robots import Kinematics, Robot, RobotModelError
+from ft_core.robots import Kinematics, Robot
 from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
 from ft_core.targets import PoseTracking, norm, pose_velocity, staleness_scale
@@ -90,12 +90,25 @@ class ControllerConfig:
 
 
 @dataclass(frozen=True)
-class Target:
-    """The latest target: a twist (task velocity, m/s and rad/s) or a pose goal."""
+class TwistTarget:
+    """A task velocity (m/s and rad/s, `targets.twist_velocity`), decaying from its stamp."""
 
-    kind: str  #: "twist" or "pose"
-    value: np.ndarray  #: task velocity, or goal (`targets.goal_from_transform`)
-    stamp: float  #: s, the twist's stamp or the time the goal arrived
+    value: np.ndarray
+    stamp: float  #: s, the twist's stamp
+    kind: ClassVar[str] = "twist"  #: as diagnostics name it
+
+
+@dataclass(frozen=True)
+class PoseTarget:
+    """A pose goal (`targets.goal_from_transform`), tracked until another target comes."""
+
+    value: np.ndarray
+    stamp: float  #: s, when the goal arrived
+    kind: ClassVar[str] = "pose"  #: as diagnostics name it
+
+
+#: The latest target the cycle follows.
+Target = TwistTarget | PoseTarget
 
 
 @dataclass
@@ -169,7 +182,7 @@ class Controller:
         # Their box, and their traced configurations (recovery seeds), once computed.
         self._critical: selfmotion.SoftLimits | None = None
         self._boxes_dirty = False
-        self._boxes_job: tuple[int, Future] | None = None
+        self._boxes_job: tuple[int, workers.Job] | None = None
         self._boxes_generation = 0
         self._background = background
         self._owns_background = background is None  # a pool given is its giver's to stop
@@ -224,7 +237,7 @@ class Controller:
     def set_twist(self, velocity: np.ndarray, stamp: float) -> None:
         """A task velocity (`targets.twist_velocity`) stamped `stamp` (s)."""
         self.start_phase.cancel("a twist arrived")
-        self.target = Target("twist", velocity, stamp)
+        self.target = TwistTarget(velocity, stamp)
 
     def set_pose_goal(self, goal: np.ndarray, now: float) -> None:
         """A pose goal (`targets.goal_from_transform`), received at `now` (s).
@@ -234,9 +247,9 @@ class Controller:
         """
         self.start_phase.cancel("a pose goal arrived")
         held = self.target
-        if held is None or held.kind != "pose" or not np.array_equal(held.value, goal):
+        if not isinstance(held, PoseTarget) or not np.array_equal(held.value, goal):
             self.channel.restart()
-        self.target = Target("pose", goal, now)
+        self.target = PoseTarget(goal, now)
         if self.recovery is not None:
             self.recovery.reset(now)
 
@@ -371,7 +384,7 @@ class Controller:
         target, robot = self.target, self.robot
         if target is None:
             return np.zeros(robot.m), True, None
-        if target.kind == "pose":
+        if isinstance(target, PoseTarget):
             error = robot.task_error(target.value, kinematics)
             xd, reached = pose_velocity(robot, error, self.config.tracking)
             return xd, reached, error
@@ -494,29 +507,28 @@ class Controller:
         self.soft_limits_note = (f"computing soft limits from {len(flat)} values of critical "
                                  "points (the previous limits meanwhile)")
         try:
-            self._boxes_job = (self._boxes_generation, self._submit(
-                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()))
+            self._boxes_job = (self._boxes_generation, workers.Job(self._submit(
+                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()), 0.0))
         except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
             self.soft_limits_note = "none (critical points failed)"
             self._report("critical points", f"cannot start the process that traces the boxes "
                          f"({error}); running without their soft limits")
 
-    def _take_boxes(self, generation: int, job: Future) -> None:
+    def _take_boxes(self, generation: int, job: workers.Job) -> None:
         """Switch to soft limits computed in the background, if they are ready."""
-        if not job.done():
+        state, result = job.poll(0.0)  # no timeout: the boxes take what they take
+        if state == workers.JobState.PENDING:
             return
         self._boxes_job = None
         if generation != self._boxes_generation:
             return  # the points changed meanwhile: a newer computation follows
-        try:
-            result: selfmotion.SoftLimits = job.result()
-        except (selfmotion.UnreachableError, RobotModelError, ValueError, BrokenProcessPool,
-                ) as error:
+        if state == workers.JobState.FAILED:
             self.soft_limits_note = "none (critical points failed)"
-            self._report("critical points", f"{error}; running without their soft limits")
+            self._report("critical points", f"{result}; running without their soft limits")
             self._critical = None
             self._rebuild_engine()
             return
+        assert isinstance(result, selfmotion.SoftLimits)
         box, count = result.box, len(result.targets)
         self.soft_limits_note = f"{count} critical points"
         self._report("critical points", None)

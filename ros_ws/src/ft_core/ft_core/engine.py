@@ -448,7 +448,7 @@ class ResolutionEngine:
         factor in [0, 1] that keeps qd + motion inside the velocity bounds of the active
         soft and hard limits (`limits.preference_scale`). None when N_jj is below
         `observability.MIN_SHARE`: the joint cannot move without moving the tool.
-        (`observability`; issue 16.)
+        (`ft_core.observability`.)
         """
         view = self._locked_set(locked)
         index = view.healthy

@@ -1,7 +1,7 @@
 """Reading small input files safely: only regular files, bounded in size and nesting.
 
 A FIFO or a device in a file's place would hang the reader, a huge file exhaust it, and
-JSON nested tens of thousands deep overflows the parser's recursion (issue 31).
+JSON nested tens of thousands deep overflows the parser's recursion.
 """
 
 from __future__ import annotations

@@ -49,9 +49,9 @@ def absurd_joint(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
 def absurd_command(qd: np.ndarray, names: Sequence[str]) -> str | None:
     """Why a joint velocity command (finite, rad/s) is physically absurd, or None.
 
-    Reading taken for issue 31: a command beyond `ABSURD_SPEED` is a fault of its
-    sender (1e308 was forwarded at the velocity limit), so it is refused like a
-    non-finite one; a command merely above a joint's velocity limit is scaled into it.
+    A command beyond `ABSURD_SPEED` is a fault of its sender, not a speed to scale into
+    the velocity limit, so it is refused like a non-finite one; a command merely above a
+    joint's velocity limit is scaled into it.
     """
     speeds = [abs(v) for v in qd.tolist()]  # every cycle: Python floats, no numpy call
     if max(speeds, default=0.0) <= ABSURD_SPEED:

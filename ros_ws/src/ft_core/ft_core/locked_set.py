@@ -28,12 +28,13 @@ import threading
 from pathlib import Path
 
 from ft_core import files
+from ft_core.errors import SuiteError
 
 #: Largest file read back (bytes): a locked set of a few joints is far smaller.
 MAX_BYTES = 65536
 
 
-class LockedSetError(ValueError):
+class LockedSetError(SuiteError):
     """The stored file cannot be used (unreadable, malformed or for another robot)."""
 
 

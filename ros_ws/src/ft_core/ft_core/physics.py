@@ -42,6 +42,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
+from ft_core.errors import SuiteError
 from ft_core.plant import BasePlant, PlantConfig
 from ft_core.robots import Robot
 
@@ -64,7 +65,7 @@ TRACKING_LIMIT = 0.1
 BRAKE_SOLREF = (2 * TIMESTEP, 1.0)
 
 
-class PhysicsError(ValueError):
+class PhysicsError(SuiteError):
     """The model cannot be simulated (no inertias, or MuJoCo refuses it)."""
 
 

@@ -57,13 +57,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from ft_core import measures, robots, selfmotion
+from ft_core import measures, robots, selfmotion, workers
 from ft_core.robots import Robot, TaskSpace
 
 #: Share of the best error whose drop counts as progress, when less than `progress`.
@@ -417,7 +416,7 @@ class Recovery:
         self.config = config
         self._submit = submit
         self._watch = StallWatch(config)
-        self._job: tuple[float, Future] | None = None
+        self._job: workers.Job | None = None
         self._path: tuple[Plan, float] | None = None
         self._plans = 0
         self.note = "idle"
@@ -425,7 +424,7 @@ class Recovery:
     @property
     def planning(self) -> bool:
         """Whether a plan is being computed (its result not back yet)."""
-        return self._job is not None and not self._job[1].done()
+        return self._job is not None and self._job.running
 
     @property
     def following(self) -> bool:
@@ -452,7 +451,7 @@ class Recovery:
         cycle (rad/s).
         """
         if self._job is not None:
-            self._take(*self._job, now, locked)
+            self._take(self._job, now, locked)
         if self._path is not None:
             plan, start = self._path
             end = path_end(plan, now - start, q)
@@ -467,7 +466,8 @@ class Recovery:
         if self._job is None and self._plans < self.config.plans_per_goal and (
                 self._watch.update(now, error, reached, against)):
             try:
-                self._job = (now, self._submit(goal, q.copy(), locked, *bounds))
+                self._job = workers.Job(self._submit(goal, q.copy(), locked, *bounds), now,
+                                        self.config.timeout)
             except (AssertionError, RuntimeError, OSError) as problem:  # no worker process
                 self._plans = self.config.plans_per_goal
                 self.note = f"stalled, cannot plan ({problem})"
@@ -478,22 +478,20 @@ class Recovery:
                          f"planning a way round with joints {list(locked)} pinned")
         return None
 
-    def _take(self, submitted: float, job: Future, now: float, locked: tuple[int, ...],
-              ) -> None:
+    def _take(self, job: workers.Job, now: float, locked: tuple[int, ...]) -> None:
         """Start following a finished plan; give up on a failed or late one."""
-        if not job.done():
-            if now - submitted > self.config.timeout:
-                self._job = None
-                self._watch.reset(now)
-                self.note = f"planning took over {self.config.timeout:.1f} s: given up"
+        state, result = job.poll(now)
+        if state == workers.JobState.PENDING:
             return
         self._job = None
-        try:
-            result = job.result()
-        except (ValueError, BrokenProcessPool) as problem:
-            result, reason = None, str(problem)
-        else:
-            reason = f"no IK solution with joints {list(locked)} pinned"
+        if state == workers.JobState.LATE:
+            self._watch.reset(now)
+            self.note = f"planning took over {self.config.timeout:.1f} s: given up"
+            return
+        reason = (str(result) if state == workers.JobState.FAILED
+                  else f"no IK solution with joints {list(locked)} pinned")
+        if state == workers.JobState.FAILED:
+            result = None
         if result is None:
             self._plans = self.config.plans_per_goal  # the goal is out of reach: stop trying
             self.note = f"goal not reachable: {reason}"

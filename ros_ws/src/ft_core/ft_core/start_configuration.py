@@ -30,13 +30,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-from ft_core import measures, recovery, robots, selfmotion
+from ft_core import measures, recovery, robots, selfmotion, workers
 from ft_core.robots import Robot
 
 #: Most halvings of one step before the descent stops (no decrease found).
@@ -180,7 +179,7 @@ class StartPhase:
 
     def __init__(self, submit: Submit, gain: float, timeout: float):
         self._submit, self._gain, self._timeout = submit, gain, timeout
-        self._job: tuple[float, Future] | None = None
+        self._job: workers.Job | None = None
         self._path: tuple[recovery.Plan, float] | None = None
         self.note = "idle"
 
@@ -192,7 +191,7 @@ class StartPhase:
     @property
     def planning(self) -> bool:
         """Whether a plan is being computed (its result not back yet)."""
-        return self._job is not None and not self._job[1].done()
+        return self._job is not None and self._job.running
 
     def request(self, q: np.ndarray, now: float) -> None:
         """Plan from q (rad) in the background.
@@ -204,7 +203,7 @@ class StartPhase:
         if self.active:
             raise RuntimeError(f"already under way: {self.note}")
         try:
-            self._job = (now, self._submit(q.copy()))
+            self._job = workers.Job(self._submit(q.copy()), now, self._timeout)
         except (AssertionError, OSError) as problem:
             raise RuntimeError(f"cannot plan ({problem})") from problem
         self.note = "planning the start configuration"
@@ -219,7 +218,7 @@ class StartPhase:
              velocity_bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray | None:
         """The command (rad/s) while the path is followed; None otherwise."""
         if self._job is not None:
-            self._take(*self._job, now)
+            self._take(self._job, now)
         if self._path is None:
             return None
         plan, start = self._path
@@ -231,18 +230,18 @@ class StartPhase:
                      "start path not completed in time: stopped")
         return None
 
-    def _take(self, submitted: float, job: Future, now: float) -> None:
-        if not job.done():
-            if now - submitted > self._timeout:
-                self._job = None
-                self.note = f"planning took over {self._timeout:.1f} s: given up"
+    def _take(self, job: workers.Job, now: float) -> None:
+        state, result = job.poll(now)
+        if state == workers.JobState.PENDING:
             return
         self._job = None
-        try:
-            found, plan = job.result()
-        except (ValueError, BrokenProcessPool) as problem:
-            self.note = f"no start configuration: {problem}"
+        if state == workers.JobState.LATE:
+            self.note = f"planning took over {self._timeout:.1f} s: given up"
             return
+        if state == workers.JobState.FAILED:
+            self.note = f"no start configuration: {result}"
+            return
+        found, plan = result
         if not found.cost < found.start_cost:
             self.note = f"already at the best start configuration (cost {found.cost:.3g})"
             return

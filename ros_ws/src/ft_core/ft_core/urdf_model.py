@@ -16,11 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ft_core.errors import SuiteError
+
 _MOVABLE = {"revolute", "continuous", "prismatic"}
 _SUPPORTED = _MOVABLE | {"fixed"}
 
 
-class RobotModelError(ValueError):
+class RobotModelError(SuiteError):
     """A robot model could not be built; the message names the problem."""
 
 

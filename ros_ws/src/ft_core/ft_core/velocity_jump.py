@@ -14,7 +14,10 @@ joint k the optimum is kqd' itself: joint k stays still (eq 8).
 
 Every function works on the Jacobian of the robot as it is (pass the healthy
 columns when joints are already locked). Without `damping` the pseudo-inverses
-are exact Moore-Penrose inverses; the engine passes its damping rule.
+are exact Moore-Penrose inverses. This is the closed form as the paper writes it, for
+scripts and notebooks and as the reference the engine's compiled minimum-jump term
+(`ft_core.engine`, `ft_core.postfailure`) is tested against; the control cycle does not
+call it.
 """
 
 from __future__ import annotations

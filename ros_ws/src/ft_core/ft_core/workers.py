@@ -13,19 +13,25 @@ worker of `SPAWN` (every pool of the suite's) then ends at once and quietly, exi
 130 (a node's worker, `pool`, ignores it: the node stops it), and its parent says what was
 interrupted, instead of each worker printing a
 KeyboardInterrupt traceback (also one still importing its modules when Ctrl-C came).
+A `Job` is a computation submitted to such a pool that the control cycle polls (never
+waits on), with one set of failures (`JOB_FAILURES`).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import threading
 import time
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from dataclasses import dataclass
+from enum import Enum
 from multiprocessing.context import SpawnContext, SpawnProcess
-from typing import cast
+from typing import Any, cast
 
 #: How often (s) a worker checks that its parent still runs.
 PERIOD = 0.5
@@ -140,3 +146,50 @@ def lowered() -> Iterator[None]:
         yield
     finally:
         os.sched_setscheduler(0, policy, parameters)
+
+
+#: How a background job fails: its inputs refused (ValueError, `SuiteError` included) or
+#: its worker process gone.
+JOB_FAILURES = (ValueError, BrokenProcessPool)
+
+
+class JobState(Enum):
+    """Where a background job stands when polled (`Job.poll`)."""
+
+    PENDING = "pending"  #: still running, within its time
+    LATE = "late"  #: still running past its timeout: the caller gives up on it
+    DONE = "done"  #: finished with a result
+    FAILED = "failed"  #: finished with one of `JOB_FAILURES`
+
+
+@dataclass(frozen=True)
+class Job:
+    """A computation in a worker process, polled from the control cycle, never waited on.
+
+    Attributes:
+        future: the submitted computation.
+        submitted: when it was submitted (s, the caller's clock).
+        timeout: s after `submitted` the caller waits for it at most (inf: no limit).
+    """
+
+    future: Future
+    submitted: float
+    timeout: float = math.inf
+
+    @property
+    def running(self) -> bool:
+        """Whether the computation has not finished yet."""
+        return not self.future.done()
+
+    def poll(self, now: float) -> tuple[JobState, Any]:
+        """The job's state at `now` (s) with its result or its error (None otherwise).
+
+        Never blocks: a computation not done is PENDING, or LATE past its timeout.
+        """
+        if not self.future.done():
+            return (JobState.LATE if now - self.submitted > self.timeout
+                    else JobState.PENDING), None
+        try:
+            return JobState.DONE, self.future.result()
+        except JOB_FAILURES as error:
+            return JobState.FAILED, error

@@ -10,13 +10,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from ft_core.errors import SuiteError
 
 #: Most joint names a message may carry: a whole robot's joint_state_broadcaster has
 #: tens; more is an attack or a bug, refused before any per-name work.
 MAX_NAMES = 1024
 
 
-class MessageError(ValueError):
+class MessageError(SuiteError):
     """A message that cannot be used; the text says why."""
 
 

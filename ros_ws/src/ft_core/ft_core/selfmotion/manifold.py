@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ft_core import limits
+from ft_core.errors import SuiteError
 from ft_core.pseudoinverse import Damping, damped_pinv
 from ft_core.robots import Robot, TaskSpace
 
@@ -27,7 +28,7 @@ STEP = 0.02
 NEWTON_DAMPING = Damping(threshold=1e-3, max_damping=1e-2)
 
 
-class UnreachableError(ValueError):
+class UnreachableError(SuiteError):
     """The task point cannot be reached (within the given joint bounds)."""
 
 
