@@ -232,3 +232,12 @@ def test_a_new_goal_after_a_hold_is_no_suspect_on_a_lagging_plant(lag: float) ->
     assert np.linalg.norm(PANDA.forward(q) - goal) < 5e-3  # reached
     assert all(s is None for s in suspects), {s for s in suspects if s is not None}
     c.close()
+
+
+def test_a_joint_state_of_another_clock_is_named_as_such() -> None:
+    """A controller on the wall clock fed states stamped in simulated time near 0."""
+    from ft_core.controller import stale_state
+
+    assert stale_state(0.25) == "no joint state for 0.250 s"
+    message = stale_state(1_795_813_467.059)
+    assert "another clock" in message and "use_sim_time" in message, message

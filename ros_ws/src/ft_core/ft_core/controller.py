@@ -134,6 +134,18 @@ class Step:
     announce: bool = False
 
 
+#: s: a joint state this much older than the node's clock is stamped by another clock.
+OTHER_CLOCK = 86400.0
+
+
+def stale_state(age: float) -> str:
+    """Why a joint state `age` s old stops the arm (another clock's, or just old)."""
+    if age > OTHER_CLOCK:
+        return (f"joint states are stamped {age:.0f} s before this node's clock: another "
+                "clock's (use_sim_time set on one node and not on the other?)")
+    return f"no joint state for {age:.3f} s"
+
+
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
 Report = Callable[..., None]
 
@@ -342,8 +354,7 @@ class Controller:
             return Step(self.smooth(zeros, now), None, {})
         if state_age > self.config.state_timeout:
             self.last = None
-            return Step(self.smooth(zeros, now), None,
-                        {"joint_states": f"no joint state for {state_age:.3f} s"})
+            return Step(self.smooth(zeros, now), None, {"joint_states": stale_state(state_age)})
         if self._boxes_job is not None:
             self._take_boxes(*self._boxes_job)
         if self._boxes_dirty:
