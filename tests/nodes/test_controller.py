@@ -361,7 +361,7 @@ def test_critical_points_become_soft_limits() -> None:
     with controller(task_space="position", critical_points=points) as (node, plant):
         plant.q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
         plant.step()
-        assert node.soft_limits_note.startswith("computing soft limits")  # in the background
+        assert node.core.soft_limits_note.startswith("computing soft limits")  # in the background
         computed, commanded, deadline = False, 0, time.monotonic() + 60.0
         while not computed and time.monotonic() < deadline:
             # The loop keeps commanding while the boxes are traced in the background (a
@@ -379,7 +379,7 @@ def test_critical_points_become_soft_limits() -> None:
     with controller(task_space="position", critical_points=[1.5, 0.0, 0.3]) as (node, plant):
         plant.step()
         deadline = time.monotonic() + 60.0
-        while node.soft_limits_pending and time.monotonic() < deadline:
+        while node.core.soft_limits_pending and time.monotonic() < deadline:
             plant.step()
         plant.run(70)
         status = controller_status(plant)

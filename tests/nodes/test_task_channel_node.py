@@ -32,8 +32,8 @@ def test_the_controller_suspects_and_the_monitor_confirms_a_lock_it_could_not_se
         suspected = None
         for _ in range(round(5.0 * config.rate)):
             scenario.step()
-            if suspected is None and scenario.controller.suspected_lock is not None:
-                suspected = (scenario.sim.t, scenario.controller.suspected_lock)
+            if suspected is None and scenario.controller.loaded.suspected_lock is not None:
+                suspected = (scenario.sim.t, scenario.controller.loaded.suspected_lock)
                 assert scenario.monitor.locked == {}  # the monitor alone did not see it
             if scenario.record.detected:  # the locked set, as the controller receives it
                 break

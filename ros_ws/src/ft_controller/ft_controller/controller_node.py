@@ -64,7 +64,6 @@ class ControllerNode(SuiteNode):
         self.loaded: Loaded | None = None  #: the model and its core, once adopted
         self._q: np.ndarray | None = None  # the latest accepted joint state (rad)
         self.last_command: np.ndarray | None = None  #: rad/s, chain order (harnesses)
-        self._last_result: CycleResult | None = None  # the last cycle's (its metrics)
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
         self.accounting.rate(self.now())
@@ -110,7 +109,6 @@ class ControllerNode(SuiteNode):
             self.loaded.core.close()
         core.start_worker()
         self.loaded = loaded = Loaded(robot, core, order)
-        self._last_result = None
         if self.param("critical_points"):
             core.set_critical_points(self.param("critical_points"))
         self.problems.report("model", None)
@@ -160,28 +158,9 @@ class ControllerNode(SuiteNode):
         return [] if self.loaded is None else self.loaded.names(self.loaded.core.locked)
 
     @property
-    def suspected_lock(self) -> str | None:
-        """The joint the task-space channel suspects now, if any."""
-        suspect = None if self.core is None else self.core.suspect
-        return None if suspect is None else self.robot.joint_names[suspect]
-
-    @property
-    def soft_limits_note(self) -> str:
-        """The soft limits in force (`Controller.soft_limits_note`); "none" before a model."""
-        return "none" if self.core is None else self.core.soft_limits_note
-
-    @property
-    def soft_limits_pending(self) -> bool:
-        """Whether soft limits from the critical points are still to be computed or taken."""
-        return self.core is not None and self.core.soft_limits_pending
-
-    @property
     def last_metrics(self) -> dict[str, float]:
-        """The last cycle's `ft/metrics` by label, published or not (empty before any)."""
-        if self._last_result is None or self.loaded is None:
-            return {}
-        return dict(zip(self.loaded.labels,
-                        report.metric_values(self._last_result, self.loaded.order), strict=True))
+        """The last cycle's `ft/metrics` by label (`Loaded.last_metrics`; empty before any)."""
+        return {} if self.loaded is None else self.loaded.last_metrics
 
     def destroy_node(self) -> None:
         """Stop the background work too."""
@@ -210,16 +189,12 @@ class ControllerNode(SuiteNode):
         self.destroy_subscription(self._echo_subscription)
 
     def cycle_on_joint_states(self) -> None:
-        """Cycles on the joint states handed over (`CycleDriver.drive_by_states`; ft-stack)."""
+        """Cycles on the joint states handed over (ft-stack); with `use_sim_time`, the timer's."""
         if not self.param("use_sim_time"):
             self.cycles.drive_by_states()
 
     def cycle_on_loop_ticks(self) -> None:
-        """Cycles on the process loop's ticks (`CycleDriver.drive_by_loop`), inputs taken first.
-
-        Neither this nor `cycle_on_joint_states` with `use_sim_time`: there the simulated
-        clock's timer runs the cycles.
-        """
+        """Cycles on the loop's ticks, inputs taken first; with `use_sim_time`, the timer's."""
         if not self.param("use_sim_time"):
             self.cycles.drive_by_loop([self.take_on_demand(subscription) for subscription in (
                 self._state_subscription, self._echo_subscription,
@@ -286,11 +261,8 @@ class ControllerNode(SuiteNode):
             self.problems.report(kind, problem)
         self._publish(step.qd, nanoseconds, step.result)
         if step.new_suspect:
-            self.get_logger().warning(
-                f"task error not decreasing while joints are commanded: "
-                f"{loaded.robot.joint_names[step.suspect]}'s loss explains the motion (residual "
-                f"{loaded.core.channel.residuals[step.suspect]:.2f} of the unexplained motion); "
-                "suspected, for the monitor to decide", throttle_duration_sec=5.0)
+            self.get_logger().warning(loaded.suspect_message(step.suspect),
+                                      throttle_duration_sec=5.0)
         if step.announce:
             self.outputs.send_suspect(loaded.robot.joint_names[step.suspect], nanoseconds)
 
@@ -303,7 +275,7 @@ class ControllerNode(SuiteNode):
         if sent is not None:
             self._watch.guard.sent(sent[0], time.monotonic(), sent[1])
         if result is not None:
-            self._last_result = result
+            self.loaded.last_result = result
             self.outputs.send_metrics(self.loaded, result)
 
     def _check_monitor(self) -> None:
@@ -315,10 +287,7 @@ class ControllerNode(SuiteNode):
                 self.outputs.send_to_plant(*stop, nanoseconds)
 
     def _check_watchdog(self) -> None:
-        """Zeros (and an ERROR) while no control cycle has run for `state_timeout` (steady).
-
-        Also the guard of a dead monitor, and `CycleDriver.watch`.
-        """
+        """Zeros while no cycle has run for `state_timeout` (steady s); the monitor's guard."""
         self._check_monitor()
         self.cycles.watch(self.now_ns())
         silent = time.monotonic() - self._last_cycle

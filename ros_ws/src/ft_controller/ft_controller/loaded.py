@@ -44,12 +44,33 @@ class Loaded:
     labels: list[str] = field(init=False)
     writer: wire.CommandWriter = field(init=False)
     metrics_msg: Float64MultiArray = field(init=False)
+    last_result: CycleResult | None = None  #: the last cycle's engine result
+
+    @property
+    def last_metrics(self) -> dict[str, float]:
+        """The last cycle's `ft/metrics` by label, published or not (empty before any)."""
+        if self.last_result is None:
+            return {}
+        return dict(zip(self.labels, metric_values(self.last_result, self.order), strict=True))
+
+    def suspect_message(self, joint: int) -> str:
+        """The log line of a lock the task-space channel suspects (chain index `joint`)."""
+        return (f"task error not decreasing while joints are commanded: "
+                f"{self.robot.joint_names[joint]}'s loss explains the motion (residual "
+                f"{self.core.channel.residuals[joint]:.2f} of the unexplained motion); "
+                "suspected, for the monitor to decide")
 
     def __post_init__(self) -> None:
         self.joints = [self.robot.joint_names[i] for i in self.order]
         self.labels = metrics.labels(self.joints)
         self.writer = wire.CommandWriter(self.joints)
         self.metrics_msg = metrics.template(self.labels)
+
+    @property
+    def suspected_lock(self) -> str | None:
+        """The joint the task-space channel suspects now, if any."""
+        suspect = self.core.suspect
+        return None if suspect is None else self.robot.joint_names[suspect]
 
     def names(self, joints: object) -> list[str]:
         """Chain indices to joint names."""
@@ -125,8 +146,7 @@ def core_values(loaded: Loaded | None, now: float) -> dict[str, object]:
         "observability": observability_note(loaded),
         "recovery": "off" if core is None else core.recovery_note,
         "start_configuration": "idle" if core is None else core.start_phase.note,
-        "suspected_lock": "none" if core is None or core.suspect is None
-        else loaded.robot.joint_names[core.suspect]}
+        "suspected_lock": (loaded and loaded.suspected_lock) or "none"}
     last = None if core is None else core.last
     if last is not None:
         values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)

@@ -55,6 +55,16 @@ def unkeyed_path(directory: str | Path, node_name: str, robot: str) -> Path:
     return Path(directory or default_directory()) / f"{_clean(node_name)}--{_clean(robot)}.json"
 
 
+def unkeyed_warning(directory: str | Path, node_name: str, robot: str) -> str | None:
+    """What to tell the user when an unkeyed file (`unkeyed_path`) exists, else None."""
+    old = unkeyed_path(directory, node_name, robot)
+    if not old.exists():
+        return None
+    return (f"{old} (a locked set of an older version, for no particular ROS domain) is not "
+            "restored: declare on ft/declare_failure any joint still locked, then delete "
+            "the file")
+
+
 def _clean(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]", "_", text.strip("/").replace("/", "__")) or "_"
 

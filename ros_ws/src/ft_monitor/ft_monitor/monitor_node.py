@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from ft_core import locked_set, robots
-from ft_core.monitor import UNSEEN_AFTER, Change, Monitor
+from ft_core.monitor import Change, Monitor
 from ft_msgs_py import convert, diagnostics, names, parameter_table, parameters, qos, spin, wire
 from ft_msgs_py.node import JointStateLike, StateListener, SuiteNode
 from rclpy.clock import Clock, ClockType
@@ -33,6 +33,7 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from ft_monitor import report, settings
+from ft_monitor.command_path import CommandPath
 from ft_monitor.outputs import Outputs, Wiring
 from ft_monitor.settings import PARAMETERS
 
@@ -54,8 +55,7 @@ class MonitorNode(SuiteNode):
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.core: Monitor | None = None  #: the logic, once the model is known
         self.wiring: Wiring | None = None  #: the model's command order, built with the core
-        self._last_command = -math.inf
-        self._unseen: list[str] = []  #: joints last reported unseen (`Monitor.unseen`)
+        self._unseen = report.Unseen(self.get_logger().info)
         self.outputs = Outputs(self)
         self._command_subscription = self.subscribe_joint_states(
             names.COMMAND_RAW, self._on_command, qos.SENSOR_INPUT, self._on_malformed_command)
@@ -69,11 +69,11 @@ class MonitorNode(SuiteNode):
         self.create_subscription(JointState, names.SUSPECTED_FAILURE, self._on_suspect,
                                  qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
-        self._command_timeout = self.param("command_timeout")
+        self.commands = CommandPath(self.outputs, self.problems, self.param("command_timeout"),
+                                    self.stop_ramp)
         parameter_table.on_change(self, PARAMETERS, self._check, self._configure)
         parameters.request_model(self, self._set_model)
         # On steady time: with use_sim_time and no /clock the watchdog must still run.
-        self._last_command_steady = time.monotonic()
         self._reannounced = -math.inf  # steady time of the last re-announcement (s)
         self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog,
                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -91,7 +91,7 @@ class MonitorNode(SuiteNode):
         settings.configs(values, self._order())
 
     def _configure(self, _changed: set[str]) -> None:
-        self._command_timeout = self.param("command_timeout")
+        self.commands.timeout = self.param("command_timeout")
         if self.core is not None:
             self.core.configure(*settings.configs(parameter_table.values(self, PARAMETERS),
                                                   self._order()))
@@ -105,12 +105,9 @@ class MonitorNode(SuiteNode):
             return
         directory, name = self.param("state_directory"), self.get_fully_qualified_name()
         store = locked_set.path_for(directory, name, robot.name, self.context.get_domain_id())
-        old = locked_set.unkeyed_path(directory, name, robot.name)
-        if old.exists():
-            self.get_logger().warning(
-                f"{old} (a locked set of an older version, for no particular ROS domain) is "
-                "not restored: declare on ft/declare_failure any joint still locked, then "
-                "delete the file")
+        old = locked_set.unkeyed_warning(directory, name, robot.name)
+        if old is not None:
+            self.get_logger().warning(old)
         try:
             core = Monitor(robot, *settings.configs(parameter_table.values(self, PARAMETERS),
                                                     order), store, self.problems.report)
@@ -149,11 +146,9 @@ class MonitorNode(SuiteNode):
     # ------------------------------------------------------- one-process wiring
     def take_commands_by_call(
             self) -> Callable[[np.ndarray, Sequence[str], wire.Stamp, float], None]:
-        """Stop subscribing to `ft/command_raw`; returns what to call with each command.
+        """Stop subscribing to `ft/command_raw`; returns what a controller in-process calls.
 
-        The call takes the velocities (rad/s) of the given joints, the command's stamp and
-        the caller's clock time (s): a controller in the same process (ft-stack). Velocities
-        for another chain than this model's go by name, as a message.
+        With (velocities in rad/s, their joints, the stamp, the caller's time in s).
         """
         self.destroy_subscription(self._command_subscription)
         return self._take_command
@@ -166,19 +161,17 @@ class MonitorNode(SuiteNode):
             self._on_command(convert.joint_state(joints, Time(sec=stamp.sec, nanosec=stamp.nanosec),
                                                  velocity=qd))
             return
-        self._forward("ft/command_raw", qd, stamp, now)
+        self.commands.forward(self.core, self.wiring, "ft/command_raw", qd, stamp, now)
 
     def hand_commands_to(self, take: Callable[[JointStateLike], None]) -> None:
         """Give every command to `take` as a call too (`Outputs.taker`; a plant in-process)."""
         self.outputs.taker = take
 
     def share_joint_states(self, listener: StateListener) -> None:
-        """Give `listener` every `joint_states` message this node takes, with its reading.
+        """Give `listener` every `joint_states` message, with its reading, once observed.
 
-        Called after this node has observed the state, so a control cycle the listener
-        runs (ft-stack) is filtered with the locks that state revealed. The reading:
-        (positions in rad, their joints, stamp in s), None where the message failed this
-        node's checks of the message itself (`parse_joint_state`).
+        So a cycle the listener runs (ft-stack) is filtered with the locks that state
+        revealed. The reading is None where the message failed `parse_joint_state`.
         """
         self._state_listeners.append(listener)
 
@@ -259,59 +252,20 @@ class MonitorNode(SuiteNode):
         return response
 
     def _on_command(self, msg: JointStateLike) -> None:
-        if self.core is None:
-            return
-        now = self.now()
-        stamp = self.problems.message_time("ft/command_raw", msg.header.stamp, now)
-        try:
-            if stamp is None:
-                raise convert.MessageError("stamp ahead of the clock")
-            if now - stamp > self._command_timeout:
-                raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
-            qd = convert.joint_vector(msg, self.core.robot.joint_names, "velocity")
-        except convert.MessageError as error:
-            self._refuse("ft/command_raw", error, msg.header.stamp, now)
-            return
-        self._forward("ft/command_raw", qd, msg.header.stamp, now)
+        if self.core is not None:
+            self.commands.command(self.core, self.wiring, msg, self.now())
 
     def _on_malformed_command(self, error: convert.MessageError) -> None:
         """Bytes on `ft/command_raw` that are not a JointState: refused, zeros sent instead."""
         if self.core is not None:
             nanoseconds = self.now_ns()
-            self._refuse("ft/command_raw", error, wire.Stamp.of(nanoseconds), nanoseconds * 1e-9)
+            self.commands.refuse(self.core, self.wiring, "ft/command_raw", error,
+                                 wire.Stamp.of(nanoseconds), nanoseconds * 1e-9)
 
     def _on_array(self, msg: Float64MultiArray) -> None:
-        """Velocities in `joints` order (MoveIt Servo's Float64MultiArray output, unstamped)."""
-        if self.core is None:
-            return
-        stamp = self.get_clock().now().to_msg()
-        try:
-            qd = convert.array_vector(msg.data, self.wiring.order)
-        except convert.MessageError as error:
-            self._refuse("ft/command_raw_array", error, stamp, self.now())
-            return
-        self._forward("ft/command_raw_array", qd, stamp, self.now())
-
-    def _refuse(self, topic: str, error: Exception | str, stamp: Time | wire.Stamp,
-                now: float) -> None:
-        """A malformed command: reported, and replaced by zeros (reached on a ramp)."""
-        self.problems.report(topic, f"{error}: commanding zeros")
-        self.outputs.send(self.wiring, self.core.zeros(now), now, stamp)
-
-    def _forward(self, source: str, qd: np.ndarray, stamp: Time | wire.Stamp,
-                 now: float) -> None:
-        """A well-formed command from `source` (chain order, rad/s), filtered and sent.
-
-        An absurd one (`Monitor.absurd_command`) is refused instead.
-        """
-        absurd = self.core.absurd_command(qd)
-        if absurd is not None:
-            self._refuse(source, absurd, stamp, now)
-            return
-        self.problems.report(source, None)
-        self._last_command, self._last_command_steady = now, time.monotonic()
-        self.stop_ramp()
-        self.outputs.send(self.wiring, self.core.command(qd, now), now, stamp)
+        if self.core is not None:
+            self.commands.array(self.core, self.wiring, msg, self.get_clock().now().to_msg(),
+                                self.now())
 
     # ----------------------------------------------------------------- outputs
     def destroy_node(self) -> None:
@@ -354,38 +308,25 @@ class MonitorNode(SuiteNode):
     def _check_watchdog(self) -> None:
         if self.core is None:
             return
-        age = time.monotonic() - self._last_command_steady
-        if age > self._command_timeout and not self._ramp_step(self.now_ns()):
+        age = time.monotonic() - self.commands.last_steady
+        if age > self.commands.timeout and not self._ramp_step(self.now_ns()):
             self.ramp(self._ramp_step)
 
     def _publish_diagnostics(self) -> None:
         now = self.now()
-        age = now - self._last_command
+        age = now - self.commands.last
         values = {"locked_joints": sorted(self.locked),
                   "remap_commands": self.param("remap_commands"),
                   "command_age_s": age if math.isfinite(age) else "none",
                   "scheduling": self.scheduling}
         if self.core is not None:
-            values["unseen_joints"] = self._report_unseen(self.core.unseen(now))
+            values["unseen_joints"] = self._unseen.update(self.core.unseen(now))
         statuses = report.statuses(
             self.core, self.command_joints, [] if self.wiring is None else self.wiring.order,
             values, self.problems.summary() if self.problems.active else None,
-            age > self._command_timeout, self.status)
+            age > self.commands.timeout, self.status)
         self.outputs.diagnostics.publish(diagnostics.array(statuses,
                                                            self.get_clock().now().to_msg()))
-
-    def _report_unseen(self, unseen: list[str]) -> list[str]:
-        """Say (INFO) when joints become unseen, so a lock nobody reports has a reason.
-
-        Once per joint that joins the unseen ones (not again as others leave them).
-        """
-        if set(unseen) - set(self._unseen):
-            self.get_logger().info(
-                f"a lock of {unseen} cannot be seen now: not commanded for "
-                f"{UNSEEN_AFTER:.0f} s or more (a lock shows only while its joint is commanded; "
-                "the controller's observability.enabled excites idle joints)")
-        self._unseen = unseen
-        return unseen
 
 
 def main(args: list[str] | None = None) -> None:

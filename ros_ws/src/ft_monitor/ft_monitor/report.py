@@ -1,11 +1,14 @@
-"""The monitor's diagnostics: its own status, then one per joint (`Monitor.joint_report`)."""
+"""The monitor's diagnostics: its own status, then one per joint (`Monitor.joint_report`).
+
+`Unseen` says when joints become unseen (a lock there could not be seen).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from ft_core.monitor import Monitor
+from ft_core.monitor import UNSEEN_AFTER, Monitor
 from ft_msgs_py import diagnostics
 
 #: Diagnostic level of each joint state of `Monitor.joint_report`.
@@ -53,3 +56,20 @@ def statuses(core: Monitor | None, joints: list[str], order: list[int], values: 
     else:
         level, message = diagnostics.OK, "no locked joint"
     return [status(level, message, values), *joint_statuses]
+
+
+class Unseen:
+    """The joints a lock cannot be seen on now (`Monitor.unseen`), said when they change."""
+
+    def __init__(self, log: Callable[[str], object]):
+        """`log`: an INFO line, once per joint that joins the unseen ones."""
+        self._log, self._unseen = log, []
+
+    def update(self, unseen: list[str]) -> list[str]:
+        """The unseen joints now, said (INFO) when some join them."""
+        if set(unseen) - set(self._unseen):
+            self._log(f"a lock of {unseen} cannot be seen now: not commanded for "
+                      f"{UNSEEN_AFTER:.0f} s or more (a lock shows only while its joint is "
+                      "commanded; the controller's observability.enabled excites idle joints)")
+        self._unseen = unseen
+        return unseen

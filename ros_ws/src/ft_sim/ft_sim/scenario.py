@@ -392,13 +392,13 @@ class Scenario:
         """
         deadline = time.monotonic() + timeout
         self.step()  # the controller starts the computation at its first joint state
-        while self.controller.soft_limits_pending:
+        while self.controller.core.soft_limits_pending:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"the controller had no soft limits after {timeout:g} s "
                                    "(see its 'critical points' diagnostics)")
             time.sleep(WAIT_PERIOD)
             self.step()
-        self.record.soft_limits = self.controller.soft_limits_note
+        self.record.soft_limits = self.controller.core.soft_limits_note
 
     def close(self) -> None:
         """Shut the nodes and the context down."""

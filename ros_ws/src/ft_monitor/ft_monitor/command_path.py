@@ -1,0 +1,83 @@
+"""The monitor's command path: each command read, checked, filtered by the core and sent.
+
+A command on `ft/command_raw` (a JointState: stamped, by name) or `ft/command_raw_array`
+(velocities in `joints` order, unstamped, as MoveIt Servo publishes them) that is
+malformed, stamped ahead of the clock or older than `timeout`, or physically absurd
+(`Monitor.absurd_command`) is reported and replaced by zeros (reached on a ramp within
+the limits); a good one goes through `Monitor.command` to `Outputs.send`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from ft_core.monitor import Monitor
+from ft_msgs_py import convert, wire
+from ft_msgs_py.episodes import Episodes
+from ft_msgs_py.node import JointStateLike
+from std_msgs.msg import Float64MultiArray
+
+from ft_monitor.outputs import Outputs, Wiring
+
+
+class CommandPath:
+    """Commands in, filtered commands out; when the last good one came.
+
+    Attributes:
+        timeout: s; an older command is stale (refused).
+        last: node time (s) of the last command forwarded (-inf: none yet).
+        last_steady: steady time (s) of the last command forwarded (the watchdog's).
+    """
+
+    def __init__(self, outputs: Outputs, problems: Episodes, timeout: float,
+                 commanded: Callable[[], None]):
+        """`commanded()` is called with each command forwarded (the node ends a stop ramp)."""
+        self._outputs, self._problems, self._commanded = outputs, problems, commanded
+        self.timeout = timeout
+        self.last, self.last_steady = -math.inf, time.monotonic()
+
+    def command(self, core: Monitor, wiring: Wiring, msg: JointStateLike, now: float) -> None:
+        """A JointState from `ft/command_raw` at node time `now` (s)."""
+        stamp = self._problems.message_time("ft/command_raw", msg.header.stamp, now)
+        try:
+            if stamp is None:
+                raise convert.MessageError("stamp ahead of the clock")
+            if now - stamp > self.timeout:
+                raise convert.MessageError(f"stale: stamped {now - stamp:.3f} s ago")
+            qd = convert.joint_vector(msg, core.robot.joint_names, "velocity")
+        except convert.MessageError as error:
+            self.refuse(core, wiring, "ft/command_raw", error, msg.header.stamp, now)
+            return
+        self.forward(core, wiring, "ft/command_raw", qd, msg.header.stamp, now)
+
+    def array(self, core: Monitor, wiring: Wiring, msg: Float64MultiArray, stamp: Time,
+              now: float) -> None:
+        """Velocities in `joints` order from `ft/command_raw_array`, stamped on arrival."""
+        try:
+            qd = convert.array_vector(msg.data, wiring.order)
+        except convert.MessageError as error:
+            self.refuse(core, wiring, "ft/command_raw_array", error, stamp, now)
+            return
+        self.forward(core, wiring, "ft/command_raw_array", qd, stamp, now)
+
+    def refuse(self, core: Monitor, wiring: Wiring, topic: str, error: Exception | str,
+               stamp: Time | wire.Stamp, now: float) -> None:
+        """A malformed command: reported, and replaced by zeros (reached on a ramp)."""
+        self._problems.report(topic, f"{error}: commanding zeros")
+        self._outputs.send(wiring, core.zeros(now), now, stamp)
+
+    def forward(self, core: Monitor, wiring: Wiring, source: str, qd: np.ndarray,
+                stamp: Time | wire.Stamp, now: float) -> None:
+        """A well-formed command (chain order, rad/s), filtered and sent; an absurd one refused."""
+        absurd = core.absurd_command(qd)
+        if absurd is not None:
+            self.refuse(core, wiring, source, absurd, stamp, now)
+            return
+        self._problems.report(source, None)
+        self.last, self.last_steady = now, time.monotonic()
+        self._commanded()
+        self._outputs.send(wiring, core.command(qd, now), now, stamp)
