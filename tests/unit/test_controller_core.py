@@ -180,7 +180,7 @@ def test_a_lasting_suspect_is_announced_again_once_per_window() -> None:
 def test_configure_keeps_the_traced_box_and_takes_new_settings(name: str) -> None:
     c = core()
     # As a finished trace leaves it.
-    c._critical = selfmotion.SoftLimits((PANDA.lower + 0.1, PANDA.upper - 0.1), (), ())
+    c.critical.limits = selfmotion.SoftLimits((PANDA.lower + 0.1, PANDA.upper - 0.1), (), ())
     c.configure(EngineConfig(dt=DT, resolution="least_norm"), ControllerConfig(**{name: 1.5}))
     assert getattr(c.config, name) == 1.5
     assert c.engine.config.resolution == "least_norm"

@@ -10,12 +10,14 @@ The online path (what the nodes call every cycle, and what they need to start):
     postfailure: post-failure quantities from J J^T and its rank-one downdates (compiled).
     limits: velocity bounds, soft-limit avoidance, saturation in the null space.
     swing: free-swinging joints: swing angles, their measure, the way gravity turns a joint.
+    engine_config: the engine's modes, gains and limits, and their checks per robot.
     engine: one control cycle of fault-tolerant redundancy resolution (compiled arithmetic).
     targets: task velocities from pose goals and twists.
     observability: excursions that make a joint nobody commands show a lock.
     task_channel: a lock suspected from the task error the commands do not explain.
     recovery: after a lock, a stall test, IK with the locked joints pinned, a joint path.
     controller: the controller's per-cycle logic around the engine: `Controller.step`.
+    critical_limits: soft limits from critical points, traced in a worker process.
     selfmotion: self-motion manifolds, bounding boxes, recovery configurations.
     workers: worker processes that end with their parent, started off a real-time thread.
     detection: locked-joint detection from commanded and measured motion (a package:

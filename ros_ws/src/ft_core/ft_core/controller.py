@@ -43,8 +43,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from ft_core import limits, recovery, selfmotion, start_configuration, workers
+from ft_core import limits, recovery, start_configuration, workers
 from ft_core.command_limits import LimitsConfig
+from ft_core.critical_limits import CriticalPointLimits
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
@@ -178,7 +179,6 @@ class Controller:
         self._engine_config = engine_config
         self.engine = ResolutionEngine(robot, engine_config)
         self._model_source = model_source
-        self._report, self._log = report, log
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
         self.smoother = self._smoother(self.config)
@@ -189,16 +189,10 @@ class Controller:
         self.last: CycleResult | None = None
         self.suspect: int | None = None
         self._suspect_sent = -math.inf
-        # Soft limits from critical points, computed in a worker process.
-        self._critical_points: list[float] = []
-        # Their box, and their traced configurations (recovery seeds), once computed.
-        self._critical: selfmotion.SoftLimits | None = None
-        self._boxes_dirty = False
-        self._boxes_job: tuple[int, workers.Job] | None = None
-        self._boxes_generation = 0
         self._background = background
         self._owns_background = background is None  # a pool given is its giver's to stop
-        self.soft_limits_note = "none"
+        #: Soft limits from critical points, computed in the worker process.
+        self.critical = CriticalPointLimits(self._submit, model_source, report, log)
 
     # ------------------------------------------------------------ configuration
     def _excursions(self, config: ControllerConfig) -> Excursions | None:
@@ -236,7 +230,7 @@ class Controller:
         self._rebuild_engine()
 
     def _rebuild_engine(self) -> None:
-        config, critical = self._engine_config, self._critical
+        config, critical = self._engine_config, self.critical.limits
         if critical is not None:
             box = critical.box
             if len(config.soft_lower):
@@ -304,8 +298,7 @@ class Controller:
 
         Traced from the next cycle's configuration, in a worker process; empty: none.
         """
-        self._critical_points = [float(v) for v in flat]
-        self._boxes_dirty = True
+        self.critical.set_points(flat)
 
     @property
     def recovery_note(self) -> str:
@@ -315,7 +308,12 @@ class Controller:
     @property
     def soft_limits_pending(self) -> bool:
         """Whether soft limits from the critical points are still to be computed or taken."""
-        return self._boxes_dirty or self._boxes_job is not None
+        return self.critical.pending
+
+    @property
+    def soft_limits_note(self) -> str:
+        """The soft limits in force (`CriticalPointLimits.note`)."""
+        return self.critical.note
 
     # -------------------------------------------------------------------- cycle
     def stopper(self, velocity: np.ndarray) -> Callable[[float], np.ndarray]:
@@ -355,10 +353,8 @@ class Controller:
         if state_age > self.config.state_timeout:
             self.last = None
             return Step(self.smooth(zeros, now), None, {"joint_states": stale_state(state_age)})
-        if self._boxes_job is not None:
-            self._take_boxes(*self._boxes_job)
-        if self._boxes_dirty:
-            self._start_boxes(q)
+        if self.critical.update(q):
+            self._rebuild_engine()
         locked = list(self.locked)
         try:
             kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
@@ -467,7 +463,7 @@ class Controller:
 
         A goal that is a critical point gets its traced configurations as IK seeds.
         """
-        critical = self._critical
+        critical = self.critical.limits
         traced = None if critical is None else next(
             (samples for target, samples in zip(critical.targets, critical.traced, strict=True)
              if max(recovery.mismatch(self.robot, goal, target)) < _SAME_POINT), None)
@@ -497,56 +493,6 @@ class Controller:
             self._background = workers.pool()
         with workers.lowered():
             return self._background.submit(fn, *args)
-
-    # ------------------------------------------------------ soft limits (worker)
-    def _start_boxes(self, q: np.ndarray) -> None:
-        """Trace the critical points' boxes in a worker process (never in the cycle).
-
-        The cycle goes on with the limits it has; `_take_boxes` switches to the new
-        ones once ready. Points changed while a computation runs make its result
-        stale: it is dropped, and the newer computation follows.
-        """
-        self._boxes_dirty = False
-        flat = self._critical_points
-        if not flat:
-            self.soft_limits_note = "none"
-            self._report("critical points", None)
-            self._critical = None
-            self._rebuild_engine()
-            return
-        self._boxes_generation += 1
-        self.soft_limits_note = (f"computing soft limits from {len(flat)} values of critical "
-                                 "points (the previous limits meanwhile)")
-        try:
-            self._boxes_job = (self._boxes_generation, workers.Job(self._submit(
-                selfmotion.soft_limits_for_model, *self._model_source, flat, q.copy()), 0.0))
-        except (AssertionError, RuntimeError, OSError) as error:  # e.g. inside a daemon
-            self.soft_limits_note = "none (critical points failed)"
-            self._report("critical points", f"cannot start the process that traces the boxes "
-                         f"({error}); running without their soft limits")
-
-    def _take_boxes(self, generation: int, job: workers.Job) -> None:
-        """Switch to soft limits computed in the background, if they are ready."""
-        state, result = job.poll(0.0)  # no timeout: the boxes take what they take
-        if state == workers.JobState.PENDING:
-            return
-        self._boxes_job = None
-        if generation != self._boxes_generation:
-            return  # the points changed meanwhile: a newer computation follows
-        if state == workers.JobState.FAILED:
-            self.soft_limits_note = "none (critical points failed)"
-            self._report("critical points", f"{result}; running without their soft limits")
-            self._critical = None
-            self._rebuild_engine()
-            return
-        assert isinstance(result, selfmotion.SoftLimits)
-        box, count = result.box, len(result.targets)
-        self.soft_limits_note = f"{count} critical points"
-        self._report("critical points", None)
-        self._log(f"soft limits from {count} critical points: lower "
-                  f"{np.round(box[0], 3).tolist()}, upper {np.round(box[1], 3).tolist()}")
-        self._critical = result
-        self._rebuild_engine()
 
     def close(self) -> None:
         """Stop the background work."""

@@ -36,36 +36,19 @@ velocity scaled into the bounds and reports the task infeasible.
 from __future__ import annotations
 
 import enum
-import math
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ft_core import limits, measures, postfailure, robots, swing
+from ft_core.engine_config import RESOLUTIONS as RESOLUTIONS  # the engine's public names
+from ft_core.engine_config import EngineConfig, Resolution, check_config
 from ft_core.observability import MIN_SHARE
-from ft_core.pseudoinverse import Damping, damped_pinv
+from ft_core.pseudoinverse import damped_pinv
 from ft_core.robots import Kinematics, Robot
-
-
-class Resolution(enum.StrEnum):
-    """The null-space preference of a cycle (`EngineConfig.resolution`; docs/engine.md).
-
-    LEAST_NORM: limit avoidance only; MAX_KFM: ascent on the fault-tolerance measure
-    (Maciejewski et al. eq 8); MIN_JUMP: the minimum velocity jump at the next failure
-    (Zhao & Li eq 5); BLEND: both.
-    """
-
-    LEAST_NORM = "least_norm"
-    MAX_KFM = "max_kfm"
-    MIN_JUMP = "min_jump"
-    BLEND = "blend"
-
-
-#: The resolution names, as plain strings (parameter validation, messages).
-RESOLUTIONS = tuple(r.value for r in Resolution)
 
 
 class Status(enum.StrEnum):
@@ -96,57 +79,6 @@ class Gains(NamedTuple):
 
 #: Distance (rad or m) within which a joint counts as at a limit.
 AT_LIMIT = 1e-3
-
-
-@dataclass(frozen=True)
-class EngineConfig:
-    """Parameters of the engine; invalid values raise ValueError with the reason.
-
-    Attributes:
-        resolution: a `Resolution` value: "least_norm", "max_kfm", "min_jump" or "blend".
-        kfm_gain: gain of the kfm gradient ascent, rad/s per (m/rad) of grad K, >= 0.
-        swing_gain: gain of the swing-measure descent, rad/s per rad of grad h, >= 0.
-        jump_gain: gain of the minimum-jump term (1 = exact minimum), >= 0.
-        limit_gain: gain of the soft/hard-limit avoidance (rad/s at an edge), >= 0.
-        failure_probabilities: one per joint (>= 0); empty = equally likely.
-        soft_lower, soft_upper: soft-limit box (rad); empty = none.
-        release_soft_limits_on_failure: drop the soft box once a joint is locked.
-        dt: control period (s) over which position limits are enforced.
-        velocity_scale: fraction of the URDF velocity limits that may be used, in (0, 1].
-        damping: damped pseudo-inverse rule (singular values in m).
-        kfm_temperature: soft-min temperature (m) of the kfm gradient; 0 = plain eq 8.
-        limit_buffer: width (rad) of the zone near a box edge where avoidance acts.
-    """
-
-    resolution: str = "blend"
-    kfm_gain: float = 50.0
-    swing_gain: float = 0.0
-    jump_gain: float = 1.0
-    limit_gain: float = 1.0
-    failure_probabilities: Sequence[float] = ()
-    soft_lower: Sequence[float] = ()
-    soft_upper: Sequence[float] = ()
-    release_soft_limits_on_failure: bool = True
-    dt: float = 0.004
-    velocity_scale: float = 0.5
-    damping: Damping = field(default_factory=Damping)
-    kfm_temperature: float = 0.005
-    limit_buffer: float = 0.15
-
-    def __post_init__(self) -> None:
-        if self.resolution not in RESOLUTIONS:
-            raise ValueError(f"resolution {self.resolution!r} is not one of {RESOLUTIONS}")
-        for name in ("kfm_gain", "swing_gain", "jump_gain", "limit_gain", "kfm_temperature",
-                     "limit_buffer"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {value}")
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be positive, got {self.dt}")
-        if not (math.isfinite(self.velocity_scale) and 0 < self.velocity_scale <= 1):
-            raise ValueError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}")
-        if len(self.soft_lower) != len(self.soft_upper):
-            raise ValueError("soft_lower and soft_upper must have the same length")
 
 
 @dataclass(slots=True)
@@ -322,37 +254,6 @@ def _limit_report(q: np.ndarray, limit_box: np.ndarray,
         margin = distance.min()
         at_soft = distance < AT_LIMIT
     return margin, at_soft, np.minimum(q - limit_box[0], limit_box[1] - q) < AT_LIMIT
-
-
-def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
-                                                              tuple[np.ndarray, np.ndarray]]:
-    """What of `config` depends on the robot, checked: (failure probabilities, soft box).
-
-    Raises ValueError where the engine would refuse it (a probability per joint; soft
-    limits of n finite values each, lower below upper; swing_gain > 0 on a model without
-    inertias, whose swing measure is undefined), without building an engine: the node
-    validates parameter changes with it. No probabilities: None; no soft limits: two
-    empty arrays.
-    """
-    n = robot.n
-    if config.swing_gain > 0 and not robot.has_inertias:
-        raise ValueError(f"swing_gain > 0 needs a model with inertias: {robot.name}'s URDF "
-                         "gives its links no mass (use swing_gain 0 or a URDF with <inertial>)")
-    probabilities = None
-    if len(config.failure_probabilities):
-        probabilities = np.asarray(config.failure_probabilities, dtype=float)
-        measures.failure_weights(probabilities, n)  # validates
-    soft = (np.zeros(0), np.zeros(0))
-    if len(config.soft_lower):
-        lower = np.asarray(config.soft_lower, dtype=float)
-        upper = np.asarray(config.soft_upper, dtype=float)
-        if (lower.shape != (n,) or upper.shape != (n,)
-                or not np.all(np.isfinite(lower) & np.isfinite(upper))):
-            raise ValueError(f"soft limits need {n} finite values each")
-        if np.any(lower > upper):
-            raise ValueError("a soft lower limit is above its upper limit")
-        soft = (lower, upper)
-    return probabilities, soft
 
 
 class ResolutionEngine:
