@@ -24,6 +24,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from ft_core import locked_set, robots
+from ft_core.detection import Decision
 from ft_core.monitor import Change, Monitor
 from ft_msgs_py import convert, diagnostics, names, parameter_table, parameters, qos, spin, wire
 from ft_msgs_py.node import JointStateLike, StateListener, SuiteNode
@@ -199,7 +200,7 @@ class MonitorNode(SuiteNode):
         for name, j in (known or {}).items():
             answer, change = self.core.suspect(j, now)
             evidence = answer.evidence
-            if answer.decision == "refused":
+            if answer.decision == Decision.REFUSED:
                 reason = " at a joint limit" if evidence.at_limit else ""
                 self.get_logger().warning(
                     f"suspected lock of {name} not confirmed{reason}: measured "

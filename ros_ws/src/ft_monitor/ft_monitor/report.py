@@ -8,12 +8,13 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from ft_core.monitor import UNSEEN_AFTER, Monitor
+from ft_core.monitor import UNSEEN_AFTER, JointCondition, Monitor
 from ft_msgs_py import diagnostics
 
 #: Diagnostic level of each joint state of `Monitor.joint_report`.
-LEVELS = {"ok": diagnostics.OK, "locked": diagnostics.ERROR,
-          "free-swinging": diagnostics.ERROR, "stalled at a joint limit": diagnostics.WARN}
+LEVELS = {JointCondition.OK: diagnostics.OK, JointCondition.LOCKED: diagnostics.ERROR,
+          JointCondition.FREE_SWINGING: diagnostics.ERROR,
+          JointCondition.AT_LIMIT: diagnostics.WARN}
 
 
 def statuses(core: Monitor | None, joints: list[str], order: list[int], values: dict,
@@ -33,7 +34,7 @@ def statuses(core: Monitor | None, joints: list[str], order: list[int], values: 
         values.update(core.plant_values())
         for name, j in zip(joints, order, strict=True):
             joint = core.joint_report(j)
-            if joint.state == "stalled at a joint limit":
+            if joint.state == JointCondition.AT_LIMIT:
                 stalls.append(name)
             evidence = joint.evidence
             joint_statuses.append(status(LEVELS[joint.state], joint.state, {
