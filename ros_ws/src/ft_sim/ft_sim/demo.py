@@ -34,7 +34,9 @@ from pathlib import Path
 
 import numpy as np
 from ft_core import robots
+from ft_core.engine import RESOLUTIONS
 from ft_core.offline import cli
+from ft_core.robots import TaskSpace
 
 from ft_sim import arm_view, live
 from ft_sim.scenario import PHYSICS_ROBOT, Record, Scenario, ScenarioConfig
@@ -196,10 +198,10 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--base-link", default="", help="first link of the chain")
     parser.add_argument("--tip-link", default="", help="tool link of the chain")
     parser.add_argument("--task", default=defaults.task_space,
-                        choices=["position", "pose", "planar"],
+                        choices=[space.value for space in TaskSpace],
                         help="task space (default %(default)s; planar for the planar3r)")
     parser.add_argument("--resolution", default=defaults.resolution,
-                        choices=["least_norm", "max_kfm", "min_jump", "blend"])
+                        choices=RESOLUTIONS)
     parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
                         "name (default %(default)s)")
     parser.add_argument("--lock-time", type=cli.bounded(float, 0.0, MAX_DURATION),
