@@ -59,9 +59,12 @@ def shipped_defaults(argv: list[str]) -> list[str]:
     A ROS argument section of its own (`--ros-args -p task_space:=... --`) placed first:
     the parameters files and `-p` of `argv` come later and override it. The file's other
     values are not taken: its `robot_model` and `critical_points` are a Panda's, and
-    without `robot_model` the nodes take the arm's URDF from `robot_description`.
+    without `robot_model` the nodes take the arm's URDF from `robot_description`. Without
+    the file (a broken install), `argv` as it is.
     """
-    task_space = shipped.parameters()["task_space"]
+    task_space = shipped.parameters().get("task_space")
+    if not task_space:
+        return argv
     return [argv[0], "--ros-args", "-p", f"task_space:={task_space}", "--", *argv[1:]]
 
 
