@@ -193,3 +193,41 @@ def test_a_teardown_that_hangs_ends_the_process_after_the_timeout(tmp_path) -> N
     assert out == "stopped\n"  # the node's stop() (its zeros) ran before the teardown
     assert "teardown took more than 1 s" in err
     assert 1.0 <= took < 20.0
+
+
+def test_a_teardown_that_holds_the_interpreter_lock_is_ended_by_the_kernel(tmp_path) -> None:
+    """A teardown stuck in C holding the interpreter lock still ends the process.
+
+    rclpy's node teardown can spin in C++ holding the lock, where the guard's timer thread
+    never runs: SIGALRM ends the process after twice the timeout.
+    """
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "hold.py"
+    script.write_text(
+        "import re\n"
+        "from ft_msgs_py import spin\n"
+        "from rclpy.node import Node\n"
+        "class Hold(Node):\n"
+        "    def __init__(self):\n"
+        "        super().__init__('hold_on_teardown')\n"
+        "        print('spinning', flush=True)\n"
+        "    def destroy_node(self):\n"
+        "        re.match(r'(a+)+$', 'a' * 64 + 'b')  # hours in C, the lock held\n"
+        "spin.TEARDOWN_TIMEOUT = 1.0\n"
+        "spin.run_node(Hold, [])\n")
+    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout.readline() == "spinning\n"
+        process.send_signal(signal.SIGTERM)
+        start = time.monotonic()
+        status = process.wait(timeout=30)
+        took = time.monotonic() - start
+    finally:
+        process.kill()
+    process.communicate()
+    assert status == -signal.SIGALRM, status
+    assert 2.0 <= took < 20.0, took

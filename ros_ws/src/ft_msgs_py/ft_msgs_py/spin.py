@@ -29,6 +29,7 @@ milliseconds with the control loop stalled, some tens of missed cycles at 500 Hz
 from __future__ import annotations
 
 import gc
+import math
 import os
 import signal
 import sys
@@ -236,19 +237,40 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
             signal.signal(sig, handler)
 
 
-def exit_if_stuck(seconds: float) -> threading.Timer:
-    """A started timer that ends the process (status 0) unless cancelled within `seconds`.
+class StuckGuard:
+    """Ends the process (status 0) unless cancelled within `seconds` (`exit_if_stuck`)."""
 
-    For a teardown that may hang in the middleware after the work is done; the
-    process says on stderr that it gave up waiting.
-    """
-    def give_up() -> None:
+    def __init__(self, seconds: float):
+        self._timer = threading.Timer(seconds, self._give_up, (seconds,))
+        self._timer.daemon = True
+        self._timer.start()
+        # The timer needs the interpreter lock; rclpy's node teardown can spin in C++
+        # holding it (`destroy_when_not_in_use` under the EventsExecutor). SIGALRM's default
+        # action ends the process from the kernel, lock or not, a timeout later.
+        self._alarm = threading.current_thread() is threading.main_thread()
+        if self._alarm:
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            signal.alarm(math.ceil(2 * seconds))
+
+    @staticmethod
+    def _give_up(seconds: float) -> None:
         sys.stderr.write(f"[ft] the middleware's teardown took more than {seconds:g} s "
                          "(nodes already stopped): exiting without it\n")
         sys.stderr.flush()
         os._exit(0)
 
-    timer = threading.Timer(seconds, give_up)
-    timer.daemon = True
-    timer.start()
-    return timer
+    def cancel(self) -> None:
+        """The teardown finished: the process goes on."""
+        self._timer.cancel()
+        if self._alarm:
+            signal.alarm(0)
+
+
+def exit_if_stuck(seconds: float) -> StuckGuard:
+    """A guard that ends the process unless cancelled within `seconds`.
+
+    For a teardown that may hang in the middleware after the work is done: the process
+    says on stderr that it gave up waiting and exits with status 0; where the hang holds
+    the interpreter lock, SIGALRM ends it (status 142) after twice `seconds`.
+    """
+    return StuckGuard(seconds)
