@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import signal
+from pathlib import Path
 
 import pytest
 from ft_msgs_py import spin
@@ -153,31 +154,29 @@ def test_a_harness_node_offers_no_services() -> None:
         node.destroy_node()
 
 
-def test_a_teardown_that_hangs_ends_the_process_after_the_timeout(tmp_path) -> None:
-    """The middleware's teardown may deadlock (Fast DDS, `spin` docstring): the process still ends.
+def _stopped_by_sigterm(script: Path, teardown: str,
+                        extra: str = "") -> tuple[int, float, str, str]:
+    """Run a node whose `destroy_node` is `teardown`; stop it by SIGTERM as launch does.
 
-    A node whose `destroy_node` never returns stands in for it, in a process of its own
-    stopped by SIGTERM as a launch system stops it.
+    Returns (exit status, s from the signal to the end, stdout after "spinning", stderr).
     """
     import subprocess
     import sys
     import time
 
-    script = tmp_path / "hang.py"
     script.write_text(
-        "import threading, time\n"
+        "import re, threading\n"
         "from ft_msgs_py import spin\n"
         "from rclpy.node import Node\n"
-        "class Hang(Node):\n"
+        "class Stuck(Node):\n"
         "    def __init__(self):\n"
-        "        super().__init__('hang_on_teardown')\n"
+        "        super().__init__('stuck_on_teardown')\n"
         "        print('spinning', flush=True)\n"
-        "    def stop(self):\n"
-        "        print('stopped', flush=True)\n"
+        f"{extra}"
         "    def destroy_node(self):\n"
-        "        threading.Event().wait()\n"
+        f"        {teardown}\n"
         "spin.TEARDOWN_TIMEOUT = 1.0\n"
-        "spin.run_node(Hang, [])\n")
+        "spin.run_node(Stuck, [])\n")
     process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
@@ -189,6 +188,18 @@ def test_a_teardown_that_hangs_ends_the_process_after_the_timeout(tmp_path) -> N
     finally:
         process.kill()
     out, err = process.communicate()
+    return status, took, out, err
+
+
+def test_a_teardown_that_hangs_ends_the_process_after_the_timeout(tmp_path) -> None:
+    """The middleware's teardown may deadlock (Fast DDS, `spin` docstring): the process still ends.
+
+    A node whose `destroy_node` never returns stands in for it, in a process of its own
+    stopped by SIGTERM as a launch system stops it.
+    """
+    status, took, out, err = _stopped_by_sigterm(
+        tmp_path / "hang.py", "threading.Event().wait()",
+        "    def stop(self):\n        print('stopped', flush=True)\n")
     assert status == 0, err
     assert out == "stopped\n"  # the node's stop() (its zeros) ran before the teardown
     assert "teardown took more than 1 s" in err
@@ -201,33 +212,7 @@ def test_a_teardown_that_holds_the_interpreter_lock_is_ended_by_the_kernel(tmp_p
     rclpy's node teardown can spin in C++ holding the lock, where the guard's timer thread
     never runs: SIGALRM ends the process after twice the timeout.
     """
-    import subprocess
-    import sys
-    import time
-
-    script = tmp_path / "hold.py"
-    script.write_text(
-        "import re\n"
-        "from ft_msgs_py import spin\n"
-        "from rclpy.node import Node\n"
-        "class Hold(Node):\n"
-        "    def __init__(self):\n"
-        "        super().__init__('hold_on_teardown')\n"
-        "        print('spinning', flush=True)\n"
-        "    def destroy_node(self):\n"
-        "        re.match(r'(a+)+$', 'a' * 64 + 'b')  # hours in C, the lock held\n"
-        "spin.TEARDOWN_TIMEOUT = 1.0\n"
-        "spin.run_node(Hold, [])\n")
-    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    try:
-        assert process.stdout.readline() == "spinning\n"
-        process.send_signal(signal.SIGTERM)
-        start = time.monotonic()
-        status = process.wait(timeout=30)
-        took = time.monotonic() - start
-    finally:
-        process.kill()
-    process.communicate()
+    status, took, _, _ = _stopped_by_sigterm(
+        tmp_path / "hold.py", "re.match(r'(a+)+$', 'a' * 64 + 'b')  # hours in C, lock held")
     assert status == -signal.SIGALRM, status
     assert 2.0 <= took < 20.0, took

@@ -488,13 +488,11 @@ class Recovery:
             self._watch.reset(now)
             self.note = f"planning took over {self.config.timeout:.1f} s: given up"
             return
-        reason = (str(result) if state == workers.JobState.FAILED
-                  else f"no IK solution with joints {list(locked)} pinned")
-        if state == workers.JobState.FAILED:
-            result = None
-        if result is None:
+        if state == workers.JobState.FAILED or result is None:
             self._plans = self.config.plans_per_goal  # the goal is out of reach: stop trying
-            self.note = f"goal not reachable: {reason}"
+            self.note = "goal not reachable: " + (
+                str(result) if state == workers.JobState.FAILED
+                else f"no IK solution with joints {list(locked)} pinned")
             return
         self._path = (result, now)
         self.note = (f"following a {result.duration:.2f} s joint path to an IK solution "
