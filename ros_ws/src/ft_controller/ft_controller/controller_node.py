@@ -69,7 +69,8 @@ class ControllerNode(SuiteNode):
         self.accounting.rate(self.now())
         self.outputs = Outputs(self)
         self._targets = inputs.Targets(self.problems)
-        self._watch = MonitorWatch(self.param("monitor_timeout"), self.get_logger(), self.problems)
+        self._watch = MonitorWatch(self.param("monitor_timeout"), self.get_logger(), self.problems,
+                                   self.now_ns)
         self._echo_subscription = self.subscribe_joint_states(
             names.COMMAND_ECHO, self._on_echo, qos.SENSOR_INPUT)
         self._state_subscription = self.subscribe_joint_states(
@@ -231,10 +232,10 @@ class ControllerNode(SuiteNode):
             self._watch.on_locked(
                 msg, [publishers.full_name(p.node_namespace, p.node_name) for p in graph],
                 publishers.expected(monitor, self.get_namespace()) if monitor else None,
-                self.loaded, self.now())
+                self.loaded)
 
     def _on_echo(self, msg: JointStateLike) -> None:
-        self._watch.on_echo(msg, self.loaded, self.now())
+        self._watch.on_echo(msg, self.loaded)
 
     # ------------------------------------------------------------------- cycle
     def update(self, nanoseconds: int | None = None) -> None:
@@ -281,10 +282,9 @@ class ControllerNode(SuiteNode):
     def _check_monitor(self) -> None:
         """The guard of a dead monitor (`MonitorWatch.check`), unless it is in-process."""
         if self.outputs.taker is None:
-            nanoseconds = self.now_ns()
-            stop = self._watch.check(self.loaded, nanoseconds)
+            stop = self._watch.check(self.loaded)
             if stop is not None:
-                self.outputs.send_to_plant(*stop, nanoseconds)
+                self.outputs.send_to_plant(*stop)
 
     def _check_watchdog(self) -> None:
         """Zeros while no cycle has run for `state_timeout` (steady s); the monitor's guard."""

@@ -25,24 +25,26 @@ from ft_controller.loaded import Loaded
 class MonitorWatch:
     """The locked set the controller believes, and its stop while the monitor is silent."""
 
-    def __init__(self, timeout: float, logger: RcutilsLogger, problems: Episodes):
+    def __init__(self, timeout: float, logger: RcutilsLogger, problems: Episodes,
+                 clock: Callable[[], int]):
         """`timeout`: s (steady) without the monitor's answer before the guard stops the arm.
 
-        `logger` and `problems`: the node's, for what it decides and what it refuses.
+        `logger` and `problems`: the node's, for what it decides and what it refuses;
+        `clock`: the node clock in ns, read only when a set is adopted or a stop is due.
         """
         self.guard = MonitorGuard(timeout)
-        self._logger, self._problems = logger, problems
+        self._logger, self._problems, self._clock = logger, problems, clock
         self._trust = publishers.LockedSetTrust()
         #: The guard's stop while the monitor does not answer (`Controller.stopper`; None:
         #: it answers): the next command (chain order) for a time (s).
         self._stop: Callable[[float], np.ndarray] | None = None
 
     def on_locked(self, msg: JointState, graph: list[str], monitor: str | None,
-                  loaded: Loaded, now: float) -> None:
+                  loaded: Loaded) -> None:
         """An `ft/locked_joints` message, published by the nodes `graph` (full names).
 
         `monitor`: the full name of the only node to believe (None: any single one). The
-        set decided is the core's at `now` (s).
+        set decided is the core's from now on.
         """
         verdict = publishers.judge(graph, monitor)
         self._problems.report("ft/locked_joints", verdict.problem)
@@ -56,19 +58,18 @@ class MonitorWatch:
         if unknown:
             self._logger.warning(f"ft/locked_joints: unknown joints {unknown} ignored",
                                  throttle_duration_sec=5.0)
-        self._adopt(self.locked_set(verdict, locked, loaded), loaded, now)
+        self._adopt(self.locked_set(verdict, locked, loaded), loaded)
 
-    def on_echo(self, msg, loaded: Loaded | None, now: float) -> None:
+    def on_echo(self, msg, loaded: Loaded | None) -> None:
         """An `ft/command_echo` message: the monitor's answer to a command, or not."""
         self._adopt(self.echo((msg.header.stamp.sec, msg.header.stamp.nanosec), msg.velocity,
-                              loaded), loaded, now)
+                              loaded), loaded)
 
-    def _adopt(self, change: tuple[set[str], str] | None, loaded: Loaded | None,
-               now: float) -> None:
+    def _adopt(self, change: tuple[set[str], str] | None, loaded: Loaded | None) -> None:
         if change is not None and loaded is not None:
             if change[1]:
                 self._logger.warning(change[1])
-            loaded.core.set_locked(loaded.indices(change[0]), now)
+            loaded.core.set_locked(loaded.indices(change[0]), self._clock() * 1e-9)
 
     def locked_set(self, verdict: publishers.Verdict, locked: Iterable[str],
                    loaded: Loaded) -> tuple[set[str], str] | None:
@@ -103,12 +104,11 @@ class MonitorWatch:
         """The joints the monitor's latest echo zeroed (`MonitorGuard.zeroed`)."""
         return {loaded.joints[j] for j in self.guard.zeroed if j < len(loaded.joints)}
 
-    def check(self, loaded: Loaded | None, nanoseconds: int,
-              ) -> tuple[Loaded, list[float]] | None:
+    def check(self, loaded: Loaded | None) -> tuple[Loaded, list[float], int] | None:
         """The guard's command while the monitor does not answer (an ERROR said), else None.
 
         Asked every cycle and every watchdog period: what to publish on the plant's
-        topics at `nanoseconds` (node clock), for the model `loaded`.
+        topics for the model `loaded`, and its stamp (ns, node clock).
         """
         silent = self.guard.silent(time.monotonic())
         if silent is None:
@@ -117,7 +117,10 @@ class MonitorWatch:
             return None
         self._problems.report("monitor", f"no answer from the monitor for {silent:.2f} s: "
                               "commanding zeros on ft/command and ft/command_array")
-        return None if loaded is None else (loaded, self.stop(loaded, nanoseconds * 1e-9))
+        if loaded is None:
+            return None
+        nanoseconds = self._clock()
+        return loaded, self.stop(loaded, nanoseconds * 1e-9), nanoseconds
 
     def stop(self, loaded: Loaded, now: float) -> list[float]:
         """The guard's command (command order, rad/s) at node time `now` (s).
