@@ -67,3 +67,48 @@ class JointHealth:
     def usable(self) -> bool:
         """Whether a controller may command the joint (healthy or degraded)."""
         return self.state in (Health.HEALTHY, Health.DEGRADED) and not self.braked
+
+
+class HealthBoard:
+    """Each joint's declared state, kept from flapping: it changes only to a worse one.
+
+    The monitor declares states as its detector decides them (`declare`); a joint stays
+    in its state until `reset` (after a repair), whatever the detector sees later: a
+    locked joint that moves again is free-swinging, never healthy again; a free-swinging
+    joint that comes to rest stays free-swinging.
+    """
+
+    def __init__(self, n: int):
+        self.n = n
+        self.reset()
+
+    def reset(self) -> None:
+        """Every joint healthy again."""
+        self.states = [Health.HEALTHY] * self.n
+        self.since = [math.nan] * self.n
+        self.evidence = [""] * self.n
+        self.braked = [False] * self.n
+
+    def declare(self, joint: int, state: Health, now: float, evidence: str,
+                braked: bool = False) -> bool:
+        """`joint` is in `state` at `now` (s), as `evidence` says; whether that changed it.
+
+        Only a worse state replaces the one declared; `braked` marks a free-swinging joint
+        declared locked where it is, and stays.
+        """
+        changed = state.rank > self.states[joint].rank
+        if changed:
+            self.states[joint], self.since[joint], self.evidence[joint] = state, now, evidence
+        if braked and not self.braked[joint]:
+            self.braked[joint] = changed = True
+        return changed
+
+    def of(self, state: Health) -> list[int]:
+        """The joints in `state`, in chain order."""
+        return [j for j, s in enumerate(self.states) if s == state]
+
+    def health(self, joint: int, follows: float, torque_margin: float, lower: float,
+               upper: float) -> JointHealth:
+        """`joint`'s `JointHealth`, with the measured share, margin and range given."""
+        return JointHealth(self.states[joint], follows, torque_margin, lower, upper,
+                           self.since[joint], self.braked[joint], self.evidence[joint])

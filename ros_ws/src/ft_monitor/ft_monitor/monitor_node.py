@@ -326,8 +326,12 @@ class MonitorNode(SuiteNode):
             self.core, self.command_joints, [] if self.wiring is None else self.wiring.order,
             values, self.problems.summary() if self.problems.active else None,
             age > self.commands.timeout, self.status)
-        self.outputs.diagnostics.publish(diagnostics.array(statuses,
-                                                           self.get_clock().now().to_msg()))
+        stamp = self.get_clock().now().to_msg()
+        self.outputs.diagnostics.publish(diagnostics.array(statuses, stamp))
+        if self.core is not None and self.wiring is not None:
+            joints = self.core.health()
+            self.outputs.send_health({name: joints[name] for name in self.wiring.joints},
+                                     stamp, self.core.robot.name)
 
 
 def main(args: list[str] | None = None) -> None:

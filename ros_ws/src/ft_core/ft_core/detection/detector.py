@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ft_core.detection import rules
+from ft_core.detection.follow import FollowMeter
 from ft_core.detection.identification import (
     LATENCY_GRID,
     RESPONSE_TIME_GRID,
@@ -117,11 +118,12 @@ class JointEvidence:
     swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)
     position: float = 0.0  #: position when locked (rad)
+    degraded_at: float | None = None  #: time it was declared degraded (s)
 
 
 @dataclass(frozen=True)
 class Update:
-    """What one measurement decided: joints newly declared locked and free-swinging.
+    """What one measurement decided: joints newly declared locked, free-swinging, degraded.
 
     `released`: those of `swinging` that were declared locked (a swing takes the lock back).
     """
@@ -129,6 +131,7 @@ class Update:
     locked: tuple[int, ...] = ()
     swinging: tuple[int, ...] = ()
     released: tuple[int, ...] = ()
+    degraded: tuple[int, ...] = ()
 
 
 class Decision(enum.StrEnum):
@@ -184,6 +187,8 @@ class LockDetector:
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
+        self.follow = FollowMeter(self.n)
+        self._declared_at = -math.inf  # when a joint was last declared locked or swinging
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -220,6 +225,7 @@ class LockDetector:
         evidence = self.joints[joint]
         if evidence.locked_at is None:
             evidence.locked_at, evidence.position = time, position
+            self._declared_at = max(self._declared_at, time)
 
     def fill_unknown_positions(self, position: np.ndarray) -> bool:
         """Give locked joints of unknown position (nan) this measured one; True if any."""
@@ -435,6 +441,10 @@ class LockDetector:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return Update()
+        # Evidence that began within the settling time after a declaration (a stopping
+        # link's reaction on the others, the remap's step) must outlast that transient.
+        settle = plant.settling_time(best)
+        after_declaration = self._declared_at + settle
         swinging, released = [], []
         for j, evidence in enumerate(joints):
             if not own_of[j]:
@@ -442,9 +452,12 @@ class LockDetector:
             elif evidence.swinging_at is None:
                 if evidence.swing_since is None:
                     evidence.swing_since = now
-                if now - evidence.swing_since >= cfg.persistence + rules.swing_wait(
-                        measured_of[j], error_of[j], plausible, plant.settling_time(best),
-                        cfg.confidence, cfg.min_command):
+                wait = cfg.persistence + rules.swing_wait(
+                    measured_of[j], error_of[j], plausible, settle, cfg.confidence,
+                    cfg.min_command)
+                if self._declared_at <= evidence.swing_since < after_declaration:
+                    wait = max(wait, cfg.persistence + settle)
+                if now - evidence.swing_since >= wait:
                     # A joint declared locked that moves was never locked: it swings.
                     if evidence.locked_at is not None:
                         released.append(j)
@@ -459,12 +472,24 @@ class LockDetector:
                 continue
             if evidence.evidence_since is None:
                 evidence.evidence_since = now
-            if now - evidence.evidence_since >= cfg.persistence:
+            wait = cfg.persistence
+            if self._declared_at <= evidence.evidence_since < after_declaration:
+                wait += settle
+            if now - evidence.evidence_since >= wait:
                 evidence.locked_at, evidence.position = now, float(latest[j])
                 # Seen swinging before: should it move on its own again, it swings again.
                 evidence.swinging_at = None
                 newly.append(j)
-        return Update(tuple(newly), tuple(swinging), tuple(released))
+        if newly or swinging:
+            self._declared_at = now
+        judged = observable & ~pushing & ~on_its_own & (now >= after_declaration)
+        degraded = []
+        for j in self.follow.update(now, dt, measured, weakest, judged):
+            evidence = joints[j]
+            if evidence.degraded_at is None and evidence.locked_at is None:
+                evidence.degraded_at = now
+                degraded.append(j)
+        return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
 
 
 @functools.cache
