@@ -93,7 +93,7 @@ def test_healthy_plants_declare_no_joint_degraded(latency: float, response: floa
     detector = LockDetector(PANDA.lower, PANDA.upper)
     assert replay(data, detector) == []
     shares = detector.follow.shares
-    assert np.nanmin(shares) > 0.9, shares
+    assert np.nanmin(shares) > 0.9 and np.nanmax(shares) == 1.0, shares
 
 
 @pytest.mark.parametrize("share", [0.3, 0.4])

@@ -50,10 +50,13 @@ class FollowMeter:
 
     @property
     def shares(self) -> np.ndarray:
-        """(n,) share of its command each joint followed (nan: too little commanded)."""
+        """(n,) share (0-1) of its command each joint followed (nan: too little commanded).
+
+        A joint ahead of the weakest plausible prediction followed all of it: 1.
+        """
         known = self.commanded >= MIN_MOTION
         share = np.divide(self.moved, self.commanded, out=np.zeros(self.n), where=known)
-        return np.where(known, share, math.nan)
+        return np.where(known, np.clip(share, 0.0, 1.0), math.nan)
 
     def update(self, now: float, dt: float, measured: np.ndarray, weakest: np.ndarray,
                judged: np.ndarray) -> list[int]:

@@ -72,8 +72,9 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float
 
     A joint not yet declared free-swinging with |v| >= `min_command`, and v further than
     max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
-    [min(0, low), max(0, high)] over the plausible predictions ([0, 0] for a locked
-    joint), with no command or one against it. Faster than commanded in the commanded
+    [min(0, low), max(0, high)] over the plausible predictions, with no command or one
+    against it (for a locked joint, whose commands are 0 since its lock, the predictions
+    are its coast after them; it must not move faster). Faster than commanded in the commanded
     direction (a servo's tracking error or overshoot, a joint pushed by the others)
     counts only beyond twice `fastest`, the largest plausible prediction of any joint,
     and the noise, which no servo transient reaches: a joint falling the way it was
@@ -82,9 +83,9 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float
     not explain: with the arm's gravity known (`gravity_known`), v must also have the sign
     of `falling`, the direction gravity accelerates the joint (0 where it hardly can).
     """
-    # A locked joint should not move at all: its healthy range is [0, 0].
-    healthy_low = min(low, 0.0) if unlocked else 0.0
-    healthy_high = max(high, 0.0) if unlocked else 0.0
+    # A locked joint may only coast as the commands before its lock make it (a lock
+    # declared on ft/declare_failure while the joint moves): those are the predictions.
+    healthy_low, healthy_high = min(low, 0.0), max(high, 0.0)
     outside = max(healthy_low - v, v - healthy_high)
     noise = max(confidence * s, min_command)
     ahead = unlocked and ((v > healthy_high and high >= min_command)
