@@ -201,3 +201,23 @@ def test_the_joint_health_message_round_trips_and_refuses_garbage() -> None:
     bad.status = bad.status * 2000
     with pytest.raises(MessageError, match="statuses"):
         health.read(bad, ["a"])
+
+
+def test_the_torque_margin_is_what_the_largest_recent_effort_leaves_of_the_limit() -> None:
+    board = HealthBoard(2)
+    assert math.isnan(board.torque_margin(0, 87.0))  # no efforts reported
+    board.effort(0.0, np.array([43.5, -10.0]))
+    board.effort(0.001, np.array([5.0, -2.0]))  # the peak counts for a while
+    assert board.torque_margin(0, 87.0) == pytest.approx(0.5, abs=0.01)
+    assert board.torque_margin(1, 87.0) == pytest.approx(1 - 10 / 87, abs=0.01)
+    assert math.isnan(board.torque_margin(0, math.inf))  # the URDF gives no limit
+    board.effort(10.0, np.array([5.0, 100.0]))  # forgotten after several seconds; saturated
+    assert board.torque_margin(0, 87.0) == pytest.approx(1 - 5 / 87, abs=0.01)
+    assert board.torque_margin(1, 87.0) == 0.0
+
+
+def test_the_urdf_effort_limits_are_read() -> None:
+    panda = robots.load("panda")
+    assert panda.effort_limits.tolist() == [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]
+    planar = robots.load("planar3r")
+    assert planar.effort_limits.shape == (3,)

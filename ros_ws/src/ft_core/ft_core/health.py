@@ -17,6 +17,8 @@ import enum
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 
 class Health(enum.StrEnum):
     """A joint's state, from best to worst (the order of `rank`)."""
@@ -69,6 +71,11 @@ class JointHealth:
         return self.state in (Health.HEALTHY, Health.DEGRADED) and not self.braked
 
 
+#: s over which the largest effort seen counts for the torque margin (forgotten
+#: exponentially with this time constant).
+EFFORT_MEMORY = 1.0
+
+
 class HealthBoard:
     """Each joint's declared state, kept from flapping: it changes only to a worse one.
 
@@ -88,6 +95,8 @@ class HealthBoard:
         self.since = [math.nan] * self.n
         self.evidence = [""] * self.n
         self.braked = [False] * self.n
+        self._peak = np.full(self.n, math.nan)  # N m, the largest |effort| lately, forgotten
+        self._effort_at = -math.inf  # s, the time of the last efforts
 
     def declare(self, joint: int, state: Health, now: float, evidence: str,
                 braked: bool = False) -> bool:
@@ -102,6 +111,18 @@ class HealthBoard:
         if braked and not self.braked[joint]:
             self.braked[joint] = changed = True
         return changed
+
+    def effort(self, now: float, effort: np.ndarray) -> None:
+        """The efforts (N m, chain order) the driver reports at `now` (s)."""
+        decay = math.exp(-max(now - self._effort_at, 0.0) / EFFORT_MEMORY)
+        self._peak = np.fmax(np.abs(effort), np.nan_to_num(self._peak) * decay)
+        self._effort_at = now
+
+    def torque_margin(self, joint: int, limit: float) -> float:
+        """Share (0-1) of `limit` (N m) above the largest effort of `joint` lately; nan unknown."""
+        if not math.isfinite(limit) or math.isnan(self._peak[joint]):
+            return math.nan
+        return min(max(1.0 - float(self._peak[joint]) / limit, 0.0), 1.0)
 
     def of(self, state: Health) -> list[int]:
         """The joints in `state`, in chain order."""

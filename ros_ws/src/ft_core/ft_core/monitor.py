@@ -218,9 +218,10 @@ class Monitor:
 
     def health(self) -> dict[str, JointHealth]:
         """Every joint's state and what it still gives, in chain order (`ft/joint_health`)."""
-        robot, shares = self.robot, self.detector.follow.shares
-        return {name: self.board.health(j, float(shares[j]), math.nan, float(robot.lower[j]),
-                                        float(robot.upper[j]))
+        robot, shares, board = self.robot, self.detector.follow.shares, self.board
+        return {name: board.health(j, float(shares[j]),
+                                   board.torque_margin(j, float(robot.effort_limits[j])),
+                                   float(robot.lower[j]), float(robot.upper[j]))
                 for j, name in enumerate(robot.joint_names)}
 
     def restore(self, now: float) -> Change:
@@ -294,9 +295,15 @@ class Monitor:
         """
         return limits.absurd_command(qd, self.robot.joint_names)
 
-    def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
-        """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
+    def observe(self, q: np.ndarray, now: float, blind: str | None = None,
+                effort: np.ndarray | None = None) -> Change:
+        """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing.
+
+        `effort`: the joints' efforts (N m) where the driver reports them (torque margins).
+        """
         self.q = q
+        if effort is not None:
+            self.board.effort(now, effort)
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q))
