@@ -141,3 +141,34 @@ def test_the_kinematic_plant_has_no_obstacles_and_says_so() -> None:
     with sim("kinematic") as (node, _, _, log):
         node._on_obstacle(fault_messages.obstacle_message(np.eye(4), [0.1, 0.1, 0.1]))
         assert len(log.warnings()) == 1 and "need the physics plant" in log.warnings()[0]
+
+
+def test_a_scenario_injects_faults_and_places_an_obstacle_once_the_sim_has_them() -> None:
+    from ft_core.errors import SuiteError
+    from ft_sim.scenario import TASK_POINTS, Scenario, ScenarioConfig
+    from rosutil import fresh_domain
+
+    config = ScenarioConfig(robot="panda_inertial", plant="physics", lock_joint="",
+                            points=(TASK_POINTS["panda"][0],), soft_limits=False,
+                            response_time=0.03)
+    scenario = Scenario(config, domain_id=fresh_domain())
+    try:
+        scenario.start()
+        scenario.step()
+        scenario.inject_fault("viscous", "panda_joint4", severity=20.0)
+        injected = scenario.record.injected_at
+        scenario.step()
+        scenario.inject_fault("intermittent", "panda_joint3", period=0.5)
+        assert scenario.sim.faults == {"panda_joint3": ["intermittent"],
+                                       "panda_joint4": ["viscous"]}
+        assert scenario.record.injected_at == injected  # the first failure's time
+        pose = np.eye(4)
+        pose[:3, 3] = [0.5, 0.5, 0.5]
+        scenario.place_obstacle(pose, (0.1, 0.2, 0.3))
+        assert np.allclose(scenario.sim.plant.obstacle[1], [0.1, 0.2, 0.3])
+        scenario.remove_obstacle()
+        scenario.config.plant = "kinematic"
+        with pytest.raises(SuiteError, match="physics plant"):
+            scenario.place_obstacle(pose, (0.1, 0.1, 0.1))
+    finally:
+        scenario.close()

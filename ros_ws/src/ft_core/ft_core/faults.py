@@ -219,3 +219,56 @@ class FaultState:
         v = np.sign(v) * np.maximum(np.abs(v) - self.dry / DRIVE_DAMPING, 0.0)
         fastest = self.authority * velocity_limits
         return np.clip(v, -fastest, fastest)
+
+
+#: The numbers `from_spec` takes when a spec gives none: the severities of the measurements
+#: that motivated the library (viscous 50, dry 5, authority 0.3), a 1 s jam, a 0.1 rad stop.
+SPEC_DEFAULTS = {FaultKind.VISCOUS: 50.0, FaultKind.DRY: 5.0, FaultKind.AUTHORITY: 0.3,
+                 FaultKind.INTERMITTENT: 1.0, FaultKind.RANGE: 0.1}
+
+
+def parse_spec(spec: str) -> tuple[FaultKind, float]:
+    """`KIND[:VALUE]` (a command line's fault) as (kind, value; `SPEC_DEFAULTS` if none).
+
+    VALUE is the severity (viscous, dry, authority), the period (intermittent) or how far
+    (rad) the new stops lie on either side of the joint (range); lock and free_swing take
+    none.
+
+    Raises:
+        FaultError: an unknown kind, a value that is not a number, or one a kind takes not.
+    """
+    name, _, value = spec.partition(":")
+    try:
+        kind = FaultKind(name)
+    except ValueError:
+        raise FaultError(f"unknown fault kind {name[:40]!r} (one of "
+                         f"{', '.join(FaultKind)})") from None
+    if not value:
+        return kind, SPEC_DEFAULTS.get(kind, math.nan)
+    if kind not in SPEC_DEFAULTS:
+        raise FaultError(f"{kind} takes no value")
+    try:
+        number = float(value)
+    except ValueError:
+        raise FaultError(f"{kind}: {value[:40]!r} is not a number") from None
+    if not (math.isfinite(number) and number > 0):
+        raise FaultError(f"{kind}: {number} must be finite and > 0")
+    return kind, number
+
+
+def from_spec(spec: str, joint: str, q: float, lower: float, upper: float) -> Fault:
+    """The fault a `KIND[:VALUE]` spec (`parse_spec`) names on `joint`, now at q (rad).
+
+    A range fault's stops lie VALUE rad either side of q, within [lower, upper].
+
+    Raises:
+        FaultError: a spec `parse_spec` refuses, or a value out of the kind's range.
+    """
+    kind, value = parse_spec(spec)
+    if kind is FaultKind.RANGE:
+        return Fault(kind, joint, lower=max(q - value, lower), upper=min(q + value, upper))
+    if kind is FaultKind.INTERMITTENT:
+        return Fault(kind, joint, period=value)
+    if kind.fields == ("severity",):
+        return Fault(kind, joint, severity=value)
+    return Fault(kind, joint)

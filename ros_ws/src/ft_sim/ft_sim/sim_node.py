@@ -20,8 +20,8 @@ On the physics plant, `response_time` sets the servo's gains (`ft_core.physics`)
 With `refuse_over_limits` (on in the demo, the campaign and the demo's launch file) the
 driver refuses what a real one refuses, as Franka's reflex does: a command whose
 velocity, acceleration or jerk, read by its stamp, is over the arm's limits (`limits.*`,
-`ft_core.command_limits.DriverCheck`; the joints the plant holds locked or swinging are
-not judged) stops the arm, and it takes no command until `~/reset`; the refusal is
+`ft_core.command_limits.DriverCheck`; the joints the plant holds failed, by any fault,
+are not judged: the monitor stops a joint it declares at once) stops the arm, and it takes no command until `~/reset`; the refusal is
 logged as an ERROR and kept in `reflex`.
 Velocities are clipped to the URDF limits and positions to the URDF limits; locked
 joints do not move (behind the physics plant's brake: by a fraction of a mrad). It
@@ -219,7 +219,8 @@ class SimNode(SuiteNode):
         plant = self.plant
         stamp = msg.header.stamp
         refusal = self.driver.check(velocity, stamp.sec + stamp.nanosec * 1e-9,
-                                    exempt=(*plant.locked, *plant.swinging))
+                                    exempt=(*plant.locked, *plant.swinging,
+                                            *plant.faults.faults))
         if refusal is None or not self._refuse:
             return True
         self.reflex = f"{refusal} (t = {self.t:.3f} s)"
