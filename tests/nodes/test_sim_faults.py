@@ -13,6 +13,9 @@ from ft_msgs_py import faults as fault_messages
 from ft_msgs_py import names, qos
 from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim.sim_node import SimNode
+from fuzzing import examples
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rosutil import ros_context
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -172,3 +175,26 @@ def test_a_scenario_injects_faults_and_places_an_obstacle_once_the_sim_has_them(
             scenario.place_obstacle(pose, (0.1, 0.1, 0.1))
     finally:
         scenario.close()
+
+
+TEXT = st.sampled_from(["", "0", "0.5", "2", "50", "-1", "nan", "inf", "-inf", "1e308", "x",
+                        "1" * 400])
+STATUSES = st.lists(st.builds(
+    lambda joint, kind, values: status(joint, kind, **dict(values)),
+    st.sampled_from(["panda_joint2", "panda_joint4", "panda_joint9", "", "x" * 300]),
+    st.sampled_from(["lock", "free_swing", "viscous", "dry", "authority", "range",
+                     "intermittent", "", "LOCK"]),
+    st.lists(st.tuples(st.sampled_from(["severity", "lower", "upper", "period", "other"]),
+                       TEXT), max_size=5)), max_size=6)
+
+
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
+@given(batches=st.lists(STATUSES, min_size=1, max_size=3))
+def test_hostile_fault_messages_never_break_the_plant(batches) -> None:
+    with sim() as (node, _, _, _):
+        for statuses in batches:
+            node._on_fault(DiagnosticArray(status=statuses))
+            for _ in range(5):
+                node.step()
+        assert np.all(np.isfinite(node.q)) and np.all(np.isfinite(node.qd))
+        assert np.all((node.q >= node.robot.lower - 0.01) & (node.q <= node.robot.upper + 0.01))

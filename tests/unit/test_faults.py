@@ -208,3 +208,21 @@ def test_kinematic_range_and_intermittent() -> None:
     assert not moving[10:45].any() and moving[55:95].all() and not moving[105:145].any()
     with pytest.raises(FaultError, match="within the joint's range"):
         plant.inject(J4, Fault("range", "panda_joint4", lower=ARM.lower[J4] - 1.0))
+
+
+# ------------------------------------------------------------ command lines
+def test_a_fault_spec_names_a_kind_and_its_one_number() -> None:
+    from ft_core.faults import from_spec, parse_spec
+
+    assert parse_spec("lock") == (FaultKind.LOCK, pytest.approx(math.nan, nan_ok=True))
+    assert parse_spec("viscous") == (FaultKind.VISCOUS, 50.0)
+    assert parse_spec("dry:3") == (FaultKind.DRY, 3.0)
+    assert from_spec("authority:0.25", "j", 0.0, -1.0, 1.0).severity == 0.25
+    assert from_spec("intermittent:2", "j", 0.0, -1.0, 1.0).period == 2.0
+    stop = from_spec("range", "j", 0.95, -1.0, 1.0)
+    assert (stop.lower, stop.upper) == (pytest.approx(0.85), 1.0)
+    for spec, match in [("rust", "unknown fault kind"), ("lock:1", "takes no value"),
+                        ("dry:x", "not a number"), ("viscous:-1", "> 0"),
+                        ("authority:2", "fraction")]:
+        with pytest.raises(FaultError, match=match):
+            from_spec(spec, "j", 0.0, -1.0, 1.0)
