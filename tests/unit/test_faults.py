@@ -226,3 +226,14 @@ def test_a_fault_spec_names_a_kind_and_its_one_number() -> None:
                         ("authority:2", "fraction")]:
         with pytest.raises(FaultError, match=match):
             from_spec(spec, "j", 0.0, -1.0, 1.0)
+
+
+def test_a_campaign_design_names_its_fault_unless_a_lock() -> None:
+    from ft_sim.campaign_design import design_of
+
+    plant = {"plant": "kinematic"}
+    design = design_of("planar3r", "", "", plant, task="planar", fault="dry:2")
+    assert design["fault"] == "dry:2"
+    assert "fault" not in design_of("planar3r", "", "", plant, task="planar")  # kept runs stay
+    with pytest.raises(FaultError, match="unknown fault kind"):
+        design_of("planar3r", "", "", plant, task="planar", fault="rust")

@@ -21,8 +21,8 @@ With `refuse_over_limits` (on in the demo, the campaign and the demo's launch fi
 driver refuses what a real one refuses, as Franka's reflex does: a command whose
 velocity, acceleration or jerk, read by its stamp, is over the arm's limits (`limits.*`,
 `ft_core.command_limits.DriverCheck`; the joints the plant holds failed, by any fault,
-are not judged: the monitor stops a joint it declares at once) stops the arm, and it takes no command until `~/reset`; the refusal is
-logged as an ERROR and kept in `reflex`.
+are not judged: the monitor stops a joint it declares at once) stops the arm, and it
+takes no command until `~/reset`; the refusal is logged as an ERROR and kept in `reflex`.
 Velocities are clipped to the URDF limits and positions to the URDF limits; locked
 joints do not move (behind the physics plant's brake: by a fraction of a mrad). It
 publishes `joint_states` (positions with optional Gaussian `position_noise`, and the
