@@ -185,6 +185,13 @@ class BasePlant:
     def _degrade(self, joint: int) -> None:
         """Make the faults in `self.faults` on joint index `joint` act (plants that must)."""
 
+    def failures(self) -> dict[int, list[str]]:
+        """{joint index: the kinds (`FaultKind`) in force on it}, locks and free swings too."""
+        return {j: [*([FaultKind.LOCK] if j in self.locked else []),
+                    *([FaultKind.FREE_SWING] if j in self.swinging else []),
+                    *self.faults.faults.get(j, {})]
+                for j in sorted({*self.locked, *self.swinging, *self.faults.faults})}
+
     def release(self) -> list[int]:
         """Release every lock, free swing and fault; returns the joints that were failed."""
         released = sorted(set(self.locked) | self.swinging | set(self.faults.faults))

@@ -36,19 +36,16 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
 from ft_controller.controller_node import ControllerNode
 from ft_core import faults, recovery, robots, selfmotion
-from ft_core.errors import SuiteError
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, spin
-from ft_msgs_py import faults as fault_messages
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from sensor_msgs.msg import JointState
-from visualization_msgs.msg import Marker
 
 from ft_sim.bag import Recorder
+from ft_sim.injection import Injection
 from ft_sim.live import LiveServer
 from ft_sim.planner_pool import PLANNER_CHECK, planner, stop_planner
 from ft_sim.scenario_config import (
@@ -76,7 +73,7 @@ REACH_SAMPLES = 2000
 
 
 
-class Scenario:
+class Scenario(Injection):
     """Builds the nodes in their own context (and DDS domain) and runs them.
 
     With `bag`, every topic of the run is also written there as a rosbag2 (MCAP). With
@@ -141,13 +138,7 @@ class Scenario:
         self.driver = spin.harness_node("driver", self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
-        self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,
-                                                        qos.RELIABLE)
-        self._swing_pub = self.driver.create_publisher(JointState, names.INJECT_FREE_SWING,
-                                                       qos.RELIABLE)
-        self._fault_pub = self.driver.create_publisher(DiagnosticArray, names.INJECT_FAULT,
-                                                       qos.RELIABLE)
-        self._obstacle_pub = self.driver.create_publisher(Marker, names.OBSTACLE, qos.RELIABLE)
+        self._create_injectors()
         self.driver.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked,
                                         qos.LATCHED)
         self.recorder = None if bag is None else Recorder(
@@ -191,11 +182,6 @@ class Scenario:
             o.x, o.y, o.z, o.w = (float(v) for v in point[3:])
         self._goal_pub.publish(msg)
 
-    def inject(self, joint: str) -> None:
-        """Lock `joint` through `ft/inject_failure`; returns once the sim has it locked."""
-        self._publish_failure(self._inject_pub, joint, lambda: joint in self.sim.locked)
-        self.record.injected_at = self.sim.t
-
     def keep_reachable(self, joint: str, points: list[int]) -> None:
         """Replace those of `points` the arm cannot reach with `joint` held where it is.
 
@@ -220,11 +206,6 @@ class Scenario:
             self._targets[p] = replacement
             points_now[p] = tuple(selfmotion.flat_from_targets(robot, [replacement]))
         self.config = replace(cfg, points=tuple(points_now))
-
-    def _publish_failure(self, publisher, joint: str, done) -> None:
-        publisher.publish(JointState(name=[joint]))
-        if not spin.spin_until(self.executor, done, 5.0):
-            raise TimeoutError(f"the sim did not take the failure of {joint} within 5 s")
 
     def distance(self, index: int) -> float:
         """Position distance (m) of the tool from task point `index`."""
@@ -255,49 +236,6 @@ class Scenario:
         if self.record.detected_at is None or self.record.injected_at is None:
             return None
         return self.record.detected_at - self.record.injected_at
-
-    def inject_free_swing(self, joint: str) -> None:
-        """`joint` loses its torque (`ft/inject_free_swing`); returns once the sim has it."""
-        self._publish_failure(self._swing_pub, joint, lambda: joint in self.sim.swinging)
-
-    def inject_fault(self, kind: str, joint: str, **numbers: float) -> None:
-        """A fault of `kind` on `joint` through `ft/inject_fault`; returns once the sim has it.
-
-        `numbers`: `severity`, `lower`, `upper`, `period` as the kind takes them
-        (`ft_core.faults.Fault`). The first injection of a run is `Record.injected_at`.
-
-        Raises:
-            ft_core.faults.FaultError: a fault with wrong numbers.
-            TimeoutError: the sim did not take it within 5 s (see its warning).
-        """
-        fault = faults.Fault(kind, joint, **numbers)
-        self._fault_pub.publish(fault_messages.message([fault]))
-        if not spin.spin_until(self.executor,
-                               lambda: fault.kind in self.sim.faults.get(joint, []), 5.0):
-            raise TimeoutError(f"the sim did not take {fault.describe()} on {joint} within 5 s")
-        if self.record.injected_at is None:
-            self.record.injected_at = self.sim.t
-
-    def place_obstacle(self, pose: np.ndarray, size: tuple[float, float, float]) -> None:
-        """A box of edges `size` (m) at `pose` (4x4, base frame) through `ft/obstacle`.
-
-        Returns once the sim has it. Raises SuiteError on the kinematic plant (it has
-        no contacts) and TimeoutError if the sim did not take it within 5 s.
-        """
-        if self.config.plant != "physics":
-            raise SuiteError("obstacles need the physics plant")
-        self._obstacle_pub.publish(fault_messages.obstacle_message(pose, size,
-                                                                   self.robot.base_link))
-        obstacle = self.sim.plant.obstacle if self.sim.plant is not None else None
-        if not spin.spin_until(self.executor, lambda: self.sim.plant.obstacle is not obstacle
-                               and self.sim.plant.obstacle is not None, 5.0):
-            raise TimeoutError("the sim did not place the obstacle within 5 s")
-
-    def remove_obstacle(self) -> None:
-        """Remove the obstacle through `ft/obstacle`; returns once the sim has."""
-        self._obstacle_pub.publish(Marker(action=Marker.DELETE))
-        if not spin.spin_until(self.executor, lambda: self.sim.plant.obstacle is None, 5.0):
-            raise TimeoutError("the sim did not remove the obstacle within 5 s")
 
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant.
@@ -416,18 +354,6 @@ class Scenario:
         if self.sim.driver is not None:  # None only without a model
             rec.peaks = self.sim.driver.peaks.tolist()
         return rec
-
-    def _inject_configured(self) -> None:
-        """The config's `fault` on `lock_joint`, now: a lock by `ft/inject_failure`."""
-        cfg, robot = self.config, self.robot
-        j = robot.joint_names.index(cfg.lock_joint)
-        fault = faults.from_spec(cfg.fault, cfg.lock_joint, float(self.sim.q[j]),
-                                 float(robot.lower[j]), float(robot.upper[j]))
-        if fault.kind is faults.FaultKind.LOCK:
-            self.inject(cfg.lock_joint)
-        else:
-            self.inject_fault(fault.kind, fault.joint, **{
-                key: getattr(fault, key) for key in fault.kind.fields})
 
     def _soft_limits(self, flat: list[float]) -> dict:
         """The controller's soft-limit parameters: the box if known, else the points."""

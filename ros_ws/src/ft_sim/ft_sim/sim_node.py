@@ -302,13 +302,7 @@ class SimNode(SuiteNode):
         """{joint name: the kinds of its faults in force} (locks and free swings included)."""
         if self.plant is None:
             return {}
-        kinds: dict[str, list[str]] = {}
-        for j in sorted({*self.plant.locked, *self.plant.swinging, *self.plant.faults.faults}):
-            kinds[self.robot.joint_names[j]] = [
-                *(["lock"] if j in self.plant.locked else []),
-                *(["free_swing"] if j in self.plant.swinging else []),
-                *(str(kind) for kind in self.plant.faults.faults.get(j, {}))]
-        return kinds
+        return {self.robot.joint_names[j]: kinds for j, kinds in self.plant.failures().items()}
 
     def inject_faults(self, faults: list[Fault]) -> None:
         """Inject `faults` together, or none of them (one warning says why).
