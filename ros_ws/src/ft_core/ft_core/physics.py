@@ -127,6 +127,7 @@ class PhysicsPlant(BasePlant):
     Attributes:
         q, qd: chain joint positions (rad) and velocities (rad/s), `robot.joint_names` order.
         torque: the drive torques (N m) of the last step.
+        obstacle: (pose 4x4 in the base frame, edges (3,) m) of the box placed, or None.
     """
 
     def __init__(self, robot: Robot, q0: np.ndarray, config: PlantConfig | None = None,
