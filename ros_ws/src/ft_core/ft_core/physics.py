@@ -73,6 +73,8 @@ ARMATURE = 0.1
 TRACKING_LIMIT = 0.1
 #: MuJoCo solref (time constant s, damping ratio) of the brakes: stiff, 2 MuJoCo steps.
 BRAKE_SOLREF = (2 * TIMESTEP, 1.0)
+#: rad, the stand-in for no limit on a side of a range fault's stop on an unlimited joint.
+BIG = 1e10
 #: m, radius of the tool's collision sphere on the tip link's origin.
 TOOL_RADIUS = 0.035
 #: MuJoCo solref of the tool's contact with the obstacle: a rigid box, 4 MuJoCo steps.
@@ -177,7 +179,8 @@ class PhysicsPlant(BasePlant):
         self.torque = np.zeros(self.n)
         self._joint_ids = np.array(ids)
         self._healthy = (model.dof_damping.copy(), model.dof_frictionloss.copy(),
-                         model.jnt_range.copy(), model.jnt_solref.copy())
+                         np.where(model.jnt_limited[:, None], model.jnt_range, [-BIG, BIG]),
+                         model.jnt_solref.copy(), model.jnt_limited.copy())
         self._obstacle = model.geom("obstacle").id
         self._obstacle_body = int(model.body_mocapid[model.geom_bodyid[self._obstacle]])
         self._base = model.site("base").id
@@ -230,12 +233,13 @@ class PhysicsPlant(BasePlant):
         """Set joint index `joint`'s MuJoCo friction and limits from its faults."""
         model, faults = self._model, self.faults
         dof, jid = self._dof[joint], self._joint_ids[joint]
-        damping, frictionloss, ranges, solref = self._healthy
+        damping, frictionloss, ranges, solref, limited = self._healthy
         model.dof_damping[dof] = damping[dof] + faults.viscous[joint]
         model.dof_frictionloss[dof] = frictionloss[dof] + faults.dry[joint]
         lower, upper = faults.lower[joint], faults.upper[joint]
         stopped = math.isfinite(lower) or math.isfinite(upper)
         model.jnt_range[jid] = (max(ranges[jid, 0], lower), min(ranges[jid, 1], upper))
+        model.jnt_limited[jid] = limited[jid] or stopped
         model.jnt_solref[jid] = BRAKE_SOLREF if stopped else solref[jid]
 
     def place_obstacle(self, pose: np.ndarray, size: np.ndarray) -> None:
