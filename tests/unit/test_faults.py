@@ -102,11 +102,15 @@ def test_friction_slows_a_commanded_joint_more_the_more_there_is(kind: str,
     assert means[-1] < 0.85 * means[0]
 
 
-def test_dry_friction_holds_a_still_joint_without_chattering() -> None:
-    plant = physics()
-    plant.inject(J4, Fault("dry", "panda_joint4", severity=20.0))
-    v = drive(plant, np.zeros(ARM.n), 0.5)[:, J4]
-    assert np.abs(v[50:]).max() < 1e-3
+def test_dry_friction_sticks_until_the_drive_exceeds_it_without_chattering() -> None:
+    """Joint 6 (effort limit 12 N m) commanded 0.02 rad/s: 2 N m breaks away, 20 N m never."""
+    for severity, moving in ((2.0, True), (20.0, False)):
+        plant = physics()
+        plant.inject(5, Fault("dry", "panda_joint6", severity=severity))
+        v = drive(plant, unit(5, 0.02), 1.5)[:, 5]
+        assert v[:50].max() < 2e-3  # stuck while the drive's torque builds up
+        assert (abs(v[-1] - 0.02) < 2e-3) if moving else (v[-1] < 0.01), v[-1]
+        assert np.all(v[v.size // 2:] > -1e-4)  # never backwards: no chattering
 
 
 def test_a_joint_that_lost_its_authority_sags_under_gravity() -> None:

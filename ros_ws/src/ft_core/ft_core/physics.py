@@ -29,7 +29,8 @@ Failures are physical:
 joints off the chain (a gripper's fingers) are held by brakes throughout.
 Degradations (`inject`, `ft_core.faults`) are physical too: viscous friction adds to the
 joint's MuJoCo `damping` (integrated implicitly), dry friction is its `frictionloss` (a
-constraint: it sticks without chattering), a loss of authority scales the drive's effort
+constraint as stiff as the brake: it sticks until the drive's torque exceeds it, without
+chattering), a loss of authority scales the drive's effort
 limit, a range fault moves the joint's MuJoCo limit (as stiff as the brake) to the new
 stop, and an intermittent jam engages and releases the brake by plant time.
 
@@ -180,7 +181,8 @@ class PhysicsPlant(BasePlant):
         self._joint_ids = np.array(ids)
         self._healthy = (model.dof_damping.copy(), model.dof_frictionloss.copy(),
                          np.where(model.jnt_limited[:, None], model.jnt_range, [-BIG, BIG]),
-                         model.jnt_solref.copy(), model.jnt_limited.copy())
+                         model.jnt_solref.copy(), model.jnt_limited.copy(),
+                         model.dof_solref.copy())
         self._obstacle = model.geom("obstacle").id
         self._obstacle_body = int(model.body_mocapid[model.geom_bodyid[self._obstacle]])
         self._base = model.site("base").id
@@ -233,9 +235,10 @@ class PhysicsPlant(BasePlant):
         """Set joint index `joint`'s MuJoCo friction and limits from its faults."""
         model, faults = self._model, self.faults
         dof, jid = self._dof[joint], self._joint_ids[joint]
-        damping, frictionloss, ranges, solref, limited = self._healthy
+        damping, frictionloss, ranges, solref, limited, friction_solref = self._healthy
         model.dof_damping[dof] = damping[dof] + faults.viscous[joint]
         model.dof_frictionloss[dof] = frictionloss[dof] + faults.dry[joint]
+        model.dof_solref[dof] = BRAKE_SOLREF if faults.dry[joint] else friction_solref[dof]
         lower, upper = faults.lower[joint], faults.upper[joint]
         stopped = math.isfinite(lower) or math.isfinite(upper)
         model.jnt_range[jid] = (max(ranges[jid, 0], lower), min(ranges[jid, 1], upper))
