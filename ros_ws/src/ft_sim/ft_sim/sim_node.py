@@ -429,7 +429,8 @@ class SimNode(SuiteNode):
         self._trail.add(skeleton[-1])
         if not self._markers_pub.get_subscription_count():
             return
-        colours = {**{j: markers.SWINGING for j in plant.swinging},
+        colours = {**{j: markers.DEGRADED for j in plant.faults.faults},
+                   **{j: markers.SWINGING for j in plant.swinging},
                    **{j: markers.LOCKED for j in plant.locked}}
         self._markers_pub.publish(markers.array(robot.base_link, stamp, lambda header: [
             *markers.arm(header, "arm", skeleton, colours),
