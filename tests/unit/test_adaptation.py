@@ -59,6 +59,9 @@ def test_the_share_a_degraded_joint_follows_is_bounded() -> None:
     unmeasured = derive(PANDA, {1: degraded()})
     assert unmeasured.velocity_factors == () and unmeasured.probabilities[1] == 2.0
     assert derive(PANDA, {1: degraded(0.9)}).probabilities[1] == 2.0
+    behind = derive(PANDA, {1: degraded(-0.3)})  # moving against its command
+    assert behind.velocity_factors[1] == MIN_FOLLOWS
+    assert behind.probabilities[1] == pytest.approx(1 / MIN_FOLLOWS)
     assert derive(PANDA, {1: JointHealth(follows=0.3)}) == adaptation.Derived()  # healthy
 
 
@@ -113,9 +116,10 @@ def test_joints_locked_or_free_swinging_by_health_are_pinned_before_the_locked_s
 def test_health_that_is_not_the_monitors_is_named() -> None:
     assert adaptation.problem(degraded(0.4)) is None
     assert adaptation.problem(JointHealth(torque_margin=0.2)) is None
-    assert "follows" in adaptation.problem(degraded(1.5))
-    assert "follows" in adaptation.problem(degraded(-0.1))
-    assert "torque_margin" in adaptation.problem(JointHealth(torque_margin=math.inf))
+    assert adaptation.problem(JointHealth(follows=1.2)) is None  # ahead of a slow prediction
+    assert adaptation.problem(degraded(-0.1)) is None  # pushed back
+    assert "follows" in adaptation.problem(degraded(math.inf))
+    assert "torque_margin" in adaptation.problem(JointHealth(torque_margin=-math.inf))
     assert "nan" in adaptation.problem(JointHealth(usable_lower=math.nan))
 
 

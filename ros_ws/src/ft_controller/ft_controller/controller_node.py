@@ -4,8 +4,8 @@ Joint states plus an end-effector target (twist or pose) in, joint velocities ou
 `ft_core.controller.Controller.step` per cycle at `control_rate`, run by a
 `ft_msgs_py.loop.CycleDriver` (an rclpy timer, the joint states in ft-stack, or the
 process loop's ticks in its own process). The node wires: parameters
-(`ft_controller.settings`), inputs (`ft_controller.inputs`, the locked set through
-`ft_controller.monitor_watch`), outputs (`ft_controller.outputs`) and diagnostics
+(`ft_controller.settings`), inputs (`ft_controller.inputs`, the locked set and the joints'
+health through `ft_controller.monitor_watch`), outputs (`ft_controller.outputs`) and diagnostics
 (`ft_controller.loaded`); the per-cycle logic, staleness included, is the core's. With no
 usable state or target it commands zeros on a ramp within the arm's limits, as it does
 on shutdown and, from its steady watchdog, when no cycle runs for `state_timeout`.
@@ -18,6 +18,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.controller import Controller
 from ft_core.engine import CycleResult, check_config
@@ -80,6 +81,8 @@ class ControllerNode(SuiteNode):
                                      qos.RELIABLE),
             self.create_subscription(PoseStamped, names.TARGET_POSE, self._on_pose, qos.RELIABLE))
         self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked, qos.LATCHED)
+        self.create_subscription(DiagnosticArray, names.JOINT_HEALTH, self._on_health,
+                                 qos.LATCHED)
         parameter_table.on_change(self, PARAMETERS, self._check, self._apply)
         parameters.request_model(self, self._set_model)  # says so (INFO) if it waits
         self.cycles = CycleDriver(self, self.update, 1.0 / self.param("control_rate"))
@@ -226,13 +229,18 @@ class ControllerNode(SuiteNode):
 
     def _on_locked(self, msg: JointState) -> None:
         if self.loaded is not None:
-            graph = self.get_publishers_info_by_topic(
-                self.resolve_topic_name(names.LOCKED_JOINTS))
-            monitor = self.param("monitor_name")
-            self._watch.on_locked(
-                msg, [publishers.full_name(p.node_namespace, p.node_name) for p in graph],
-                publishers.expected(monitor, self.get_namespace()) if monitor else None,
-                self.loaded)
+            self._watch.on_locked(msg, *self._graph(names.LOCKED_JOINTS), self.loaded)
+
+    def _on_health(self, msg: DiagnosticArray) -> None:
+        if self.loaded is not None:
+            self._watch.on_health(msg, *self._graph(names.JOINT_HEALTH), self.loaded)
+
+    def _graph(self, topic: str) -> tuple[list[str], str | None]:
+        """(full names of the topic's publishers, the monitor's full name or None: any)."""
+        graph = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
+        monitor = self.param("monitor_name")
+        return ([publishers.full_name(p.node_namespace, p.node_name) for p in graph],
+                publishers.expected(monitor, self.get_namespace()) if monitor else None)
 
     def _on_echo(self, msg: JointStateLike) -> None:
         self._watch.on_echo(msg, self.loaded)

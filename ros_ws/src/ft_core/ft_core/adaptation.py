@@ -83,15 +83,17 @@ class Derived:
 
 
 def problem(health: JointHealth) -> str | None:
-    """Why a joint's health is not the monitor's (a number out of its range), or None.
+    """Why a joint's health is not the monitor's (a number no measurement gives), or None.
 
-    `follows` and `torque_margin` are nan or within [0, 1]; the usable range is not nan
-    (`ft_msgs_py.health.read` refuses one upside down).
+    `follows` and `torque_margin` are finite or nan (a share measured beyond 1 or below 0
+    is a measurement: a healthy joint follows about 1 or more, one pushed back by gravity
+    less than 0); the usable range is not nan (`ft_msgs_py.health.read` refuses one upside
+    down).
     """
     for name in ("follows", "torque_margin"):
         value = getattr(health, name)
-        if not (math.isnan(value) or 0.0 <= value <= 1.0):
-            return f"{name} {value!r} is not a share in [0, 1] (or nan)"
+        if math.isinf(value):
+            return f"{name} is {value!r}: a measured share is finite (or nan: none)"
     if math.isnan(health.usable_lower) or math.isnan(health.usable_upper):
         return "the usable range has a nan side"
     return None
