@@ -14,10 +14,11 @@ from ft_core.adaptation import INFEASIBLE
 from ft_core.command_limits import DriverCheck
 from ft_core.health import Health, JointHealth
 from ft_msgs_py import health, qos
-from ft_msgs_py.spin import harness_node
+from ft_msgs_py.spin import harness_node, spin_until
 from geometry_msgs.msg import TwistStamped
 from rclpy.parameter import Parameter
 from rosutil import FakePlant, ros_context
+from std_msgs.msg import String
 
 PANDA = robots.load("panda")
 Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
@@ -180,3 +181,15 @@ def test_with_too_few_joints_left_it_says_so_and_commands_zeros_within_the_limit
         plant.run(30, send)
         assert np.linalg.norm(plant.velocity()) > 0 and INFEASIBLE not in node.problems.active
         assert math.isfinite(float(np.linalg.norm(plant.velocity())))
+
+
+def test_health_latched_before_the_model_came_is_taken_with_the_model() -> None:
+    with controller(robot_model="") as (node, plant):
+        health_publisher(plant).publish(health.message(every_joint(
+            panda_joint3=JointHealth(Health.LOCKED)), plant.stamp()))
+        spin_until(plant.executor, lambda: node._health is not None, 5.0)
+        assert node.robot is None
+        description = plant.node.create_publisher(String, "robot_description", qos.LATCHED)
+        description.publish(String(data=robots.builtin_urdf("panda")))
+        assert spin_until(plant.executor, lambda: node.robot is not None, 10.0)
+        assert node.core.pinned == (2,)

@@ -64,6 +64,7 @@ class ControllerNode(SuiteNode):
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.loaded: Loaded | None = None  #: the model and its core, once adopted
         self._q: np.ndarray | None = None  # the latest accepted joint state (rad)
+        self._health: DiagnosticArray | None = None  # the latest ft/joint_health (latched)
         self.last_command: np.ndarray | None = None  #: rad/s, chain order (harnesses)
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
@@ -113,6 +114,8 @@ class ControllerNode(SuiteNode):
             self.loaded.core.close()
         core.start_worker()
         self.loaded = loaded = Loaded(robot, core, order)
+        if self._health is not None:  # latched before the model came: its core adapts too
+            self._on_health(self._health)
         if self.param("critical_points"):
             core.set_critical_points(self.param("critical_points"))
         self.problems.report("model", None)
@@ -232,6 +235,7 @@ class ControllerNode(SuiteNode):
             self._watch.on_locked(msg, *self._graph(names.LOCKED_JOINTS), self.loaded)
 
     def _on_health(self, msg: DiagnosticArray) -> None:
+        self._health = msg
         if self.loaded is not None:
             self._watch.on_health(msg, *self._graph(names.JOINT_HEALTH), self.loaded)
 
