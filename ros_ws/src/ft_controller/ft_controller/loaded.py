@@ -14,10 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from ft_core import selfmotion
-from ft_core.controller import Controller, PoseTarget
+from ft_core.controller import Controller
 from ft_core.engine import CycleResult
 from ft_core.health import Health
 from ft_core.robots import Robot
+from ft_core.targets import PoseTarget
 from ft_msgs_py import diagnostics, markers, metrics, wire
 from ft_msgs_py.episodes import Episodes
 from ft_msgs_py.loop import LoopAccounting

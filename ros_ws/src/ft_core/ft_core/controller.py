@@ -42,7 +42,6 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import ClassVar
 
 import numpy as np
 
@@ -58,7 +57,15 @@ from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot
 from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
-from ft_core.targets import PoseTracking, norm, pose_velocity, staleness_scale
+from ft_core.targets import (
+    PoseTarget,
+    PoseTracking,
+    Target,
+    TwistTarget,
+    norm,
+    pose_velocity,
+    staleness_scale,
+)
 from ft_core.task_channel import TaskChannel
 
 #: How the start-configuration path moves and how long its plan may take: as a recovery
@@ -93,28 +100,6 @@ class ControllerConfig:
     observability: ObservabilityConfig | None = None
     recovery: RecoveryConfig | None = field(default_factory=RecoveryConfig)
     limits: LimitsConfig | None = field(default_factory=LimitsConfig)
-
-
-@dataclass(frozen=True)
-class TwistTarget:
-    """A task velocity (m/s and rad/s, `targets.twist_velocity`), decaying from its stamp."""
-
-    value: np.ndarray
-    stamp: float  #: s, the twist's stamp
-    kind: ClassVar[str] = "twist"  #: as diagnostics name it
-
-
-@dataclass(frozen=True)
-class PoseTarget:
-    """A pose goal (`targets.goal_from_transform`), tracked until another target comes."""
-
-    value: np.ndarray
-    stamp: float  #: s, when the goal arrived
-    kind: ClassVar[str] = "pose"  #: as diagnostics name it
-
-
-#: The latest target the cycle follows.
-Target = TwistTarget | PoseTarget
 
 
 @dataclass
