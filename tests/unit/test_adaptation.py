@@ -123,6 +123,25 @@ def test_health_that_is_not_the_monitors_is_named() -> None:
     assert "nan" in adaptation.problem(JointHealth(usable_lower=math.nan))
 
 
+def test_a_degraded_joints_share_is_its_lowest_reported_in_steps_until_the_reset() -> None:
+    """The measured share wanders and lapses (nan) with the motion: the engine does not."""
+    a = Adaptation(PANDA)
+    assert a.set_health({3: degraded(0.43)})
+    assert a.derived.velocity_factors[3] == pytest.approx(0.4)
+    for share in (0.47, 0.41, math.nan, 0.6):  # wandering, not measured: nothing changes
+        assert not a.set_health({3: degraded(share)}), share
+    assert a.set_health({3: degraded(0.33)})  # lower: slowed further
+    assert a.derived.velocity_factors[3] == pytest.approx(0.3)
+    assert a.derived.probabilities[3] == pytest.approx(1 / 0.3)
+    assert a.set_health({3: degraded(0.02)})  # the floor
+    assert a.derived.velocity_factors[3] == MIN_FOLLOWS
+    assert a.set_health({3: JointHealth(follows=0.9)})  # the reset: healthy
+    assert a.derived == adaptation.Derived() and a.note == "none"
+    assert a.set_health({3: degraded(0.8)})  # declared again: a fresh share
+    assert a.derived.velocity_factors[3] == pytest.approx(0.8)
+    assert a.derived.probabilities[3] == 2.0
+
+
 def _run_to_rest(c: Controller, robot, q: np.ndarray, t: float, cycles: int,
                  check: DriverCheck) -> tuple[list, float]:
     steps = []

@@ -21,13 +21,17 @@ The monitor says per joint what it still gives (`ft_core.health.JointHealth`, on
 - a joint locked or free-swinging by health, or braked, is **pinned**: held at 0 and left
   out of the Jacobian as a locked joint is, whether or not `ft/locked_joints` names it yet.
 
-`Adaptation` holds the latest health and judges, each cycle, whether the joints left can
-do the task (`Adaptation.judge`): not with fewer usable joints than task coordinates, nor
-with joints pinned, as many left as task coordinates, and the reduced Jacobian's smallest
-singular value below `MIN_SIGMA` at the current configuration (with redundancy left, the
-null space can take the arm out of a singularity, as the kfm ascent does). Then the
-controller commands zeros (on its ramp) and says why, until the set of usable joints
-changes (the monitor's reset).
+`Adaptation` holds the latest health. A degraded joint's share is taken as the lowest
+the monitor has reported since it declared the joint, rounded down to `FOLLOWS_STEP`: the
+measured share wanders with the motion, and is not measured at all (nan) while the joint
+is hardly commanded, so this way the limits change (and the engine is rebuilt) a few
+times per joint at most, and the joint stays slowed until the monitor's reset, as its
+state stays declared. `Adaptation.judge` says, each cycle, whether the joints left can do
+the task: not with fewer usable joints than task coordinates, nor with joints pinned, as
+many left as task coordinates, and the reduced Jacobian's smallest singular value below
+`MIN_SIGMA` at the current configuration (with redundancy left, the null space can take
+the arm out of a singularity, as the kfm ascent does). Then the controller commands zeros
+(on its ramp) and says why, until the set of usable joints changes (the monitor's reset).
 """
 
 from __future__ import annotations
@@ -49,6 +53,8 @@ from ft_core.robots import Robot
 MIN_FOLLOWS = 0.1
 #: The share a degraded joint is weighted as following at most (see the module docstring).
 DEGRADED_FOLLOWS = 0.5
+#: Steps in which `Adaptation` takes a degraded joint's share (rounded down).
+FOLLOWS_STEP = 0.05
 #: m (scaled Jacobian, `Robot.scale_task`): with joints pinned, a reduced Jacobian whose
 #: smallest singular value is below this has lost a task direction here: 1 mm/s of the
 #: tool per rad/s of the joints, a tenth of the damping's threshold (0.01 m), so a reduced
@@ -147,14 +153,30 @@ class Adaptation:
         self.health: dict[int, JointHealth] = {}
         self.derived = Derived()
         self._probabilities: tuple[float, ...] = ()  # the configured ones (chain order)
+        self._shares: dict[int, float] = {}  # a degraded joint's lowest share reported
         #: Why the task is infeasible with the joints left (None: it is not, or not judged).
         self.infeasible: str | None = None
         self._judged: tuple[int, ...] | None = None  # the pinned set it was judged for
         self._said = False  # whether the controller has reported `infeasible`
 
     def set_health(self, health: Mapping[int, JointHealth]) -> bool:
-        """The monitor's latest health ({chain index: health}); whether the engine changes."""
-        self.health = {j: h for j, h in sorted(health.items()) if h.state != Health.HEALTHY
+        """The monitor's latest health ({chain index: health}); whether the engine changes.
+
+        A degraded joint's `follows` is taken as the lowest share reported since it was
+        declared, rounded down to `FOLLOWS_STEP` (see the module docstring).
+        """
+        shares: dict[int, float] = {}
+        for j, h in health.items():
+            if h.state == Health.DEGRADED:
+                lowest = self._shares.get(j, math.inf)
+                if not math.isnan(h.follows):
+                    step = math.floor(round(h.follows / FOLLOWS_STEP, 6)) * FOLLOWS_STEP
+                    lowest = min(lowest, max(step, MIN_FOLLOWS))
+                if math.isfinite(lowest):
+                    shares[j] = lowest
+        self._shares = shares
+        self.health = {j: replace(h, follows=shares.get(j, h.follows))
+                       for j, h in sorted(health.items()) if h.state != Health.HEALTHY
                        or h.usable_lower > self.robot.lower[j]
                        or h.usable_upper < self.robot.upper[j]}
         derived = derive(self.robot, self.health, self._probabilities)
