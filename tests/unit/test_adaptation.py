@@ -194,13 +194,19 @@ def test_a_panda_position_task_with_four_joints_locked_gives_up_where_its_joints
     assert steps[0].problems[INFEASIBLE] is None and np.any(steps[-1].qd)
 
 
-def test_only_an_arm_without_redundancy_left_is_given_up_at_a_singularity() -> None:
-    """With redundancy left the null space can take the arm out of it (kfm ascent)."""
-    a = Adaptation(PANDA)
-    singular = replace(ResolutionEngine(PANDA).step(PANDA.kinematics(Q), XD), sigma_min=0.0)
-    assert a.judge(singular, ()) == {}  # healthy
-    assert a.judge(singular, (0,)) == {}  # one lock, 6 joints for 3 coordinates
-    assert a.judge(singular, (0, 1, 2, 3))[INFEASIBLE].startswith("3 joints left")
-    assert a.judge(replace(singular, sigma_min=1.0), (0, 1, 2, 3))[INFEASIBLE]  # held
-    assert a.judge(singular, (0, 1, 2)) == {INFEASIBLE: None}  # the set changed: said once
-    assert a.judge(singular, (0, 1, 2)) == {}
+def test_a_singularity_the_joints_left_can_leave_is_not_a_lost_task() -> None:
+    """The planar 3R stretched out, its last joint locked: bending the elbow leaves it."""
+    a = Adaptation(PLANAR)
+    stretched = np.array([0.3, 1e-4, 0.0])
+    result = ResolutionEngine(PLANAR).step(PLANAR.kinematics(stretched), np.array([0.1, 0.0]),
+                                           [2])
+    assert result.sigma_min < MIN_SIGMA  # singular here ...
+    assert a.judge(result, (2,), stretched) == {}  # ... but not around
+    lost = replace(result, sigma_min=0.0)  # a lost direction: the rules, by pinned set
+    panda = Adaptation(PANDA)
+    assert panda.judge(lost, (), Q) == {}  # a healthy arm is never given up
+    assert panda.judge(lost, (0,), Q) == {}  # six joints left, one singular point
+    assert panda.judge(lost, (0, 1, 2, 3), Q)[INFEASIBLE].startswith("3 joints left")
+    assert panda.judge(replace(lost, sigma_min=1.0), (0, 1, 2, 3), Q)[INFEASIBLE]  # held
+    assert panda.judge(lost, (0, 1, 2), Q) == {INFEASIBLE: None}  # the set changed: said once
+    assert panda.judge(lost, (0, 1, 2), Q) == {}

@@ -27,11 +27,14 @@ measured share wanders with the motion, and is not measured at all (nan) while t
 is hardly commanded, so this way the limits change (and the engine is rebuilt) a few
 times per joint at most, and the joint stays slowed until the monitor's reset, as its
 state stays declared. `Adaptation.judge` says, each cycle, whether the joints left can do
-the task: not with fewer usable joints than task coordinates, nor with joints pinned, as
-many left as task coordinates, and the reduced Jacobian's smallest singular value below
-`MIN_SIGMA` at the current configuration (with redundancy left, the null space can take
-the arm out of a singularity, as the kfm ascent does). Then the controller commands zeros
-(on its ramp) and says why, until the set of usable joints changes (the monitor's reset).
+the task: not with fewer usable joints than task coordinates, nor with joints lost and the
+reduced Jacobian's smallest singular value below `MIN_SIGMA` at the current configuration
+and at every one of `MOVES` configurations around it (the joints left moved by
+`NEIGHBOURHOOD` each way, the lost ones where they are): a direction of the task the
+joints left have lost, not a singularity they can move out of (the planar 3R stretched
+out with its last joint locked is one: bending the elbow leaves it). Then the controller
+commands zeros (on its ramp) and says why, until the set of usable joints changes (the
+monitor's reset).
 """
 
 from __future__ import annotations
@@ -60,6 +63,11 @@ FOLLOWS_STEP = 0.05
 #: tool per rad/s of the joints, a tenth of the damping's threshold (0.01 m), so a reduced
 #: arm passing near a singularity it can leave is not stopped.
 MIN_SIGMA = 1e-3
+#: rad each joint left is moved, each way, around the current configuration to tell a lost
+#: direction from a singularity the joints left can move out of.
+NEIGHBOURHOOD = 0.2
+#: How many configurations around the current one are tried (fixed sign patterns).
+MOVES = 8
 #: The controller's problem kind (diagnostics, log) while the task is infeasible.
 INFEASIBLE = "task infeasible"
 
@@ -158,6 +166,9 @@ class Adaptation:
         self.infeasible: str | None = None
         self._judged: tuple[int, ...] | None = None  # the pinned set it was judged for
         self._said = False  # whether the controller has reported `infeasible`
+        #: Each joint moved by +-NEIGHBOURHOOD, in fixed patterns (`_lost`).
+        self._moves = NEIGHBOURHOOD * np.random.default_rng(0).choice([-1.0, 1.0],
+                                                                      (MOVES, robot.n))
 
     def set_health(self, health: Mapping[int, JointHealth]) -> bool:
         """The monitor's latest health ({chain index: health}); whether the engine changes.
@@ -196,10 +207,12 @@ class Adaptation:
         """The joints the engine must not use: `locked` and those pinned by health."""
         return tuple(sorted({*locked, *self.derived.pinned}))
 
-    def judge(self, result: CycleResult, pinned: tuple[int, ...]) -> dict[str, str | None]:
+    def judge(self, result: CycleResult, pinned: tuple[int, ...],
+              q: np.ndarray) -> dict[str, str | None]:
         """The cycle's `INFEASIBLE` problem: {INFEASIBLE: why} while the task is infeasible.
 
-        `result`: the engine's cycle with the `pinned` joints held. Once infeasible for a
+        `result`: the engine's cycle at the configuration `q` (rad) with the `pinned`
+        joints held. Once infeasible for a
         pinned set (rules: the module docstring), it stays so until the set changes (the
         arm is commanded to rest: its configuration no longer says anything new).
         {INFEASIBLE: None} once when it ends, {} otherwise.
@@ -207,7 +220,7 @@ class Adaptation:
         if pinned != self._judged:
             self._judged, self.infeasible = pinned, None
         if self.infeasible is None:
-            self.infeasible = self._why(result, pinned)
+            self.infeasible = self._why(result, pinned, q)
         if self.infeasible is not None:
             self._said = True
             return {INFEASIBLE: self.infeasible}
@@ -216,7 +229,7 @@ class Adaptation:
             return {INFEASIBLE: None}
         return {}
 
-    def _why(self, result: CycleResult, pinned: tuple[int, ...]) -> str | None:
+    def _why(self, result: CycleResult, pinned: tuple[int, ...], q: np.ndarray) -> str | None:
         robot = self.robot
         left = [name for j, name in enumerate(robot.joint_names) if j not in pinned]
         joints = f"{len(left)} joints left ({', '.join(left) or 'none'})"
@@ -224,11 +237,23 @@ class Adaptation:
         if result.status == Status.INFEASIBLE:
             return (f"{joints} for the {robot.m} coordinates of the {robot.task_space} task; "
                     f"{until}")
-        if pinned and len(left) == robot.m and result.sigma_min < MIN_SIGMA:
-            return (f"{joints} have lost a direction of the {robot.task_space} task here "
-                    f"(smallest singular value {result.sigma_min:.2g} m, below {MIN_SIGMA:g}); "
-                    f"{until}")
+        if pinned and result.sigma_min < MIN_SIGMA and self._lost(q, pinned):
+            return (f"{joints} have lost a direction of the {robot.task_space} task "
+                    f"(smallest singular value {result.sigma_min:.2g} m, below {MIN_SIGMA:g}, "
+                    f"here and within {NEIGHBOURHOOD:g} rad of the joints left); {until}")
         return None
+
+    def _lost(self, q: np.ndarray, pinned: tuple[int, ...]) -> bool:
+        """Whether the joints not `pinned` lack a task direction at every move around q."""
+        robot = self.robot
+        left = np.setdiff1d(np.arange(robot.n), pinned)
+        for move in self._moves:
+            moved = np.array(q, dtype=float)
+            moved[left] += move[left]
+            J = robot.scale_task(robot.jacobian(moved))[:, left]
+            if np.linalg.svd(J, compute_uv=False)[-1] >= MIN_SIGMA:
+                return False
+        return True
 
     @property
     def note(self) -> str:
