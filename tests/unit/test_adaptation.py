@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -210,3 +211,17 @@ def test_a_singularity_the_joints_left_can_leave_is_not_a_lost_task() -> None:
     assert panda.judge(replace(lost, sigma_min=1.0), (0, 1, 2, 3), Q)[INFEASIBLE]  # held
     assert panda.judge(lost, (0, 1, 2), Q) == {INFEASIBLE: None}  # the set changed: said once
     assert panda.judge(lost, (0, 1, 2), Q) == {}
+
+
+@pytest.mark.parametrize(("fields", "reason"), [
+    ({"hard_lower": (0.0,) * 7}, "same length"),
+    ({"hard_lower": (0.0,) * 6, "hard_upper": (1.0,) * 6}, "7 values each"),
+    ({"hard_lower": (math.nan,) * 7, "hard_upper": (1.0,) * 7}, "none nan"),
+    ({"hard_lower": (1.0,) * 7, "hard_upper": (0.0,) * 7}, "above its upper"),
+    ({"velocity_factors": (1.0,) * 6}, "7 values in (0, 1]"),
+    ({"velocity_factors": (0.0,) * 7}, "7 values in (0, 1]"),
+    ({"velocity_factors": (1.5,) * 7}, "7 values in (0, 1]"),
+])
+def test_the_engine_refuses_limits_no_joint_could_have(fields: dict, reason: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(reason)):
+        ResolutionEngine(PANDA, EngineConfig(**fields))
