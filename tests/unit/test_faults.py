@@ -46,12 +46,12 @@ def kinematic() -> Plant:
 # ------------------------------------------------------------------ validation
 @pytest.mark.parametrize("kwargs, match", [
     ({"kind": "rust"}, "unknown fault kind"),
-    ({"kind": "viscous"}, "severity nan"),
+    ({"kind": "viscous"}, "needs a severity"),
     ({"kind": "viscous", "severity": -1.0}, "must be in"),
     ({"kind": "viscous", "severity": math.inf}, "must be in"),
     ({"kind": "dry", "severity": 0.0}, "must be in"),
     ({"kind": "authority", "severity": 1.5}, "fraction"),
-    ({"kind": "authority", "severity": math.nan}, "fraction"),
+    ({"kind": "authority", "severity": math.nan}, "needs a severity"),
     ({"kind": "range"}, "finite lower or upper"),
     ({"kind": "range", "lower": 1.0, "upper": 0.5}, "below upper"),
     ({"kind": "range", "lower": math.nan}, "finite lower or upper"),

@@ -110,6 +110,9 @@ class Fault:
     def _check(self) -> None:
         kind, s = self.kind, self.severity
         where = f"{kind} of {self.joint}"
+        for name in ("severity", "period"):
+            if name in kind.fields and math.isnan(getattr(self, name)):
+                raise FaultError(f"{where}: needs a {name} (a number)")
         if kind is FaultKind.VISCOUS and not 0 < s <= MAX_VISCOUS:
             raise FaultError(f"{where}: severity {s} N m s/rad must be in (0, {MAX_VISCOUS:g}]")
         if kind is FaultKind.DRY and not 0 < s <= MAX_DRY:

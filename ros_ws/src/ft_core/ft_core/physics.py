@@ -30,9 +30,9 @@ joints off the chain (a gripper's fingers) are held by brakes throughout.
 Degradations (`inject`, `ft_core.faults`) are physical too: viscous friction adds to the
 joint's MuJoCo `damping` (integrated implicitly), dry friction is its `frictionloss` (a
 constraint as stiff as the brake: it sticks until the drive's torque exceeds it, without
-chattering), a loss of authority scales the drive's effort
-limit, a range fault moves the joint's MuJoCo limit (as stiff as the brake) to the new
-stop, and an intermittent jam engages and releases the brake by plant time.
+chattering), a loss of authority scales the drive's effort limit, a range fault moves the
+joint's MuJoCo limit (as stiff as the brake) to the new stop, and an intermittent jam
+engages and releases the brake by plant time. The drive does not know of any of them.
 
 Contact: the only geometry is a sphere of `TOOL_RADIUS` on the tip link and one box, the
 obstacle (`place_obstacle`), which exists from the start with its contacts off and is
