@@ -61,6 +61,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
+from ft_core.detection.contact import explained_by_contact
 from ft_core.health import Health, HealthBoard, JointHealth
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
@@ -70,6 +71,8 @@ from ft_core.smoothing import Smoother
 Report = Callable[..., None]
 #: s `close` waits for the locked set's last write.
 CLOSE_TIMEOUT = 2.0
+#: s between two looks at whether the tool is in contact (`detection.contact`).
+CONTACT_PERIOD = 0.02
 #: s without being observable after which a joint counts as unseen (`Monitor.unseen`).
 UNSEEN_AFTER = 5.0
 
@@ -162,6 +165,8 @@ class Monitor:
         compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
+        self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
+        self._touch_checked = -math.inf  # s, when contact was last looked at
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
@@ -302,11 +307,18 @@ class Monitor:
         `effort`: the joints' efforts (N m) where the driver reports them (torque margins).
         """
         self.q = q
+        self.effort = effort
         if effort is not None:
             self.board.effort(now, effort)
+            if now - self._touch_checked >= CONTACT_PERIOD and self.robot.has_inertias:
+                self._touch_checked = now
+                if self._contact([], now) is not None:  # a stall then says nothing of a drive
+                    self.detector.follow.forget(list(range(self.robot.n)))
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
-                                       lambda: swing.falling_directions(self.robot, q))
+                                       lambda: swing.falling_directions(self.robot, q),
+                                       self._contact if self.robot.has_inertias
+                                       and effort is not None else None)
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
         brake, board = self.config.brake_free_swinging, self.board
@@ -348,6 +360,28 @@ class Monitor:
                 self._observed_at[observable] = self._observed_latest = now
         self._hold(change, now)
         return self.settled()
+
+    @property
+    def contact(self) -> str | None:
+        """Why joints ready to be declared locked were not, lately (the tool in contact)."""
+        return self.detector.contact
+
+    def _contact(self, joints: list[int], _since: float) -> str | None:
+        """Why stalled `joints` are in contact and not failed, or None.
+
+        The efforts less the gravity torques, against a force on the tool
+        (`detection.contact.explained_by_contact`).
+        """
+        if self.effort is None or self.q is None:
+            return None
+        external = self.effort - self.robot.gravity_dynamics(self.q)[0]
+        jacobian = self.robot.base_jacobian(self.q)[:3]
+        contact, by_force, by_locks = explained_by_contact(external, jacobian, joints)
+        if not contact:
+            return None
+        names = [self.robot.joint_names[j] for j in joints]
+        return (f"{names} stalled by a force on the tool, not locked: it explains "
+                f"{by_force:.0%} of the efforts' change, the stalled joints {by_locks:.0%}")
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.
@@ -423,6 +457,7 @@ class Monitor:
         estimate = self.detector.estimate()
         values: dict[str, object] = {
             "observing": self.detector.not_observing or "yes",
+            "contact": self.contact or "no",
             "plant_model": "identified" if estimate.identified else "prior (not yet identified)",
             "latency_range_s": list(estimate.latency_range),
             "response_time_range_s": list(estimate.response_time_range),

@@ -44,6 +44,8 @@ class ClosedLoop:
     Attributes:
         robot, controller, monitor, plant: the parts.
         t: s, the loop's time.
+        goal_period: s between goals (`GOAL_PERIOD`; may change between runs).
+        goal_sent_at: s, when the current goal was sent (-inf before the first).
         declared: (time, locked set) at every change of the monitor's locked set; the
             controller is given the set at once and every joint's health with each change
             and every `HEALTH_PERIOD`, as the nodes publish them.
@@ -63,6 +65,8 @@ class ClosedLoop:
         self.rng = np.random.default_rng(seed)
         self.t = 0.0
         self.goals = 0
+        self.goal_period = GOAL_PERIOD
+        self.goal_sent_at = -np.inf
         self.declared: list[tuple[float, list[str]]] = []
         self.sent = np.zeros(self.robot.n)
         self._health_at = -np.inf  # when the controller was last given the joints' health
@@ -79,15 +83,16 @@ class ClosedLoop:
         pose[:3, 3] = GOALS[self.goals % len(GOALS)]
         self.controller.set_pose_goal(targets.goal_from_transform(self.robot, pose), self.t)
         self.goals += 1
+        self.goal_sent_at = self.t
 
     def tool_error(self) -> float:
         """The distance (m) between the tool and the current goal."""
         return float(np.linalg.norm(self.robot.transform(self.plant.q)[:3, 3] - self.goal))
 
     def run(self, seconds: float, stop: Callable[[], bool] = lambda: False) -> None:
-        """Cycle for `seconds`, a goal every `GOAL_PERIOD`, until `stop()`."""
+        """Cycle for `seconds`, a goal every `goal_period`, until `stop()`."""
         for _ in range(round(seconds / self.dt)):
-            if self.t >= self.goals * GOAL_PERIOD:
+            if self.t >= self.goal_sent_at + self.goal_period - 1e-9:
                 self.send_goal()
             q = self.plant.q + self.rng.normal(0.0, NOISE, self.robot.n)
             change = self.monitor.observe(q, self.t, effort=getattr(self.plant, "torque", None))

@@ -19,10 +19,11 @@ from ft_core.detection import rules
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
+    Veto,
     declare_locks,
     declare_swings,
 )
-from ft_core.detection.follow import FollowMeter
+from ft_core.detection.follow import MEMORY, FollowMeter
 from ft_core.detection.identification import (
     LATENCY_GRID,
     RESPONSE_TIME_GRID,
@@ -167,6 +168,8 @@ class LockDetector:
         self._last_update = -math.inf
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
+        #: why the last joints ready to be declared locked were not (the tool in contact)
+        self.contact: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
         self.follow = FollowMeter(self.n)
         self._declared_at = -math.inf  # when a joint was last declared locked or swinging
@@ -234,7 +237,8 @@ class LockDetector:
                             time - 2 * self.config.window - self._longest_latency)
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
-                falling: Callable[[], np.ndarray | None] | None = None) -> Update:
+                falling: Callable[[], np.ndarray | None] | None = None,
+                veto: Veto | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
@@ -242,7 +246,8 @@ class LockDetector:
         `position` were its torque lost, 0 where it is too weak to move it
         (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
         it is called only when a joint moves on its own by the other tests (gravity's
-        test can only clear a joint), so a healthy cycle pays nothing for it.
+        test can only clear a joint), so a healthy cycle pays nothing for it. `veto`
+        (`evidence.Veto`) is asked before joints are declared locked (contact).
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -259,7 +264,7 @@ class LockDetector:
             self.plant_fault = None  # no evidence either way
             self._clear_evidence()
             return Update()
-        return self._update(time, dt, falling)
+        return self._update(time, dt, falling, veto)
 
     def _into_window(self, time: float, position: np.ndarray) -> None:
         """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
@@ -349,7 +354,8 @@ class LockDetector:
             evidence.evidence_since = evidence.swing_since = None
 
     def _update(self, now: float, dt: float,
-                falling: Callable[[], np.ndarray | None] | None) -> Update:
+                falling: Callable[[], np.ndarray | None] | None,
+                veto: Veto | None) -> Update:
         cfg, plant = self.config, self._plant
         samples = self._samples
         times, positions, _predicted = window = samples.window()
@@ -424,24 +430,30 @@ class LockDetector:
             return Update()
         settle = plant.settling_time(best)
         disturbance = Disturbance(joints, now, self._declared_at + settle)
-        swinging, released = declare_swings(
+        swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
             lambda j: rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
-                                       cfg.confidence, cfg.min_command))
+                                       cfg.confidence, cfg.min_command), veto)
         # A stalled joint's evidence counts only while another joint follows.
         supported = [c and n_following - f >= 1 for c, f in zip(candidate_of, following_of,
                                                                  strict=True)]
-        newly = declare_locks(joints, supported, latest, now, disturbance, cfg.persistence,
-                              settle)
+        newly, contact = declare_locks(joints, supported, latest, now, disturbance,
+                                       cfg.persistence, settle, veto)
+        contact = contact or pushed
+        if contact is not None or not (any(supported) or any(own_of)):
+            self.contact = contact
         if newly or swinging:
             self._declared_at = now
         judged = observable & ~pushing & ~on_its_own & (not disturbance.settling)
-        degraded = []
-        for j in self.follow.update(now, dt, measured, weakest, judged):
-            evidence = joints[j]
-            if evidence.degraded_at is None and evidence.locked_at is None:
-                evidence.degraded_at = now
-                degraded.append(j)
+        degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged)
+                    if joints[j].degraded_at is None and joints[j].locked_at is None]
+        if degraded and veto is not None:  # slowed by a force on the tool: not degraded
+            slowed = veto(degraded, now - MEMORY)
+            if slowed is not None:  # the stall in contact says nothing of the drive
+                self.follow.forget(degraded)
+                self.contact, degraded = slowed, []
+        for j in degraded:
+            joints[j].degraded_at = now
         return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
 
 

@@ -76,16 +76,24 @@ class Disturbance:
         return self.settling or others < self.now
 
 
+#: Says why joints about to be declared failed (their indices, and when the earliest
+#: one's evidence began, s) are not (the tool in contact), or None.
+Veto = Callable[[list[int], float], str | None]
+
+
 def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
                    disturbance: Disturbance, persistence: float, settle: float,
-                   wait: Callable[[int], float]) -> tuple[list[int], list[int]]:
-    """Joints newly declared free-swinging at `now` (s), and those of them that were locked.
+                   wait: Callable[[int], float], veto: Veto | None = None,
+                   ) -> tuple[list[int], list[int], str | None]:
+    """Joints newly declared free-swinging at `now` (s), those of them that were locked.
 
     `own[j]`: joint j moves on its own at this update; `wait(j)`: `rules.swing_wait` for
     it (s); `settle`: the plant's settling time (s). A joint declared locked that moves
-    was never locked: it swings, and its lock is taken back.
+    was never locked: it swings, and its lock is taken back. When `veto` gives a reason
+    for the joints ready to be declared, none is, their evidence starts anew, and the
+    reason is returned last.
     """
-    swinging, released = [], []
+    ready = []
     for j, evidence in enumerate(joints):
         if not own[j]:
             evidence.swing_since = None
@@ -98,21 +106,29 @@ def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
         if evidence.swing_late:
             needed = max(needed, persistence + settle)
         if now - evidence.swing_since >= needed:
-            if evidence.locked_at is not None:
-                released.append(j)
-            evidence.swinging_at, evidence.locked_at = now, None
-            swinging.append(j)
-    return swinging, released
+            ready.append(j)
+    if ready and veto is not None:
+        reason = veto(ready, min(joints[j].swing_since or now for j in ready))
+        if reason is not None:
+            for j in ready:
+                joints[j].swing_since = now
+            return [], [], reason
+    released = [j for j in ready if joints[j].locked_at is not None]
+    for j in ready:
+        joints[j].swinging_at, joints[j].locked_at = now, None
+    return ready, released, None
 
 
 def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Sequence[float],
                   now: float, disturbance: Disturbance, persistence: float,
-                  settle: float) -> list[int]:
+                  settle: float, veto: Veto | None = None) -> tuple[list[int], str | None]:
     """Joints newly declared locked at `now` (s), where they are (`latest`, rad).
 
-    `supported[j]`: joint j is a lock candidate and another joint follows.
+    `supported[j]`: joint j is a lock candidate and another joint follows. When `veto`
+    gives a reason for the joints ready to be declared, none is, their evidence starts
+    anew, and the reason is returned with no joint.
     """
-    newly = []
+    ready = []
     for j, evidence in enumerate(joints):
         if not supported[j]:
             evidence.evidence_since = None
@@ -120,8 +136,16 @@ def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Se
         if evidence.evidence_since is None:
             evidence.evidence_since, evidence.evidence_late = now, disturbance.late(j)
         if now - evidence.evidence_since >= persistence + settle * evidence.evidence_late:
-            evidence.locked_at, evidence.position = now, float(latest[j])
-            # Seen swinging before: should it move on its own again, it swings again.
-            evidence.swinging_at = None
-            newly.append(j)
-    return newly
+            ready.append(j)
+    if ready and veto is not None:
+        reason = veto(ready, min(joints[j].evidence_since or now for j in ready))
+        if reason is not None:
+            for j in ready:
+                joints[j].evidence_since = now
+            return [], reason
+    for j in ready:
+        evidence = joints[j]
+        evidence.locked_at, evidence.position = now, float(latest[j])
+        # Seen swinging before: should it move on its own again, it swings again.
+        evidence.swinging_at = None
+    return ready, None

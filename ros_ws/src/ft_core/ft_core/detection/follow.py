@@ -48,6 +48,12 @@ class FollowMeter:
         self.commanded = np.zeros(self.n)  #: rad, commanded motion, forgotten
         self._below_since: list[float | None] = [None] * self.n
 
+    def forget(self, joints: list[int]) -> None:
+        """Forget the shares of `joints` (their motion said nothing of their drives)."""
+        self.moved[joints] = self.commanded[joints] = 0.0
+        for j in joints:
+            self._below_since[j] = None
+
     @property
     def shares(self) -> np.ndarray:
         """(n,) share (0-1) of its command each joint followed (nan: too little commanded).

@@ -1,0 +1,54 @@
+"""Contact is not a failure: joints stalled by a force on the tool, told apart by their efforts.
+
+A tool that meets a table or a wall stops every joint that moves it into the obstacle;
+a command-against-motion test reads those stalls as locks. What tells them apart is
+where the drives push: the obstacle's force f on the tool loads every joint as the
+transposed Jacobian says, tau_ext = J^T f (the statics of a serial chain), while a brake
+or a jam loads the drive of its own joint only, the others following as before.
+
+The external torques are estimated as Franka's and KUKA iiwa's controllers do, from
+the efforts the driver reports (`sensor_msgs/JointState.effort`) less the model's
+gravity torques (the URDF's inertias): tau_ext = tau - g(q); a drive that follows its
+command in free motion needs little more than g(q). When joints are about to be
+declared locked (or degraded), `explained_by_contact` compares both explanations of
+tau_ext: the best force at the tool, R_f = |tau_ext - J^T f|^2 / |tau_ext|^2 over f
+(least squares, the tool point's linear rows of J), and the stalled joints alone, R_l =
+the share of |tau_ext|^2 outside them. It is contact when the force explains the
+torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R_f),
+and they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m). A lock
+while the tool pushes leaves its own joint's torque unexplained by a tool force, and is
+named when that is most of it. Without efforts or inertias nothing is vetoed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Least share of the external torques a tool force must explain for contact.
+CONTACT_SHARE = 0.8
+#: N m, the smallest external torque (norm over the joints) that says anything.
+MIN_TORQUE = 5.0
+
+
+def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
+                         stalled: list[int]) -> tuple[bool, float, float]:
+    """Whether a force on the tool explains the external torques better than locks do.
+
+    Args:
+        external: (n,) tau_ext, the efforts less the gravity torques (N m).
+        jacobian: (3, n) the tool point's linear Jacobian (m/rad).
+        stalled: the joints about to be declared locked or degraded.
+
+    Returns:
+        (contact, share the force explains 1 - R_f, share the stalled joints explain 1 - R_l).
+    """
+    total = float(external @ external)
+    if not math.isfinite(total) or total < MIN_TORQUE ** 2:
+        return False, math.nan, math.nan
+    force = np.linalg.lstsq(jacobian.T, external, rcond=None)[0]
+    residual = external - jacobian.T @ force
+    by_force = 1.0 - float(residual @ residual) / total
+    by_locks = float(external[stalled] @ external[stalled]) / total
+    return by_force >= CONTACT_SHARE and by_force > by_locks, by_force, by_locks
