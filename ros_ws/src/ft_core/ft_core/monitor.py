@@ -207,7 +207,11 @@ class Monitor:
         return sorted(self.robot.joint_names[j] for j in self.detector.swinging)
 
     def restore(self, now: float) -> Change:
-        """Take the locked set kept in the store (at start-up)."""
+        """Take the locked set kept in the store (at start-up), and have it written back.
+
+        The write back puts the file in the slot format (created if missing, an older
+        version's migrated), so that a lock decided later costs one write in place.
+        """
         if self.store is None:
             return Change()
         try:
@@ -218,6 +222,8 @@ class Monitor:
             return Change()
         for name, position in stored.items():
             self.detector.lock(self.robot.joint_names.index(name), position, now)
+        if self._writer is not None:  # the file in the slot format now, not at the first lock
+            self._writer.submit(self.locked)
         if not stored:
             return Change()
         self._announced = self.locked  # read from the file: on disk already
