@@ -219,13 +219,23 @@ def test_a_change_is_one_write_in_place_and_a_torn_one_leaves_the_set_before(
         locked_set.load(store, "panda", JOINTS)
 
 
-def test_a_lock_on_disk_but_not_yet_announced_is_restored_after_a_crash(tmp_path) -> None:
+def gated_save(monkeypatch) -> threading.Event:
+    """`locked_set.save` waits for the event, then writes: a disk as slow as a test needs."""
+    gate, save = threading.Event(), locked_set.save
+    monkeypatch.setattr(locked_set, "save", lambda *args: gate.wait(10.0) and save(*args))
+    return gate
+
+
+def test_a_lock_on_disk_but_not_yet_announced_is_restored_after_a_crash(
+        tmp_path: Path, monkeypatch) -> None:
     """Persist, then announce: a crash in between loses nothing, a restart restores it."""
     store = tmp_path / "monitor--panda--domain0.state"
     first = Loop(store)
+    gate = gated_save(monkeypatch)
     assert not first.monitor.restore(0.0).changed  # the empty file, made at the start
     first.monitor.observe(START, 0.0)
     assert not first.monitor.declare([3], 0.1).changed
+    gate.set()
     deadline = time.monotonic() + 5.0
     while first.monitor.writing and time.monotonic() < deadline:
         time.sleep(0.001)
@@ -233,6 +243,34 @@ def test_a_lock_on_disk_but_not_yet_announced_is_restored_after_a_crash(tmp_path
     second = Loop(store)
     restored = second.monitor.restore(0.0)
     assert restored.changed and second.monitor.announced == {"panda_joint4": START[3]}
+
+
+def test_the_writer_says_when_a_set_is_on_disk_so_it_is_announced_then(
+        tmp_path: Path, monkeypatch) -> None:
+    """`written` is called in the writer's thread as each write ends: what wakes the node.
+
+    The caller serialises the hand-overs (as the node does): a write may end before
+    `declare` has returned.
+    """
+    handed: list[list[str]] = []
+    ready, turns = threading.Event(), threading.Lock()
+    monitor: list[Monitor] = []
+
+    def written() -> None:
+        with turns:
+            change = monitor[0].settled()
+        if change.changed:
+            handed.append(list(monitor[0].announced))
+            ready.set()
+
+    monitor.append(Monitor(PANDA, DetectorConfig(), MonitorConfig(),
+                           tmp_path / "monitor--panda--domain0.state", written=written))
+    gate = gated_save(monkeypatch)
+    with turns:
+        assert not monitor[0].declare([5], 0.0).changed
+    gate.set()
+    assert ready.wait(5.0) and handed == [["panda_joint6"]]
+    assert not monitor[0].writing and not monitor[0].close().changed
 
 
 def test_an_older_versions_json_file_is_restored_and_migrated(tmp_path: Path) -> None:

@@ -41,7 +41,9 @@ import stat
 import struct
 import tempfile
 import threading
+import traceback
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 
 from ft_core import files
@@ -222,13 +224,16 @@ class Writer:
 
     `submit` returns at once with the set's generation (1, 2, ...); `done` gives the
     newest generation the thread has finished with, and the error if that write failed
-    (None: on disk). A set submitted while another is being written waits for it, then
-    only the newest of those waiting is written: it holds everything before it.
+    (None: on disk); `written`, if given, says so as soon as it is. A set submitted while
+    another is being written waits for it, then only the newest of those waiting is
+    written: it holds everything before it.
     """
 
-    def __init__(self, path: Path, robot: str):
+    def __init__(self, path: Path, robot: str, written: Callable[[], object] | None = None):
+        """`written()` is called in the writer's thread after each write, failed or not."""
         self.path = path
         self._robot = robot
+        self._written = written
         self._condition = threading.Condition()
         self._waiting: tuple[int, dict[str, float]] | None = None
         self._submitted = 0
@@ -275,3 +280,8 @@ class Writer:
             with self._condition:
                 self._done = (generation, error)
                 self._condition.notify_all()
+            if self._written is not None:
+                try:
+                    self._written()
+                except Exception:  # the caller's problem: the writing goes on
+                    traceback.print_exc()

@@ -145,17 +145,24 @@ class Monitor:
         store: the file of the persisted locked set (None: kept in memory only).
         report: called with ("state_directory", problem or None, warning=...) and
             ("plant", fault or None).
+        written: called in the writer's thread as each write of the locked set ends: from
+            then on `settled` hands the change over. The core is not thread-safe: a
+            caller that calls `settled` from there serialises it with the calls that
+            hand changes over (`restore`, `observe`, `suspect`, `declare`, `reset`,
+            `settled`, `flush`, `close`).
     """
 
     def __init__(self, robot: Robot, detection: DetectorConfig, config: MonitorConfig,
-                 store: Path | None, report: Report = lambda *_args, **_kwargs: None):
+                 store: Path | None, report: Report = lambda *_args, **_kwargs: None,
+                 written: Callable[[], object] | None = None):
         self.robot = robot
         compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
-        self._writer = locked_set.Writer(store, robot.name) if store is not None else None
+        self._writer = (locked_set.Writer(store, robot.name, written) if store is not None
+                        else None)
         #: (generation, change, the set it leaves) written by the writer, not yet handed over
         self._held: list[tuple[int, Change, dict[str, float]]] = []
         self._announced: dict[str, float] = {}
