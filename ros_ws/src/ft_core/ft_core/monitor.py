@@ -22,14 +22,14 @@ converts messages, runs the watchdog and publishes; everything between is here.
 - **Declared failures and reset** (`declare`, `reset`).
 - **Persist, then announce, without waiting for the disk.** A change of the locked
   set takes effect at once in the command filter, and is written to its file
-  (`ft_core.locked_set`, atomic, fsynced) by a writer thread: the command path never
-  waits for the disk (an fsync under load took seconds). The `Change` a call returns
-  holds only what is on disk by then, its own change or earlier ones (`settled`, which
-  the node also calls on a steady timer, hands over the rest once written); the set to
-  publish is `announced`, the set last written. Our reading of "persist, then
-  announce" for releases: `reset` is answered at once and its empty set published
-  once written, like any change; a crash in between restores the released joints as
-  locked, the safe side.
+  (`ft_core.locked_set`: one write in place and an fdatasync) by a writer thread: the
+  command path never waits for the disk (an fsync under load took seconds). The
+  `Change` a call returns holds only what is on disk by then, its own change or earlier
+  ones (`settled`, which the node calls as the writer says a write ended, hands over
+  the rest once written); the set to publish is `announced`, the set last written.
+  Our reading of "persist, then announce" for releases: `reset` is answered at once
+  and its empty set published once written, like any change; a crash in between
+  restores the released joints as locked, the safe side.
 
 Each `Change` says whether the announced set changed (`Change.changed`) and carries
 the lines to log (`Change.events`, errors, about the arm); problems with the state
