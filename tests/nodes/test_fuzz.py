@@ -20,10 +20,12 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from ft_controller.controller_node import ControllerNode
 from ft_core import robots
+from ft_core.health import Health
 from ft_monitor.monitor_node import MonitorNode
-from ft_msgs_py import convert
+from ft_msgs_py import convert, health
 from fuzzing import examples
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from hypothesis import HealthCheck, given, settings
@@ -68,6 +70,26 @@ def joint_state(data, node, field: str) -> JointState:
         st.lists(numbers, max_size=20)))
     msg = JointState(name=joint_names)
     setattr(msg, field, values)
+    msg.header.stamp = stamp(data.draw(stamps), node)
+    return msg
+
+
+def joint_health(data, node) -> DiagnosticArray:
+    """A hostile `ft/joint_health`: odd names, states, keys and numbers (as text)."""
+    joint_names = data.draw(names)
+    if len(joint_names) > 50:  # huge: one status repeated
+        statuses = [DiagnosticStatus(name=joint_names[0], message="locked")] * len(joint_names)
+    else:
+        texts = st.one_of(numbers.map(repr), st.sampled_from(["", "fast", "true", "1e999",
+                                                               "x" * 1000]))
+        keys = st.sampled_from(["follows", "torque_margin", "usable_lower", "usable_upper",
+                                "since", "braked", "evidence", "x"])
+        statuses = [DiagnosticStatus(
+            name=name, message=data.draw(st.sampled_from([*Health, "", "haunted"])),
+            values=[KeyValue(key=key, value=data.draw(texts))
+                    for key in data.draw(st.lists(keys, max_size=8))])
+            for name in joint_names]
+    msg = DiagnosticArray(status=statuses)
     msg.header.stamp = stamp(data.draw(stamps), node)
     return msg
 
@@ -168,11 +190,13 @@ def good_twist(node) -> TwistStamped:
 def test_controller_survives_hostile_input(controller, data) -> None:
     node = controller
     with recorded(node.outputs.command) as commands:
-        kind = data.draw(st.sampled_from(["state", "twist", "pose", "locked"]))
+        kind = data.draw(st.sampled_from(["state", "twist", "pose", "locked", "health"]))
         if kind == "state":
             timed(taker(node, "joint_states"), wire_bytes(data, node, "position"))
         elif kind == "locked":
             timed(node._on_locked, joint_state(data, node, "position"))
+        elif kind == "health":
+            timed(node._on_health, joint_health(data, node))
         elif kind == "twist":
             msg = TwistStamped()
             msg.header.stamp = stamp(data.draw(stamps), node)
@@ -191,6 +215,7 @@ def test_controller_survives_hostile_input(controller, data) -> None:
         assert_safe(commands)
         # Good input returns: the node commands motion again.
         node._on_locked(convert.locked_message({}, node.get_clock().now().to_msg()))
+        node._on_health(health.message({}, node.get_clock().now().to_msg()))  # all healthy
         node._on_state(good_state(node))
         node._on_twist(good_twist(node))
         timed(node._control)

@@ -13,8 +13,9 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_core.command_limits import DriverCheck, command_limits
+from ft_core.health import Health
 from ft_monitor.monitor_node import MonitorNode
-from ft_msgs_py import convert, names, qos, wire
+from ft_msgs_py import convert, diagnostics, health, names, qos, wire
 from ft_msgs_py.monitor_guard import ECHO_PERIOD
 from ft_msgs_py.spin import harness_node, spin_until
 from ft_sim.sim_node import SimNode
@@ -665,3 +666,54 @@ def test_a_model_from_the_parameters_is_never_reloaded() -> None:
         assert spin_until(lp.executor, future.done, 5.0)
         assert not future.result().success
         assert "restart the node" in future.result().message
+
+
+def test_joint_health_is_latched_says_what_each_joint_is_and_never_flaps() -> None:
+    """`ft/joint_health`: one status per joint; a lock found and one declared, then reset."""
+    with loop(noise=1e-3) as lp:
+        command = constant(np.full(7, 0.2))
+        for _ in range(250):  # the detector first sees the plant follow (start-up)
+            lp.step(command)
+        lp.inject.publish(JointState(name=["panda_joint3"]))
+        assert spin_until(lp.executor, lambda: "panda_joint3" in lp.sim.locked, 2.0)
+        injected = lp.sim.t
+        while not lp.monitor.core.locked and lp.sim.t < injected + 1.0:
+            lp.step(command)
+        assert lp.announced_names() == ["panda_joint3"]
+        lp.declare.publish(JointState(name=["panda_joint6"]))
+        assert spin_until(lp.executor, lambda: sorted(lp.locked_names()) == [
+            "panda_joint3", "panda_joint6"], 2.0)
+        for _ in range(150):  # 0.6 s more: the locked joint never becomes healthy again
+            lp.step(command)
+        late: list[DiagnosticArray] = []  # a node that starts later gets the last one
+        lp.node.create_subscription(DiagnosticArray, "ft/joint_health", late.append,
+                                    qos.LATCHED)
+        assert spin_until(lp.executor, lambda: bool(late), 2.0), "ft/joint_health not latched"
+        states, unknown = health.read(late[-1], PANDA.joint_names)
+        assert unknown == [] and list(states) == list(PANDA.joint_names)
+        assert {n: str(s.state) for n, s in states.items() if s.state != Health.HEALTHY} == {
+            "panda_joint3": "locked", "panda_joint6": "locked"}
+        assert "locked at" in states["panda_joint3"].evidence
+        assert "ft/declare_failure" in states["panda_joint6"].evidence
+        assert states["panda_joint3"].since == pytest.approx(
+            convert.stamp_seconds(lp.locked[-1].header.stamp), abs=0.2)
+        assert 0.8 < states["panda_joint1"].follows <= 1.0  # a healthy joint follows
+        assert (states["panda_joint1"].usable_lower, states["panda_joint1"].usable_upper) == (
+            pytest.approx(PANDA.lower[0]), pytest.approx(PANDA.upper[0]))
+        levels = {s.name: s.level for s in late[-1].status}
+        assert levels["panda_joint3"] == diagnostics.ERROR
+        assert levels["panda_joint1"] == diagnostics.OK
+        client = lp.node.create_client(Trigger, "monitor/reset")
+        assert client.wait_for_service(timeout_sec=5.0)
+        count = len(late)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(lp.executor, future.done, 5.0) and future.result().success
+
+        def healthy() -> bool:
+            return len(late) > count and all(s.message == "healthy" for s in late[-1].status)
+
+        for _ in range(200):
+            if healthy():
+                break
+            lp.step(command)
+        assert healthy(), "the joints were not healthy again after ~/reset"

@@ -60,8 +60,9 @@ def test_pushing_into_a_limit(c: float, position: float, pushing: bool) -> None:
 
 def _own(v: float, low: float = 0.0, high: float = 0.0, unlocked: bool = True,
          undeclared: bool = True, falling: float = 0.0, gravity_known: bool = False,
-         s: float = 0.001) -> bool:
-    return rules.moves_on_its_own(v, s, low, high, unlocked, undeclared, falling,
+         s: float = 0.001, fastest: float | None = None) -> bool:
+    fastest = max(abs(low), abs(high)) if fastest is None else fastest
+    return rules.moves_on_its_own(v, s, low, high, fastest, unlocked, undeclared, falling,
                                   gravity_known, MIN, Z)
 
 
@@ -77,6 +78,14 @@ def test_moving_faster_than_commanded_or_within_the_noise_is_not_on_its_own() ->
     assert not _own(0.06, s=0.02)  # within z s of the healthy range
     assert not _own(0.3, low=0.0, high=0.3)  # a plausible model predicts it
     assert not _own(0.3, undeclared=False)  # already declared free-swinging
+    assert not _own(0.3, low=0.1, high=0.1, fastest=0.5)  # pushed by faster joints
+
+
+def test_falling_the_commanded_way_beyond_any_transient_is_moving_on_its_own() -> None:
+    """Twice the fastest plausible prediction of any joint, and the noise, further."""
+    assert _own(0.8, low=0.2, high=0.2, fastest=0.3)  # 0.8 > 2 x 0.3 + 0.05
+    assert not _own(0.6, low=0.2, high=0.2, fastest=0.3)
+    assert not _own(0.8, low=0.2, high=0.2, fastest=0.3, falling=-1.0, gravity_known=True)
 
 
 def test_with_gravity_known_moving_on_its_own_must_go_downhill() -> None:

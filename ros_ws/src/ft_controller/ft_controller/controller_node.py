@@ -4,8 +4,8 @@ Joint states plus an end-effector target (twist or pose) in, joint velocities ou
 `ft_core.controller.Controller.step` per cycle at `control_rate`, run by a
 `ft_msgs_py.loop.CycleDriver` (an rclpy timer, the joint states in ft-stack, or the
 process loop's ticks in its own process). The node wires: parameters
-(`ft_controller.settings`), inputs (`ft_controller.inputs`, the locked set through
-`ft_controller.monitor_watch`), outputs (`ft_controller.outputs`) and diagnostics
+(`ft_controller.settings`), inputs (`ft_controller.inputs`, the locked set and the joints'
+health through `ft_controller.monitor_watch`), outputs (`ft_controller.outputs`) and diagnostics
 (`ft_controller.loaded`); the per-cycle logic, staleness included, is the core's. With no
 usable state or target it commands zeros on a ramp within the arm's limits, as it does
 on shutdown and, from its steady watchdog, when no cycle runs for `state_timeout`.
@@ -18,6 +18,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, selfmotion
 from ft_core.controller import Controller
 from ft_core.engine import CycleResult, check_config
@@ -63,6 +64,7 @@ class ControllerNode(SuiteNode):
         self.scheduling = self.apply_thread_priority()  #: reported in diagnostics
         self.loaded: Loaded | None = None  #: the model and its core, once adopted
         self._q: np.ndarray | None = None  # the latest accepted joint state (rad)
+        self._health: DiagnosticArray | None = None  # the latest ft/joint_health (latched)
         self.last_command: np.ndarray | None = None  #: rad/s, chain order (harnesses)
         self.accounting = LoopAccounting(1.0 / self.param("control_rate"),
                                          count_missed=not self.param("use_sim_time"))
@@ -80,6 +82,8 @@ class ControllerNode(SuiteNode):
                                      qos.RELIABLE),
             self.create_subscription(PoseStamped, names.TARGET_POSE, self._on_pose, qos.RELIABLE))
         self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked, qos.LATCHED)
+        self.create_subscription(DiagnosticArray, names.JOINT_HEALTH, self._on_health,
+                                 qos.LATCHED)
         parameter_table.on_change(self, PARAMETERS, self._check, self._apply)
         parameters.request_model(self, self._set_model)  # says so (INFO) if it waits
         self.cycles = CycleDriver(self, self.update, 1.0 / self.param("control_rate"))
@@ -110,6 +114,8 @@ class ControllerNode(SuiteNode):
             self.loaded.core.close()
         core.start_worker()
         self.loaded = loaded = Loaded(robot, core, order)
+        if self._health is not None:  # latched before the model came: its core adapts too
+            self._on_health(self._health)
         if self.param("critical_points"):
             core.set_critical_points(self.param("critical_points"))
         self.problems.report("model", None)
@@ -226,13 +232,19 @@ class ControllerNode(SuiteNode):
 
     def _on_locked(self, msg: JointState) -> None:
         if self.loaded is not None:
-            graph = self.get_publishers_info_by_topic(
-                self.resolve_topic_name(names.LOCKED_JOINTS))
-            monitor = self.param("monitor_name")
-            self._watch.on_locked(
-                msg, [publishers.full_name(p.node_namespace, p.node_name) for p in graph],
-                publishers.expected(monitor, self.get_namespace()) if monitor else None,
-                self.loaded)
+            self._watch.on_locked(msg, *self._graph(names.LOCKED_JOINTS), self.loaded)
+
+    def _on_health(self, msg: DiagnosticArray) -> None:
+        self._health = msg
+        if self.loaded is not None:
+            self._watch.on_health(msg, *self._graph(names.JOINT_HEALTH), self.loaded)
+
+    def _graph(self, topic: str) -> tuple[list[str], str | None]:
+        """(full names of the topic's publishers, the monitor's full name or None: any)."""
+        graph = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
+        monitor = self.param("monitor_name")
+        return ([publishers.full_name(p.node_namespace, p.node_name) for p in graph],
+                publishers.expected(monitor, self.get_namespace()) if monitor else None)
 
     def _on_echo(self, msg: JointStateLike) -> None:
         self._watch.on_echo(msg, self.loaded)

@@ -14,9 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from ft_core import selfmotion
-from ft_core.controller import Controller, PoseTarget
-from ft_core.engine import CycleResult, Status
+from ft_core.controller import Controller
+from ft_core.engine import CycleResult
+from ft_core.health import Health
 from ft_core.robots import Robot
+from ft_core.targets import PoseTarget
 from ft_msgs_py import diagnostics, markers, metrics, wire
 from ft_msgs_py.episodes import Episodes
 from ft_msgs_py.loop import LoopAccounting
@@ -91,7 +93,7 @@ def metric_values(result: CycleResult, order: np.ndarray) -> list[float]:
 
 
 def joint_statuses(loaded: Loaded, status) -> list[DiagnosticStatus]:
-    """One diagnostic per joint (command order) from the last cycle: locked, at a limit.
+    """One diagnostic per joint (command order) from the last cycle: locked, health, limits.
 
     `status(level, message, values, joint=name)` makes each (`SuiteNode.status`).
     """
@@ -99,13 +101,17 @@ def joint_statuses(loaded: Loaded, status) -> list[DiagnosticStatus]:
     if last is None:
         return []
     locked_names = set(loaded.names(loaded.core.locked))
+    health, pinned = loaded.core.adaptation.health, loaded.core.pinned
     statuses = []
     for joint, i in zip(loaded.joints, loaded.order, strict=True):
         locked = joint in locked_names
-        level = (diagnostics.ERROR if locked else
-                 diagnostics.WARN if last.at_hard_limit[i] else diagnostics.OK)
-        statuses.append(status(level, "locked" if locked else "ok", {
-            "locked": locked, "at_soft_limit": bool(last.at_soft_limit[i]),
+        state = health[i].state if i in health else Health.HEALTHY
+        level = (diagnostics.ERROR if locked or i in pinned else
+                 diagnostics.WARN if last.at_hard_limit[i] or state != Health.HEALTHY
+                 else diagnostics.OK)
+        message = "locked" if locked else "ok" if state == Health.HEALTHY else str(state)
+        statuses.append(status(level, message, {
+            "locked": locked, "health": str(state), "at_soft_limit": bool(last.at_soft_limit[i]),
             "at_hard_limit": bool(last.at_hard_limit[i]),
             "post_failure_sigma": float(last.post_failure_sigmas[i]) if not locked
             else "n/a"}, joint=joint))
@@ -129,8 +135,6 @@ def level_and_message(loaded: Loaded | None, problems: str | None) -> tuple[byte
         return diagnostics.WARN, "waiting for the robot model"
     if last is None:
         return diagnostics.WARN, "waiting for joint states"
-    if last.status == Status.INFEASIBLE:
-        return diagnostics.WARN, "task infeasible with the remaining joints"
     return diagnostics.OK, last.status
 
 
@@ -145,6 +149,7 @@ def core_values(loaded: Loaded | None, now: float) -> dict[str, object]:
         "soft_limits": "none" if core is None else core.soft_limits_note,
         "observability": observability_note(loaded),
         "recovery": "off" if core is None else core.recovery_note,
+        "joint_health": "none" if core is None else core.adaptation.note,
         "start_configuration": "idle" if core is None else core.start_phase.note,
         "suspected_lock": (loaded and loaded.suspected_lock) or "none"}
     last = None if core is None else core.last

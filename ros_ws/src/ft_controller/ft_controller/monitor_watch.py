@@ -1,10 +1,10 @@
-"""The controller's watch on the monitor: which locked set to believe, and a dead monitor.
+"""The controller's watch on the monitor: which locked set and health to believe, a dead monitor.
 
 `MonitorWatch` joins the guard of a dead monitor (`ft_msgs_py.monitor_guard`: commands
-against the monitor's echoes) and the trust in the locked set
-(`ft_msgs_py.publishers`: who publishes `ft/locked_joints`, and which of a contested
-set's locks the monitor's echoes show). The node hands it the messages and publishes
-what it returns.
+against the monitor's echoes), the trust in the locked set (`ft_msgs_py.publishers`: who
+publishes `ft/locked_joints`, and which of a contested set's locks the monitor's echoes
+show) and the joints' health (`ft/joint_health`, which the core adapts to:
+`ft_core.adaptation`). The node hands it the messages and publishes what it returns.
 """
 
 from __future__ import annotations
@@ -13,8 +13,11 @@ import time
 from collections.abc import Callable, Iterable
 
 import numpy as np
-from ft_msgs_py import convert, publishers
+from diagnostic_msgs.msg import DiagnosticArray
+from ft_core import adaptation
+from ft_msgs_py import convert, health, publishers
 from ft_msgs_py.episodes import Episodes
+from ft_msgs_py.messages import MessageError
 from ft_msgs_py.monitor_guard import MonitorGuard
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from sensor_msgs.msg import JointState
@@ -59,6 +62,36 @@ class MonitorWatch:
             self._logger.warning(f"ft/locked_joints: unknown joints {unknown} ignored",
                                  throttle_duration_sec=5.0)
         self._adopt(self.locked_set(verdict, locked, loaded), loaded)
+
+    def on_health(self, msg: DiagnosticArray, graph: list[str], monitor: str | None,
+                  loaded: Loaded) -> None:
+        """An `ft/joint_health` message, published by the nodes `graph` (full names).
+
+        Taken whole from the monitor alone (`monitor`: its full name; None: any single
+        publisher), else ignored; refused whole for an unknown or duplicate joint, an
+        unknown state or a number out of its range (`adaptation.problem`). Each refusal is
+        a WARN, at most every 5 s; an adaptation that changes is logged.
+        """
+        if publishers.judge(graph, monitor).take != publishers.Take.ALL:
+            self._logger.warning(f"ft/joint_health: published by {sorted(graph)[:10]}, not "
+                                 f"by the monitor alone: ignored", throttle_duration_sec=5.0)
+            return
+        try:
+            joints, unknown = health.read(msg, loaded.robot.joint_names)
+            if unknown:
+                raise MessageError(f"unknown joints {unknown[:10]}")
+            for name, joint in joints.items():
+                problem = adaptation.problem(joint)
+                if problem is not None:
+                    raise MessageError(f"{name}: {problem}")
+        except MessageError as error:
+            self._logger.warning(f"ft/joint_health: {error}: ignored", throttle_duration_sec=5.0)
+            return
+        core, before = loaded.core, loaded.core.adaptation.note
+        core.set_health(dict(zip(loaded.indices(joints), joints.values(), strict=True)),
+                        self._clock() * 1e-9)
+        if core.adaptation.note != before:
+            self._logger.info(f"adapted to the joints' health: {core.adaptation.note}")
 
     def on_echo(self, msg, loaded: Loaded | None) -> None:
         """An `ft/command_echo` message: the monitor's answer to a command, or not."""

@@ -5,6 +5,9 @@ parameters): `Controller.step(q, state_age, now)` turns the latest joint positio
 their age, the latest target and the locked set into one command, and owns everything a
 cycle needs besides the engine's arithmetic (`ft_core.engine`):
 
+- the joints' health (`ft_core.adaptation`): a degraded joint's speed and weight lowered,
+  usable ranges as hard limits, joints locked or free-swinging by health pinned; zeros
+  (on the ramp) and the reason while the joints left cannot do the task;
 - the target: a twist (feed-forward, decaying once stale, `targets.staleness_scale`)
   or a pose goal (tracked proportionally, `targets.pose_velocity`);
 - holding still with no target (unless `idle_null_space_motion`);
@@ -35,25 +38,34 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import ClassVar
 
 import numpy as np
 
 from ft_core import limits, recovery, start_configuration, workers
+from ft_core.adaptation import INFEASIBLE, Adaptation
 from ft_core.command_limits import LimitsConfig
 from ft_core.critical_limits import CriticalPointLimits
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
+from ft_core.health import JointHealth
 from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
 from ft_core.robots import Kinematics, Robot
 from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
-from ft_core.targets import PoseTracking, norm, pose_velocity, staleness_scale
+from ft_core.targets import (
+    PoseTarget,
+    PoseTracking,
+    Target,
+    TwistTarget,
+    norm,
+    pose_velocity,
+    staleness_scale,
+)
 from ft_core.task_channel import TaskChannel
 
 #: How the start-configuration path moves and how long its plan may take: as a recovery
@@ -90,28 +102,6 @@ class ControllerConfig:
     limits: LimitsConfig | None = field(default_factory=LimitsConfig)
 
 
-@dataclass(frozen=True)
-class TwistTarget:
-    """A task velocity (m/s and rad/s, `targets.twist_velocity`), decaying from its stamp."""
-
-    value: np.ndarray
-    stamp: float  #: s, the twist's stamp
-    kind: ClassVar[str] = "twist"  #: as diagnostics name it
-
-
-@dataclass(frozen=True)
-class PoseTarget:
-    """A pose goal (`targets.goal_from_transform`), tracked until another target comes."""
-
-    value: np.ndarray
-    stamp: float  #: s, when the goal arrived
-    kind: ClassVar[str] = "pose"  #: as diagnostics name it
-
-
-#: The latest target the cycle follows.
-Target = TwistTarget | PoseTarget
-
-
 @dataclass
 class Step:
     """What one cycle decided.
@@ -120,8 +110,9 @@ class Step:
         qd: the command (rad/s, chain order), within the arm's acceleration and jerk
             limits; towards zeros, on a ramp, when no motion is safe.
         result: the engine's cycle (None when zeros were commanded without one).
-        problems: why zeros were commanded, by input: "joint_states" (stale) or
-            "engine" (a state or target it refuses); "engine" None once it accepts again.
+        problems: why zeros were commanded, by input: "joint_states" (stale), "engine" (a
+            state or target it refuses; None once it accepts again) or "task infeasible"
+            (`adaptation.INFEASIBLE`: the joints left cannot do the task; None once, after).
         suspect: the joint the task channel suspects now (None: none).
         new_suspect: `suspect` differs from the previous cycle's.
         announce: publish the suspect now (new, or again once per channel window).
@@ -177,7 +168,8 @@ class Controller:
         self.robot = robot
         self.config = config
         self._engine_config = engine_config
-        self.engine = ResolutionEngine(robot, engine_config)
+        self.adaptation = Adaptation(robot)
+        self.engine = ResolutionEngine(robot, self.adaptation.adapt(engine_config))
         self._model_source = model_source
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
@@ -186,6 +178,8 @@ class Controller:
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
         self.locked: tuple[int, ...] = ()
+        #: The joints not used: `locked` and those pinned by health (`Adaptation.pinned`).
+        self.pinned: tuple[int, ...] = ()
         self.last: CycleResult | None = None
         self.suspect: int | None = None
         self._suspect_sent = -math.inf
@@ -237,7 +231,7 @@ class Controller:
                 box = (np.maximum(config.soft_lower, box[0]),
                        np.minimum(config.soft_upper, box[1]))
             config = replace(config, soft_lower=tuple(box[0]), soft_upper=tuple(box[1]))
-        self.engine = ResolutionEngine(self.robot, config)
+        self.engine = ResolutionEngine(self.robot, self.adaptation.adapt(config))
 
     # ------------------------------------------------------------------- inputs
     def set_twist(self, velocity: np.ndarray, stamp: float) -> None:
@@ -261,12 +255,26 @@ class Controller:
 
     def set_locked(self, locked: Sequence[int], now: float = math.nan) -> None:
         """The locked joints (chain indices), as the monitor announced them at `now` (s)."""
-        locked = tuple(sorted(locked))
-        if locked != self.locked and self.recovery is not None:
+        self.locked = tuple(sorted(locked))
+        self._pin(now)
+
+    def set_health(self, health: Mapping[int, JointHealth], now: float = math.nan) -> None:
+        """Every joint's health ({chain index: health}; `ft_core.adaptation`) at `now` (s).
+
+        The engine is rebuilt with the limits and weights derived from it, if they change.
+        """
+        if self.adaptation.set_health(health):
+            self._rebuild_engine()
+        self._pin(now)
+
+    def _pin(self, now: float) -> None:
+        """Take the joints not to use now; a change drops the recovery's plan."""
+        pinned = self.adaptation.pinned(self.locked)
+        if pinned != self.pinned and self.recovery is not None:
             self.recovery.reset(now)
-        if locked:
+        if pinned:
             self.start_phase.cancel("a joint is locked")
-        self.locked = locked
+        self.pinned = pinned
 
     def optimize_start(self, q: np.ndarray | None, now: float) -> str | None:
         """Move the idle arm to its start configuration of best dexterity; None: started.
@@ -279,8 +287,8 @@ class Controller:
             return "no joint state yet"
         if self.target is not None:
             return "a target is in force: the start configuration is for an idle arm"
-        if self.locked:
-            return f"joints {list(self.locked)} are locked: the start phase is for a healthy arm"
+        if self.pinned:
+            return f"joints {list(self.pinned)} are locked: the start phase is for a healthy arm"
         try:
             self.start_phase.request(q, now)
         except RuntimeError as problem:
@@ -333,11 +341,11 @@ class Controller:
     def smooth(self, qd: np.ndarray, now: float) -> np.ndarray:
         """The command stamped `now` (s) towards `qd` (rad/s) within the limits.
 
-        Locked joints get 0 at once. `qd` itself without a smoother.
+        Locked and pinned joints get 0 at once. `qd` itself without a smoother.
         """
         if self.smoother is None:
             return qd
-        return self.smoother.step(qd, now, self.locked)
+        return self.smoother.step(qd, now, self.pinned)
 
     def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
         """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
@@ -355,7 +363,8 @@ class Controller:
             return Step(self.smooth(zeros, now), None, {"joint_states": stale_state(state_age)})
         if self.critical.update(q):
             self._rebuild_engine()
-        locked = list(self.locked)
+        pinned = self.pinned
+        locked = list(pinned)
         try:
             kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
             xd, idle, task_error = self._task_velocity(kinematics, now)
@@ -363,6 +372,9 @@ class Controller:
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})
+        self.last, infeasible = result, self.adaptation.judge(result, pinned, q)
+        if infeasible.get(INFEASIBLE):  # the joints left cannot do the task: to rest
+            return Step(self.smooth(zeros, now), result, {"engine": None, **infeasible})
         qd = result.qd
         if idle and not self.config.idle_null_space_motion:
             qd = zeros
@@ -378,8 +390,7 @@ class Controller:
                                    now, task_error, error, idle)
         if not all_finite(qd):
             qd = zeros
-        self.last = result
-        step = Step(qd, result, {"engine": None})
+        step = Step(qd, result, {"engine": None, **infeasible})
         if error is not None:
             self._watch_task(step, kinematics, locked, now, error)
         step.qd = self.smooth(qd, now)
@@ -449,8 +460,8 @@ class Controller:
         return qd if command is None else command
 
     def _speeds(self) -> np.ndarray:
-        """The joint speeds the engine allows (rad/s): the URDF's, scaled."""
-        return self.robot.velocity_limits * self.engine.config.velocity_scale
+        """The joint speeds the engine allows (rad/s, `ResolutionEngine.speeds`)."""
+        return self.engine.speeds
 
     def _velocity_bounds(self, q: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
                          ) -> tuple[np.ndarray, np.ndarray]:

@@ -24,9 +24,10 @@ characteristic length). The null-space preference z sums, by `resolution`:
   joints (numpy over every joint pair, not compiled): off by default.
 
 The kfm and jump terms refer to the next failure and are used only while
-n - |locked| - 1 >= m. Hard limits (URDF positions and velocity_scale times URDF
-velocities) and, while no joint is locked or when configured to keep them, the
-soft limits are enforced on qd itself by saturation in the null space
+n - |locked| - 1 >= m. Hard limits (URDF positions, narrowed where a joint's usable
+range is: `hard_lower`/`hard_upper`; velocity_scale times URDF velocities, times a
+degraded joint's `velocity_factors`) and, while no joint is locked or when configured
+to keep them, the soft limits are enforced on qd itself by saturation in the null space
 (`limits.saturate_in_null_space`), so q integrated over dt never leaves them;
 the task is scaled down, direction kept, only as a last resort. With fewer
 healthy joints than task coordinates the cycle returns the damped least-squares
@@ -45,7 +46,13 @@ from numba import njit
 
 from ft_core import limits, measures, postfailure, robots, swing
 from ft_core.engine_config import RESOLUTIONS as RESOLUTIONS  # the engine's public names
-from ft_core.engine_config import EngineConfig, Resolution, check_config
+from ft_core.engine_config import (
+    EngineConfig,
+    Resolution,
+    check_config,
+    hard_limits,
+    velocity_limits,
+)
 from ft_core.observability import MIN_SHARE
 from ft_core.pseudoinverse import damped_pinv
 from ft_core.robots import Kinematics, Robot
@@ -278,9 +285,11 @@ class ResolutionEngine:
             kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
             kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer, dt=cfg.dt,
             damping_threshold=cfg.damping.threshold, max_damping=cfg.damping.max_damping))
-        self._limit_box = np.array([robot.lower, robot.upper,
-                                    *(self._soft if self._soft[0].size else (robot.lower,
-                                                                             robot.upper))])
+        self._hard = hard_limits(robot, cfg)
+        #: The joint speeds the cycle allows (rad/s, `engine_config.velocity_limits`).
+        self.speeds = velocity_limits(robot, cfg)
+        self._limit_box = np.array([*self._hard,
+                                    *(self._soft if self._soft[0].size else self._hard)])
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
         home = robot.kinematics(robot.home())
         self.step(home, np.zeros(robot.m))
@@ -294,9 +303,10 @@ class ResolutionEngine:
     def bounds(self, locked: Iterable[int] = ()) -> tuple[np.ndarray, np.ndarray]:
         """The joint bounds (rad) enforced with `locked` joints.
 
-        The hard limits, within the soft box while it applies.
+        The hard limits (the URDF's, narrowed by `hard_lower`/`hard_upper`), within the
+        soft box while it applies.
         """
-        lower, upper = self.robot.lower, self.robot.upper
+        lower, upper = self._hard
         if self.soft_limits_active(bool(tuple(locked))):
             return np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
         return lower.copy(), upper.copy()
@@ -318,7 +328,7 @@ class ResolutionEngine:
             view = self._locked_sets[key] = _LockedSet(
                 locked=bool(key), healthy=np.flatnonzero(healthy), soft=soft,
                 box=np.array([lower[healthy], upper[healthy],
-                              robot.velocity_limits[healthy] * cfg.velocity_scale,
+                              self.speeds[healthy],
                               measures.failure_weights(p, nh) if nh else np.zeros(0)]),
                 use_kfm=(next_failure
                          and cfg.resolution in (Resolution.MAX_KFM, Resolution.BLEND)

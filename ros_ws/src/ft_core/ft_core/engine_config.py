@@ -49,6 +49,11 @@ class EngineConfig:
         limit_gain: gain of the soft/hard-limit avoidance (rad/s at an edge), >= 0.
         failure_probabilities: one per joint (>= 0); empty = equally likely.
         soft_lower, soft_upper: soft-limit box (rad); empty = none.
+        hard_lower, hard_upper: hard limits narrower than the URDF's (rad; a joint's usable
+            range, `ft_core.adaptation`), intersected with them and kept after a failure;
+            -inf / inf for a side not narrowed; empty = the URDF's.
+        velocity_factors: one per joint in (0, 1], multiplying its velocity limit on top
+            of `velocity_scale` (a degraded joint's, `ft_core.adaptation`); empty = all 1.
         release_soft_limits_on_failure: drop the soft box once a joint is locked.
         dt: control period (s) over which position limits are enforced.
         velocity_scale: fraction of the URDF velocity limits that may be used, in (0, 1].
@@ -65,6 +70,9 @@ class EngineConfig:
     failure_probabilities: Sequence[float] = ()
     soft_lower: Sequence[float] = ()
     soft_upper: Sequence[float] = ()
+    hard_lower: Sequence[float] = ()
+    hard_upper: Sequence[float] = ()
+    velocity_factors: Sequence[float] = ()
     release_soft_limits_on_failure: bool = True
     dt: float = 0.004
     velocity_scale: float = 0.5
@@ -86,6 +94,8 @@ class EngineConfig:
             raise ValueError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}")
         if len(self.soft_lower) != len(self.soft_upper):
             raise ValueError("soft_lower and soft_upper must have the same length")
+        if len(self.hard_lower) != len(self.hard_upper):
+            raise ValueError("hard_lower and hard_upper must have the same length")
 
 
 def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
@@ -93,7 +103,8 @@ def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
     """What of `config` depends on the robot, checked: (failure probabilities, soft box).
 
     Raises ValueError where the engine would refuse it (a probability per joint; soft
-    limits of n finite values each, lower below upper; swing_gain > 0 on a model without
+    limits of n finite values each, lower below upper; hard limits of n values each, not
+    nan, lower below upper; n velocity factors in (0, 1]; swing_gain > 0 on a model without
     inertias, whose swing measure is undefined), without building an engine: the node
     validates parameter changes with it. No probabilities: None; no soft limits: two
     empty arrays.
@@ -116,4 +127,38 @@ def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
         if np.any(lower > upper):
             raise ValueError("a soft lower limit is above its upper limit")
         soft = (lower, upper)
+    hard_limits(robot, config)
+    velocity_limits(robot, config)
     return probabilities, soft
+
+
+def hard_limits(robot: Robot, config: EngineConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The hard limits in force (rad): the URDF's, narrowed to `hard_lower`/`hard_upper`.
+
+    A narrowed side outside the URDF's range is clipped into it. ValueError: not n values
+    each, a nan, or a lower side above its upper side.
+    """
+    n = robot.n
+    if not len(config.hard_lower):
+        return robot.lower.copy(), robot.upper.copy()
+    lower = np.asarray(config.hard_lower, dtype=float)
+    upper = np.asarray(config.hard_upper, dtype=float)
+    if lower.shape != (n,) or upper.shape != (n,) or np.any(np.isnan(lower) | np.isnan(upper)):
+        raise ValueError(f"hard limits need {n} values each, none nan")
+    if np.any(lower > upper):
+        raise ValueError("a hard lower limit is above its upper limit")
+    return (np.clip(lower, robot.lower, robot.upper), np.clip(upper, robot.lower, robot.upper))
+
+
+def velocity_limits(robot: Robot, config: EngineConfig) -> np.ndarray:
+    """The joint speeds the engine allows (rad/s): URDF's x velocity_scale x velocity_factors.
+
+    ValueError: not n factors, or one outside (0, 1].
+    """
+    speeds = robot.velocity_limits * config.velocity_scale
+    if not len(config.velocity_factors):
+        return speeds
+    factors = np.asarray(config.velocity_factors, dtype=float)
+    if factors.shape != (robot.n,) or not np.all((factors > 0) & (factors <= 1)):
+        raise ValueError(f"velocity_factors need {robot.n} values in (0, 1]")
+    return speeds * factors

@@ -17,6 +17,8 @@ import enum
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 
 class Health(enum.StrEnum):
     """A joint's state, from best to worst (the order of `rank`)."""
@@ -67,3 +69,67 @@ class JointHealth:
     def usable(self) -> bool:
         """Whether a controller may command the joint (healthy or degraded)."""
         return self.state in (Health.HEALTHY, Health.DEGRADED) and not self.braked
+
+
+#: s over which the largest effort seen counts for the torque margin (forgotten
+#: exponentially with this time constant).
+EFFORT_MEMORY = 1.0
+
+
+class HealthBoard:
+    """Each joint's declared state, kept from flapping: it changes only to a worse one.
+
+    The monitor declares states as its detector decides them (`declare`); a joint stays
+    in its state until `reset` (after a repair), whatever the detector sees later: a
+    locked joint that moves again is free-swinging, never healthy again; a free-swinging
+    joint that comes to rest stays free-swinging.
+    """
+
+    def __init__(self, n: int):
+        self.n = n
+        self.reset()
+
+    def reset(self) -> None:
+        """Every joint healthy again."""
+        self.states = [Health.HEALTHY] * self.n
+        self.since = [math.nan] * self.n
+        self.evidence = [""] * self.n
+        self.braked = [False] * self.n
+        self._peak = np.full(self.n, math.nan)  # N m, the largest |effort| lately, forgotten
+        self._effort_at = -math.inf  # s, the time of the last efforts
+
+    def declare(self, joint: int, state: Health, now: float, evidence: str,
+                braked: bool = False) -> bool:
+        """`joint` is in `state` at `now` (s), as `evidence` says; whether that changed it.
+
+        Only a worse state replaces the one declared; `braked` marks a free-swinging joint
+        declared locked where it is, and stays.
+        """
+        changed = state.rank > self.states[joint].rank
+        if changed:
+            self.states[joint], self.since[joint], self.evidence[joint] = state, now, evidence
+        if braked and not self.braked[joint]:
+            self.braked[joint] = changed = True
+        return changed
+
+    def effort(self, now: float, effort: np.ndarray) -> None:
+        """The efforts (N m, chain order) the driver reports at `now` (s)."""
+        decay = math.exp(-max(now - self._effort_at, 0.0) / EFFORT_MEMORY)
+        self._peak = np.fmax(np.abs(effort), np.nan_to_num(self._peak) * decay)
+        self._effort_at = now
+
+    def torque_margin(self, joint: int, limit: float) -> float:
+        """Share (0-1) of `limit` (N m) above the largest effort of `joint` lately; nan unknown."""
+        if not math.isfinite(limit) or math.isnan(self._peak[joint]):
+            return math.nan
+        return min(max(1.0 - float(self._peak[joint]) / limit, 0.0), 1.0)
+
+    def of(self, state: Health) -> list[int]:
+        """The joints in `state`, in chain order."""
+        return [j for j, s in enumerate(self.states) if s == state]
+
+    def health(self, joint: int, follows: float, torque_margin: float, lower: float,
+               upper: float) -> JointHealth:
+        """`joint`'s `JointHealth`, with the measured share, margin and range given."""
+        return JointHealth(self.states[joint], follows, torque_margin, lower, upper,
+                           self.since[joint], self.braked[joint], self.evidence[joint])

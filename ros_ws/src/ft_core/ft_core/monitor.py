@@ -16,9 +16,14 @@ converts messages, runs the watchdog and publishes; everything between is here.
   `ft_core.detection.LockDetector`, with the way gravity would turn each joint
   (`ft_core.swing.falling_directions`; a joint moving on its own must go that way to
   be free-swinging); a joint it declares free-swinging is, with
-  `brake_free_swinging`, declared locked where it is (its brake applied). A suspect
-  from elsewhere (the controller's task-space channel) is decided by the detector's
-  own confirm rule.
+  `brake_free_swinging` (the default), declared locked where it is (its brake
+  applied). A suspect from elsewhere (the controller's task-space channel) is decided
+  by the detector's own confirm rule.
+- **Each joint's health** (`health`, `board`): healthy, degraded (it follows less than
+  half its command, `ft_core.detection.follow`), locked or free-swinging
+  (`ft_core.health`), changing only to a worse state until `reset`; the locked set
+  likewise only grows until `reset` (a locked joint that moves on its own is
+  free-swinging and locked again where it is).
 - **Declared failures and reset** (`declare`, `reset`).
 - **Persist, then announce, without waiting for the disk.** A change of the locked
   set takes effect at once in the command filter, and is written to its file
@@ -56,6 +61,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
+from ft_core.health import Health, HealthBoard, JointHealth
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
 from ft_core.smoothing import Smoother
@@ -76,14 +82,15 @@ class MonitorConfig:
         remap_commands: remap commands through the reduced Jacobian once joints lock
             (otherwise only zero the locked joints).
         velocity_scale: fraction of the URDF velocity limits every command is scaled into.
-        brake_free_swinging: declare a free-swinging joint locked where it is.
+        brake_free_swinging: declare a free-swinging joint locked where it is (its brake
+            asked for, Maciejewski et al. sec. 2.3: the swing angle is the damage).
         limits: the acceleration and jerk limits every command is smoothed into;
             None: raw commands (which a real driver refuses).
     """
 
     remap_commands: bool = True
     velocity_scale: float = 1.0
-    brake_free_swinging: bool = False
+    brake_free_swinging: bool = True
     limits: LimitsConfig | None = field(default_factory=LimitsConfig)
 
     def __post_init__(self) -> None:
@@ -120,6 +127,7 @@ class JointCondition(enum.StrEnum):
     LOCKED = "locked"
     FREE_SWINGING = "free-swinging"
     AT_LIMIT = "stalled at a joint limit"
+    DEGRADED = "degraded"
 
 
 @dataclass(frozen=True)
@@ -127,7 +135,8 @@ class JointReport:
     """One joint's state for diagnostics.
 
     Attributes:
-        state: ok, locked, free-swinging or stalled at a joint limit (`JointCondition`).
+        state: ok, degraded, locked, free-swinging or stalled at a joint limit
+            (`JointCondition`).
         evidence: the detector's evidence at its last update (a copy).
     """
 
@@ -158,6 +167,7 @@ class Monitor:
         self.robot = robot
         compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
         self.detector = LockDetector(robot.lower, robot.upper, detection)
+        self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
@@ -210,8 +220,16 @@ class Monitor:
 
     @property
     def swinging(self) -> list[str]:
-        """Names of the joints declared free-swinging (and not locked since), sorted."""
-        return sorted(self.robot.joint_names[j] for j in self.detector.swinging)
+        """Names of the joints declared free-swinging (braked or not), sorted."""
+        return sorted(self.robot.joint_names[j] for j in self.board.of(Health.FREE_SWINGING))
+
+    def health(self) -> dict[str, JointHealth]:
+        """Every joint's state and what it still gives, in chain order (`ft/joint_health`)."""
+        robot, shares, board = self.robot, self.detector.follow.shares, self.board
+        return {name: board.health(j, float(shares[j]),
+                                   board.torque_margin(j, float(robot.effort_limits[j])),
+                                   float(robot.lower[j]), float(robot.upper[j]))
+                for j, name in enumerate(robot.joint_names)}
 
     def restore(self, now: float) -> Change:
         """Take the locked set kept in the store (at start-up), and have it written back.
@@ -228,7 +246,9 @@ class Monitor:
                          warning=True)
             return Change()
         for name, position in stored.items():
-            self.detector.lock(self.robot.joint_names.index(name), position, now)
+            j = self.robot.joint_names.index(name)
+            self.detector.lock(j, position, now)
+            self.board.declare(j, Health.LOCKED, now, f"restored from {self.store}")
         if self._writer is not None:  # the file in the slot format now, not at the first lock
             self._writer.submit(self.locked)
         if not stored:
@@ -288,34 +308,50 @@ class Monitor:
         """
         return limits.absurd_command(qd, self.robot.joint_names)
 
-    def observe(self, q: np.ndarray, now: float, blind: str | None = None) -> Change:
-        """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing."""
+    def observe(self, q: np.ndarray, now: float, blind: str | None = None,
+                effort: np.ndarray | None = None) -> Change:
+        """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing.
+
+        `effort`: the joints' efforts (N m) where the driver reports them (torque margins).
+        """
         self.q = q
+        if effort is not None:
+            self.board.effort(now, effort)
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q))
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
-        brake = self.config.brake_free_swinging
+        brake, board = self.config.brake_free_swinging, self.board
         for j in update.swinging:
             evidence = joints[j]
-            change.events.append(
-                f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
-                f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
-                + ("; declaring it locked where it is (brake)" if brake else ""))
-            if brake:
+            line = (f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
+                    f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}")
+            # Declared locked once, it stays in the locked set (no flapping): a swing that
+            # takes the detector's lock back is braked again where the joint is now.
+            stays = j in update.released
+            change.events.append(line + ("; declaring it locked where it is (brake)" if brake
+                                         else "; it stays locked" if stays else ""))
+            board.declare(j, Health.FREE_SWINGING, now, line, braked=brake or stays)
+            if brake or stays:
                 self.detector.lock(j, float(q[j]), now)
         for j in update.locked:
             evidence = joints[j]
-            change.events.append(
-                f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
-                f"measured {evidence.measured:.4f} rad/s against at least "
-                f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad behind")
-        # A swing of an unlocked joint leaves the set as it is: reported without a write.
-        # A swing that takes a lock back changes it, unless the brake locks it again; the
-        # brake on a joint that was not locked changes it. (New locks were not locked.)
+            line = (f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
+                    f"measured {evidence.measured:.4f} rad/s against at least "
+                    f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad behind")
+            change.events.append(line)
+            board.declare(j, Health.LOCKED, now, line)
+        shares = self.detector.follow.shares
+        for j in update.degraded:
+            line = (f"joint {names[j]} degraded (t = {now:.3f} s): it followed "
+                    f"{shares[j]:.2f} of its commanded motion lately")
+            change.events.append(line)
+            board.declare(j, Health.DEGRADED, now, line)
+        # A new lock or a brake changes the set (a lock taken back by a swing and braked
+        # again: the same joints, at the position where it was braked).
         change.changed |= bool(update.locked) or any(
-            (j in update.released) != brake for j in update.swinging)
+            brake or j in update.released for j in update.swinging)
         if self._observed_at is None or now < self._observed_latest:
             self._observed_at = np.full(self.robot.n, now)  # the first state, or time reset
             self._observed_latest = now
@@ -347,10 +383,11 @@ class Monitor:
         if answer.decision != Decision.LOCKED:
             return answer, Change()
         evidence = answer.evidence
-        self._hold(Change(True, [
-            f"joint {self.robot.joint_names[joint]} locked (suspected by the task-space "
-            f"channel, confirmed: measured {evidence.measured:.4f} rad/s against "
-            f"{evidence.commanded:.4f} commanded)"]), now)
+        line = (f"joint {self.robot.joint_names[joint]} locked (suspected by the task-space "
+                f"channel, confirmed: measured {evidence.measured:.4f} rad/s against "
+                f"{evidence.commanded:.4f} commanded)")
+        self.board.declare(joint, Health.LOCKED, now, line)
+        self._hold(Change(True, [line]), now)
         return answer, self.settled()
 
     def declare(self, joints: Iterable[int], now: float) -> Change:
@@ -360,7 +397,9 @@ class Monitor:
             if j not in self.detector.locked:
                 position = float(self.q[j]) if self.q is not None else math.nan
                 self.detector.lock(j, position, now)
-                change.events.append(f"joint {self.robot.joint_names[j]} declared locked")
+                line = f"joint {self.robot.joint_names[j]} declared locked"
+                change.events.append(line)
+                self.board.declare(j, Health.LOCKED, now, line + " (ft/declare_failure)")
                 change.changed = True
         self._hold(change, now)
         return self.settled()
@@ -372,19 +411,22 @@ class Monitor:
         """
         released = sorted(self.locked)
         self.detector.reset()
+        self.board.reset()
         self._held.clear()
         self._hold(Change(True), now)
         return released
 
     def joint_report(self, joint: int) -> JointReport:
         """The state of `joint` (chain index) for diagnostics."""
-        evidence = self.detector.joints[joint]
-        if evidence.locked_at is not None:
-            state = JointCondition.LOCKED
-        elif joint in self.detector.swinging:
+        evidence, declared = self.detector.joints[joint], self.board.states[joint]
+        if declared == Health.FREE_SWINGING:
             state = JointCondition.FREE_SWINGING
+        elif evidence.locked_at is not None:
+            state = JointCondition.LOCKED
         elif evidence.at_limit:
             state = JointCondition.AT_LIMIT
+        elif declared == Health.DEGRADED:
+            state = JointCondition.DEGRADED
         else:
             state = JointCondition.OK
         return JointReport(state, replace(evidence))

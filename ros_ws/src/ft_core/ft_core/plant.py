@@ -15,6 +15,11 @@ The command path of a real arm, step by step (`Plant.step`):
    free-swinging joints (`swing`) ignore the commands and follow the accelerations
    `free_swing_acceleration(q, qd)` gives (semi-implicit Euler, 1 ms substeps).
 
+Degraded joints (`inject`, `ft_core.faults`) have kinematic analogues: friction and a
+loss of torque authority scale the command down before step 4
+(`FaultState.kinematic_velocity`), a range fault's stops join the position limits, and an
+intermittent jam holds the joint still in its locked phases.
+
 Times are seconds on the plant's clock; velocities rad/s (m/s for prismatic joints).
 """
 
@@ -26,6 +31,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+from ft_core.faults import Fault, FaultKind, FaultState
 
 
 @dataclass(frozen=True)
@@ -126,6 +133,7 @@ class BasePlant:
         self.t = time
         self.locked: dict[int, float] = {}
         self.swinging: set[int] = set()
+        self.faults = FaultState(self.n)
 
     def configure(self, config: PlantConfig) -> None:
         """Use new plant options from the next step on."""
@@ -140,11 +148,56 @@ class BasePlant:
         """A command arrived at `time` (s)."""
         self.path.command(time, velocity)
 
+    def position(self, joint: int) -> float:
+        """Joint index `joint`'s position (rad)."""
+        raise NotImplementedError
+
+    def lock(self, joint: int) -> None:
+        """Lock a joint where it is."""
+        raise NotImplementedError
+
+    def swing(self, joint: int) -> None:
+        """The joint's drive loses its torque."""
+        raise NotImplementedError
+
+    def check_fault(self, joint: int, fault: Fault) -> None:
+        """Raise `ft_core.faults.FaultError` if `fault` cannot act on joint index `joint`."""
+        if fault.kind is FaultKind.RANGE:
+            fault.stops(self.lower[joint], self.upper[joint], self.position(joint))
+
+    def inject(self, joint: int, fault: Fault) -> None:
+        """`fault` on joint index `joint` from now on, until `release`.
+
+        Raises:
+            ft_core.faults.FaultError: it cannot be injected there (`check_fault`).
+        """
+        self.check_fault(joint, fault)
+        if fault.kind is FaultKind.LOCK:
+            self.lock(joint)
+        elif fault.kind is FaultKind.FREE_SWING:
+            self.swing(joint)
+        else:
+            stops = fault.stops(self.lower[joint], self.upper[joint], self.position(joint)) \
+                if fault.kind is FaultKind.RANGE else (-math.inf, math.inf)
+            self.faults.add(joint, fault, self.t, stops)
+            self._degrade(joint)
+
+    def _degrade(self, joint: int) -> None:
+        """Make the faults in `self.faults` on joint index `joint` act (plants that must)."""
+
+    def failures(self) -> dict[int, list[str]]:
+        """{joint index: the kinds (`FaultKind`) in force on it}, locks and free swings too."""
+        return {j: [*([FaultKind.LOCK] if j in self.locked else []),
+                    *([FaultKind.FREE_SWING] if j in self.swinging else []),
+                    *self.faults.faults.get(j, {})]
+                for j in sorted({*self.locked, *self.swinging, *self.faults.faults})}
+
     def release(self) -> list[int]:
-        """Release every lock and free swing; returns the joints that were failed."""
-        released = sorted(set(self.locked) | self.swinging)
+        """Release every lock, free swing and fault; returns the joints that were failed."""
+        released = sorted(set(self.locked) | self.swinging | set(self.faults.faults))
         self.locked.clear()
         self.swinging.clear()
+        self.faults.clear()
         return released
 
 
@@ -159,9 +212,13 @@ class Plant(BasePlant):
         #: (q, qd) -> accelerations (n,) of the free-swinging joints (rad/s^2).
         self.free_swing_acceleration: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
 
+    def position(self, joint: int) -> float:
+        """Joint index `joint`'s position (rad)."""
+        return float(self.q[joint])
+
     def lock(self, joint: int) -> None:
         """Lock a joint where it is (it stops at once; a free-swinging one is braked)."""
-        self.locked.setdefault(joint, float(self.q[joint]))
+        self.locked.setdefault(joint, self.position(joint))
         self.swinging.discard(joint)
         self.qd[joint] = 0.0
 
@@ -179,6 +236,9 @@ class Plant(BasePlant):
         if dt == 0.0:
             return
         u = self.path.in_force(self.t)
+        faults = self.faults
+        if faults.faults:
+            u = faults.kinematic_velocity(u, self.velocity_limits)
         tau = self.path.config.response_time
         if tau > 0:
             decay = math.exp(-dt / tau)
@@ -191,9 +251,9 @@ class Plant(BasePlant):
             step = self.path.acceleration * dt
             v = np.where(limited, np.clip(v, self.qd - step, self.qd + step), v)
             moved = np.where(limited, 0.5 * (self.qd + v) * dt, moved)
-        for j in self.locked:
+        for j in set(self.locked) | faults.braked(self.t):
             v[j], moved[j] = 0.0, 0.0
-        q = np.clip(self.q + moved, self.lower, self.upper)
+        q = np.clip(self.q + moved, *self._limits())
         stopped = (q != self.q + moved)  # at a position limit
         v[stopped] = 0.0
         if self.swinging:
@@ -212,7 +272,12 @@ class Plant(BasePlant):
         for _ in range(steps):
             v[free] += h * acceleration(q, v)[free]
             q[free] += h * v[free]
-            at_limit = (q < self.lower) | (q > self.upper)
-            q = np.clip(q, self.lower, self.upper)
+            lower, upper = self._limits()
+            at_limit = (q < lower) | (q > upper)
+            q = np.clip(q, lower, upper)
             v[free] = np.where(at_limit[free], 0.0, v[free])
         return q, v
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The position limits (rad) with the stops of range faults."""
+        return np.maximum(self.lower, self.faults.lower), np.minimum(self.upper, self.faults.upper)

@@ -176,6 +176,7 @@ class Robot:
         joint_names: movable joints from base to tip (the order of every joint vector).
         lower, upper: position limits (rad or m; +-inf for continuous joints).
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
+        effort_limits: |effort| limits (N m or N; inf where the URDF gives none).
         base_link, tip_link: the chain's end links; task coordinates are in base_link.
         task_space: the `TaskSpace`; m is the task dimension, n the joint count.
         has_inertias: whether any link that the chain moves has a mass in the URDF (its
@@ -198,6 +199,7 @@ class Robot:
         self.joint_names = chain.joint_names
         self.lower, self.upper = chain.lower, chain.upper
         self.velocity_limits = chain.velocity_limits
+        self.effort_limits = chain.effort_limits
         self.base_link, self.tip_link = chain.base_link, chain.tip_link
         self.task_space = TaskSpace(task_space)
         self.n, self.m = len(chain.joint_names), TASK_DIMENSIONS[self.task_space]

@@ -9,12 +9,15 @@
 - A twist (m/s, rad/s, base frame) is a feed-forward velocity; the rows the task
   space does not have are dropped. Once older than the timeout it decays linearly
   to 0 over one more timeout, so a lost stream stops the arm smoothly.
+
+`TwistTarget` and `PoseTarget` are the target the controller's cycle follows (`Target`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -94,3 +97,25 @@ def staleness_scale(age: float, timeout: float) -> float:
     if age <= timeout:
         return 1.0
     return max(0.0, 2.0 - age / timeout)
+
+
+@dataclass(frozen=True)
+class TwistTarget:
+    """A task velocity (m/s and rad/s, `twist_velocity`), decaying from its stamp."""
+
+    value: np.ndarray
+    stamp: float  #: s, the twist's stamp
+    kind: ClassVar[str] = "twist"  #: as diagnostics name it
+
+
+@dataclass(frozen=True)
+class PoseTarget:
+    """A pose goal (`goal_from_transform`), tracked until another target comes."""
+
+    value: np.ndarray
+    stamp: float  #: s, when the goal arrived
+    kind: ClassVar[str] = "pose"  #: as diagnostics name it
+
+
+#: The latest target the cycle follows.
+Target = TwistTarget | PoseTarget

@@ -174,14 +174,14 @@ def _chain(base: str, tip: str, by_child: dict[str, _UrdfJoint]) -> list[_UrdfJo
     return path[::-1]
 
 
-def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Position (lower, upper) and velocity limits of the named joints, from <limit>.
+def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, ...]:
+    """Position (lower, upper), velocity and effort limits of the named joints, from <limit>.
 
-    Continuous joints have infinite position limits; a missing velocity limit is
-    infinite (no limit).
+    Continuous joints have infinite position limits; a missing (or zero) velocity or
+    effort limit is infinite (no limit).
     """
     elements = {j.get("name"): j for j in root.findall("joint")}
-    lower, upper, velocity = [], [], []
+    lower, upper, velocity, effort = [], [], [], []
     for name in names:
         joint = elements[name]
         limit = joint.find("limit")
@@ -192,12 +192,14 @@ def _limits(root: ET.Element, names: list[str]) -> tuple[np.ndarray, np.ndarray,
         else:
             lo, hi = float(limit.get("lower", "")), float(limit.get("upper", ""))
         vel = float(limit.get("velocity", "0") or 0.0) if limit is not None else 0.0
+        force = float(limit.get("effort", "0") or 0.0) if limit is not None else 0.0
         if not lo <= hi:
             raise RobotModelError(f"URDF joint {name!r} has lower limit {lo} above upper {hi}")
         lower.append(lo)
         upper.append(hi)
         velocity.append(vel if vel > 0 else math.inf)
-    return np.array(lower), np.array(upper), np.array(velocity)
+        effort.append(force if force > 0 else math.inf)
+    return np.array(lower), np.array(upper), np.array(velocity), np.array(effort)
 
 
 def _as_revolute(root: ET.Element, names: list[str]) -> str:
@@ -234,6 +236,7 @@ class UrdfChain:
         joint_names: movable joints from base to tip.
         lower, upper: position limits (rad or m; +-inf for continuous joints).
         velocity_limits: |qd| limits (rad/s or m/s; inf where the URDF gives none).
+        effort_limits: |effort| limits (N m or N; inf where the URDF gives none).
         base_link, tip_link: the chain's end links.
         urdf: the URDF, the chain's continuous joints rewritten as revolute ones and
             joints off the chain named like a link renamed (`_as_revolute`).
@@ -244,6 +247,7 @@ class UrdfChain:
     lower: np.ndarray
     upper: np.ndarray
     velocity_limits: np.ndarray
+    effort_limits: np.ndarray
     base_link: str
     tip_link: str
     urdf: str
@@ -272,6 +276,7 @@ def read_chain(xml: str, base_link: str | None = None, tip_link: str | None = No
     names = [j.name for j in chain if j.kind in _MOVABLE]
     if not names:
         raise RobotModelError(f"the chain from {base!r} to {tip!r} has no movable joint")
-    lower, upper, velocity = _limits(root, names)
-    return UrdfChain(root.get("name", "robot"), tuple(names), lower, upper, velocity, base, tip,
+    lower, upper, velocity, effort = _limits(root, names)
+    return UrdfChain(root.get("name", "robot"), tuple(names), lower, upper, velocity, effort,
+                     base, tip,
                      _as_revolute(root, names))

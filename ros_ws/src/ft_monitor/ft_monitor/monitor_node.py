@@ -185,12 +185,29 @@ class MonitorNode(SuiteNode):
         if reading is not None:
             q = self.accept_joint_state(*reading, core.absurd)
             if q is not None:
+                efforts = self._efforts(msg)
                 with self._announcing:
                     self._announce(core.observe(q, self.state_stamp, None if self.outputs.heard
-                                                else "nobody subscribes to ft/command(_array)"))
+                                                else "nobody subscribes to ft/command(_array)",
+                                                efforts))
         for listener in self._state_listeners:  # after: a cycle they run sees this update
             listener(msg, None if reading is None else (reading[0], core.robot.joint_names,
                                                         reading[1]))
+
+    def _efforts(self, msg: JointStateLike) -> np.ndarray | None:
+        """The joints' efforts (N m, chain order) where the joint state has them, else None.
+
+        Efforts are optional (many drivers leave them empty); unusable ones are said, at
+        most every 5 s, and not used.
+        """
+        if not len(msg.effort):
+            return None
+        try:
+            return convert.joint_vector(msg, self.core.robot.joint_names, "effort")
+        except convert.MessageError as error:
+            self.get_logger().warning(f"joint_states efforts ignored: {error}",
+                                      throttle_duration_sec=5.0)
+            return None
 
     def _on_suspect(self, msg: JointState) -> None:
         """A joint the controller's task channel suspects: locked if the measurements agree."""
@@ -344,8 +361,12 @@ class MonitorNode(SuiteNode):
             self.core, self.command_joints, [] if self.wiring is None else self.wiring.order,
             values, self.problems.summary() if self.problems.active else None,
             age > self.commands.timeout, self.status)
-        self.outputs.diagnostics.publish(diagnostics.array(statuses,
-                                                           self.get_clock().now().to_msg()))
+        stamp = self.get_clock().now().to_msg()
+        self.outputs.diagnostics.publish(diagnostics.array(statuses, stamp))
+        if self.core is not None and self.wiring is not None:
+            joints = self.core.health()
+            self.outputs.send_health({name: joints[name] for name in self.wiring.joints},
+                                     stamp, self.core.robot.name)
 
 
 def _weakly(method: Callable[[], None]) -> Callable[[], None]:

@@ -6,7 +6,8 @@ JointGroupVelocityController), and to a plant of the same process as a call
 (`Outputs.taker`; `ft/command` then only while someone subscribes). The echo on
 `ft/command_echo` (the controller's guard of a dead monitor) carries the stamp of the
 command it answers, at most once per `ECHO_PERIOD` of steady time while someone
-subscribes. The locked set goes on `ft/locked_joints` (transient local).
+subscribes. The locked set goes on `ft/locked_joints` and every joint's health on
+`ft/joint_health` (both transient local).
 """
 
 from __future__ import annotations
@@ -18,8 +19,9 @@ from collections.abc import Callable
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
+from ft_core.health import JointHealth
 from ft_core.robots import Robot
-from ft_msgs_py import convert, names, qos, wire
+from ft_msgs_py import convert, health, names, qos, wire
 from ft_msgs_py.monitor_guard import ECHO_PERIOD
 from ft_msgs_py.node import JointStateLike, SuiteNode
 from sensor_msgs.msg import JointState
@@ -58,6 +60,7 @@ class Outputs:
             JointState, names.COMMAND_ECHO, qos.RELIABLE)
         self._last_echo = -math.inf  # steady s
         self._locked = node.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
+        self._health = node.create_publisher(DiagnosticArray, names.JOINT_HEALTH, qos.LATCHED)
         self.diagnostics = node.create_publisher(DiagnosticArray, names.DIAGNOSTICS,
                                                  qos.RELIABLE)
         #: Also given every command as a call (a plant in the same process), or None.
@@ -94,3 +97,7 @@ class Outputs:
         """The locked set ({joint: position at lock, rad}) stamped `time` (s)."""
         self._locked.publish(convert.locked_message(
             locked, convert.stamp_from_nanoseconds(round(time * 1e9))))
+
+    def send_health(self, joints: dict[str, JointHealth], stamp: Time, robot: str) -> None:
+        """Every joint's health ({joint: health}, in the order to publish) on `ft/joint_health`."""
+        self._health.publish(health.message(joints, stamp, robot))

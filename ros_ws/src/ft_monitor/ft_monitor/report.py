@@ -13,6 +13,7 @@ from ft_msgs_py import diagnostics
 
 #: Diagnostic level of each joint state of `Monitor.joint_report`.
 LEVELS = {JointCondition.OK: diagnostics.OK, JointCondition.LOCKED: diagnostics.ERROR,
+          JointCondition.DEGRADED: diagnostics.WARN,
           JointCondition.FREE_SWINGING: diagnostics.ERROR,
           JointCondition.AT_LIMIT: diagnostics.WARN}
 

@@ -113,8 +113,9 @@ def array_vector(values: Sequence[float], order: Sequence[int]) -> np.ndarray:
 
 
 def joint_state(joints: Sequence[str], stamp: Time, position: Sequence[float] | None = None,
-                velocity: Sequence[float] | None = None) -> JointState:
-    """A JointState with the given names, stamp and (optional) positions and velocities."""
+                velocity: Sequence[float] | None = None,
+                effort: Sequence[float] | None = None) -> JointState:
+    """A JointState with the given names, stamp and (optional) positions, velocities, efforts."""
     msg = JointState()
     msg.header.stamp = stamp
     msg.name = list(joints)
@@ -122,6 +123,8 @@ def joint_state(joints: Sequence[str], stamp: Time, position: Sequence[float] | 
         msg.position = [float(v) for v in position]
     if velocity is not None:
         msg.velocity = [float(v) for v in velocity]
+    if effort is not None:
+        msg.effort = [float(v) for v in effort]
     return msg
 
 

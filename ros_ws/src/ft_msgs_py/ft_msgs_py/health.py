@@ -63,7 +63,7 @@ def read(msg: DiagnosticArray, joints: Sequence[str]) -> tuple[dict[str, JointHe
             raise MessageError(f"ft/joint_health: unknown state {status.message[:40]!r} for "
                                f"{status.name!r}") from None
         values = {kv.key: kv.value for kv in status.values}
-        fields: dict[str, object] = {}
+        fields: dict[str, float] = {}
         for key in _NUMBERS:
             if key in values:
                 try:

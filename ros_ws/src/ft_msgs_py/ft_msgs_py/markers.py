@@ -34,6 +34,7 @@ HEALTHY = (0.6, 0.6, 0.65, 1.0)
 LOCKED = (0.9, 0.1, 0.1, 1.0)
 ANNOUNCED = (0.9, 0.1, 0.1, 0.35)  #: the halo of a joint the monitor announced locked
 SWINGING = (1.0, 0.55, 0.0, 1.0)
+DEGRADED = (0.6, 0.2, 0.85, 1.0)  #: a joint with a fault other than a lock or a free swing
 GOAL = (0.1, 0.8, 0.2, 0.9)
 CRITICAL = (0.2, 0.4, 1.0, 0.7)
 PATH = (0.9, 0.8, 0.1, 1.0)

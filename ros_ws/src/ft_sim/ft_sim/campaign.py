@@ -12,7 +12,10 @@ soft-limit box (so the arm with soft limits can reach them too) and far from the
 critical points; a run with and one without soft limits share the seed, hence the
 waypoints and the lock (a paired design). A lock declared before the failure is a false
 lock. The sim's plant options (`--latency`, `--response-time`, `--hold-last-command`)
-make it realistic.
+make it realistic. `--fault KIND[:VALUE]` makes the drawn joint fail another way
+(`ft_core.faults.parse_spec`; docs/sim.md#faults): `correct_detection` then says whether it
+was declared locked, and the points counted reachable are those reachable with it pinned
+(fewer than it may still reach while it moves).
 
 Conditions: each resolution mode (`--modes`) with and without the soft limits.
 The table gives each success rate with its 95 % Wilson interval, and per mode the
@@ -42,7 +45,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from ft_core import robots, selfmotion
+from ft_core import faults, robots, selfmotion
 from ft_core.engine import RESOLUTIONS
 from ft_core.offline import batch, cli
 from tqdm import tqdm
@@ -104,7 +107,7 @@ def one_run(task: Task) -> dict:
         robot=design["robot"], base_link=design["base_link"], tip_link=design["tip_link"],
         task_space=design["task"], points=points, critical=marks, resolution=task.mode,
         soft_limits=task.soft, soft_box=tuple(tuple(side) for side in design["box"]),
-        lock_joint=joint, lock_time=lock_time,
+        lock_joint=joint, lock_time=lock_time, fault=design.get("fault", "lock"),
         duration=LOCK_WINDOW[1] + GOAL_TIMEOUT + len(critical) * design["tour_timeout"],
         rate=125.0, seed=task.seed, goal_tolerance=GOAL_TOLERANCE, goal_timeout=GOAL_TIMEOUT,
         tour_timeout=design["tour_timeout"], recovery=design["recovery"], **design["plant"])
@@ -199,6 +202,9 @@ def parser() -> argparse.ArgumentParser:
                         help="the plant holds the last command (ros2_control)")
     parser.add_argument("--no-recovery", action="store_true",
                         help="the controller without its recovery after a lock")
+    parser.add_argument("--fault", default="lock", metavar="KIND[:VALUE]",
+                        help="what fails in each run (as ft-demo's --fault; default "
+                        "%(default)s)")
     parser.add_argument("--points", default="task", choices=POINT_SETS,
                         help="critical points: the arm's task points, or near the boundary "
                         "of its workspace (small boxes)")
@@ -218,9 +224,11 @@ def main(argv: list[str] | None = None) -> int:
              "response_time": args.response_time, "hold_last_command": args.hold_last_command}
     try:
         design = design_of(args.robot, args.base_link, args.tip_link, plant,
-                           not args.no_recovery, args.points, args.task)
+                           not args.no_recovery, args.points, args.task, args.fault)
     except robots.RobotModelError as error:
         arguments.error(f"--robot: {error}")
+    except faults.FaultError as error:
+        arguments.error(f"--fault: {error}")
     except selfmotion.UnreachableError as error:
         print(f"ft-campaign: the critical points chosen for this arm have no common "
               f"soft-limit box ({error}); try another --tip-link", file=sys.stderr)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from ft_core import robots, selfmotion
+from ft_core import faults, robots, selfmotion
 
 from ft_sim.scenario_config import TASK_POINTS, ScenarioConfig
 
@@ -180,14 +180,19 @@ def reachable(robot: robots.Robot, critical: tuple[tuple[float, ...], ...], q: n
 
 
 def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
-              recovery: bool = True, points: str = "task", task: str = "position") -> dict:
+              recovery: bool = True, points: str = "task", task: str = "position",
+              fault: str = "lock") -> dict:
     """What every run of a campaign shares: arm, task, plant, recovery, critical points, box.
 
-    `points`: the critical-point set (`POINT_SETS`). Raises selfmotion.UnreachableError
+    `points`: the critical-point set (`POINT_SETS`); `fault`: what fails in each run,
+    `KIND[:VALUE]` (`ft_core.faults.parse_spec`), under the key "fault" unless a lock (so
+    a lock campaign's design, and the runs kept under it, are as they were). Raises
+    ft_core.faults.FaultError for a fault spec it refuses, selfmotion.UnreachableError
     when the critical points have no common box, robots.RobotModelError when the chain
     cannot follow the task or has no joint to spare for it (after a lock it could not go
     on, and there is no self-motion to bound).
     """
+    faults.parse_spec(fault)
     robot = robots.load(robot_spec, base_link or None, tip_link or None, task_space=task)
     if robot.n <= robot.m:
         raise robots.RobotModelError(f"{robot.name} has {robot.n} joint(s): no redundancy for "
@@ -200,7 +205,8 @@ def design_of(robot_spec: str, base_link: str, tip_link: str, plant: dict,
             "plant": plant, "points": points, "critical": [list(p) for p in critical],
             "box": [[float(v) for v in side] for side in box],
             "waypoints": WAYPOINTS, "lock_window": list(LOCK_WINDOW),
-            "recovery": recovery, "tour_timeout": TOUR_TIMEOUT}
+            "recovery": recovery, "tour_timeout": TOUR_TIMEOUT,
+            **({"fault": fault} if fault != "lock" else {})}
 
 
 def tasks(runs: int, modes: tuple[str, ...], first_domain: int, design: dict,

@@ -23,7 +23,9 @@ for a viewer to connect. The report:
   often the controller went round a stall along a recovery path (`ft_core.recovery`).
 
 Exit status 0 when the story holds: the right joint detected, every task point
-reached after the lock, no non-finite value on any topic.
+reached after the lock, no non-finite value on any topic. `--fault KIND[:VALUE]` injects
+another kind of fault instead (`ft_core.faults.parse_spec`, through `ft/inject_fault`):
+then the story holds if no other joint is declared locked (the failed one need not be).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from ft_core import robots
+from ft_core import faults, robots
 from ft_core.engine import RESOLUTIONS
 from ft_core.offline import cli
 from ft_core.robots import TaskSpace
@@ -65,6 +67,7 @@ def summarise(config: ScenarioConfig, record: Record) -> dict:
         jump = float(np.linalg.norm(a["qd_command"][d + 1] - a["qd_command"][i - 1]))
     return {
         "robot": config.robot, "resolution": config.resolution, "locked": config.lock_joint,
+        "fault": config.fault,
         "injected_at_s": injected, "locked_value": locked_value,
         "detected_at_s": detected, "detected": record.detected,
         "latency_ms": None if detected is None else 1000 * (detected - injected),
@@ -96,8 +99,12 @@ def recovery_paths(record: Record) -> list[tuple[float, float]]:
 def verdict(summary: dict) -> list[str]:
     """What went wrong (empty: the story holds)."""
     problems = []
-    if summary["detected"] != [summary["locked"]]:
+    locks = faults.parse_spec(summary["fault"])[0] is faults.FaultKind.LOCK
+    if locks and summary["detected"] != [summary["locked"]]:
         problems.append(f"detected {summary['detected']} instead of {summary['locked']}")
+    if not locks and not set(summary["detected"]) <= {summary["locked"]}:
+        problems.append(f"healthy joints declared locked after the {summary['fault']} of "
+                        f"{summary['locked']}: {summary['detected']}")
     if len(summary["reached_after"]) < summary["points"]:
         problems.append(f"only {len(summary['reached_after'])} of {summary['points']} task "
                         "points reached after the lock")
@@ -123,9 +130,11 @@ def report(summary: dict, problems: list[str]) -> str:
         + (f" and {np.degrees(radians):.0f} deg" if radians else "") + " away"
         for p, (metres, radians) in sorted(s["replaced"].items())) or "none"
     lines = [
-        f"# ft-arms demo: {s['robot']}, {s['resolution']}, {s['locked']} locks", "",
+        f"# ft-arms demo: {s['robot']}, {s['resolution']}, {s['locked']} "
+        + ("locks" if s["fault"] == "lock" else f"fails ({s['fault']})"), "",
         "| | |", "|---|---|",
-        f"| lock injected | {_fmt(s['injected_at_s'], ' s')} |",
+        f"| {'lock' if s['fault'] == 'lock' else 'fault'} injected | "
+        f"{_fmt(s['injected_at_s'], ' s')} |",
         f"| detected | {', '.join(s['detected']) or 'nothing'} at "
         f"{_fmt(s['detected_at_s'], ' s')} |",
         f"| detection latency | {_fmt(s['latency_ms'], ' ms', 3)} |",
@@ -204,6 +213,10 @@ def parser() -> argparse.ArgumentParser:
                         choices=RESOLUTIONS)
     parser.add_argument("--joint", default="2", help="joint to lock: number (1 = base) or "
                         "name (default %(default)s)")
+    parser.add_argument("--fault", default=defaults.fault, metavar="KIND[:VALUE]",
+                        help="what fails: lock, free_swing, viscous[:N m s/rad], dry[:N m], "
+                        "authority[:fraction], range[:rad either side], intermittent[:period "
+                        "s] (docs/sim.md#faults; default %(default)s)")
     parser.add_argument("--lock-time", type=cli.bounded(float, 0.0, MAX_DURATION),
                         default=defaults.lock_time,
                         help="s of simulated time (default %(default)s)")
@@ -254,18 +267,23 @@ def main(argv: list[str] | None = None) -> int:
         1 <= int(args.joint) <= len(joints) else args.joint
     if joint not in joints:
         arguments.error(f"--joint must be 1..{len(joints)} or one of {list(joints)}")
+    try:
+        faults.parse_spec(args.fault)
+    except faults.FaultError as error:
+        arguments.error(f"--fault: {error}")
     if not 0 < args.lock_time < args.duration:
         arguments.error("--lock-time must lie inside the run")
     cli.check_folder(args.out)  # a file in the way fails now, not after the run
     scenario = Scenario(ScenarioConfig(
         robot=args.robot, base_link=args.base_link, tip_link=args.tip_link,
         task_space=args.task, resolution=args.resolution, plant=args.plant, lock_joint=joint,
-        lock_time=args.lock_time, duration=args.duration, seed=args.seed,
+        fault=args.fault, lock_time=args.lock_time, duration=args.duration, seed=args.seed,
         soft_limits=not args.no_soft_limits, reachable_tour=True),
         bag=args.out / "bag" if args.record else None, live_port=args.live)
     if scenario.live is not None:
         watch(scenario, args.out)
-    print(f"running the {scenario.robot.name} in simulated time; {joint} locks at "
+    what = "locks" if args.fault == "lock" else f"fails ({args.fault})"
+    print(f"running the {scenario.robot.name} in simulated time; {joint} {what} at "
           f"{args.lock_time:g} s, then it visits every task point again; task points "
           f"{[[round(v, 3) for v in p] for p in scenario.config.points]} ...", flush=True)
     try:

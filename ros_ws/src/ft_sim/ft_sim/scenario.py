@@ -17,7 +17,8 @@ has what a run costs). The topics are still published while anyone subscribes
 
 A driver visits the task points in turn with `ft/target_pose` (the next one once the
 tool is within `goal_tolerance`, or after `goal_timeout`) and locks `lock_joint`
-through `ft/inject_failure` `lock_time` after the task started. The task starts once
+through `ft/inject_failure` `lock_time` after the task started (or injects the `fault`
+the config names there through `ft/inject_fault`). The task starts once
 the controller has its soft limits (the critical points' boxes are traced in the
 background while the arm holds still), so that runs with and without them wander for
 the same time. After the lock it tours the critical points once, each until reached
@@ -36,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from ft_controller.controller_node import ControllerNode
-from ft_core import recovery, robots, selfmotion
+from ft_core import faults, recovery, robots, selfmotion
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, names, qos, spin
 from geometry_msgs.msg import PoseStamped
@@ -44,6 +45,7 @@ from rclpy.context import Context
 from sensor_msgs.msg import JointState
 
 from ft_sim.bag import Recorder
+from ft_sim.injection import Injection
 from ft_sim.live import LiveServer
 from ft_sim.planner_pool import PLANNER_CHECK, planner, stop_planner
 from ft_sim.scenario_config import (
@@ -71,7 +73,7 @@ REACH_SAMPLES = 2000
 
 
 
-class Scenario:
+class Scenario(Injection):
     """Builds the nodes in their own context (and DDS domain) and runs them.
 
     With `bag`, every topic of the run is also written there as a rosbag2 (MCAP). With
@@ -136,10 +138,7 @@ class Scenario:
         self.driver = spin.harness_node("driver", self.context)
         self._goal_pub = self.driver.create_publisher(PoseStamped, names.TARGET_POSE,
                                                       qos.RELIABLE)
-        self._inject_pub = self.driver.create_publisher(JointState, names.INJECT_FAILURE,
-                                                        qos.RELIABLE)
-        self._swing_pub = self.driver.create_publisher(JointState, names.INJECT_FREE_SWING,
-                                                       qos.RELIABLE)
+        self._create_injectors()
         self.driver.create_subscription(JointState, names.LOCKED_JOINTS, self._on_locked,
                                         qos.LATCHED)
         self.recorder = None if bag is None else Recorder(
@@ -183,11 +182,6 @@ class Scenario:
             o.x, o.y, o.z, o.w = (float(v) for v in point[3:])
         self._goal_pub.publish(msg)
 
-    def inject(self, joint: str) -> None:
-        """Lock `joint` through `ft/inject_failure`; returns once the sim has it locked."""
-        self._publish_failure(self._inject_pub, joint, lambda: joint in self.sim.locked)
-        self.record.injected_at = self.sim.t
-
     def keep_reachable(self, joint: str, points: list[int]) -> None:
         """Replace those of `points` the arm cannot reach with `joint` held where it is.
 
@@ -212,11 +206,6 @@ class Scenario:
             self._targets[p] = replacement
             points_now[p] = tuple(selfmotion.flat_from_targets(robot, [replacement]))
         self.config = replace(cfg, points=tuple(points_now))
-
-    def _publish_failure(self, publisher, joint: str, done) -> None:
-        publisher.publish(JointState(name=[joint]))
-        if not spin.spin_until(self.executor, done, 5.0):
-            raise TimeoutError(f"the sim did not take the failure of {joint} within 5 s")
 
     def distance(self, index: int) -> float:
         """Position distance (m) of the tool from task point `index`."""
@@ -247,10 +236,6 @@ class Scenario:
         if self.record.detected_at is None or self.record.injected_at is None:
             return None
         return self.record.detected_at - self.record.injected_at
-
-    def inject_free_swing(self, joint: str) -> None:
-        """`joint` loses its torque (`ft/inject_free_swing`); returns once the sim has it."""
-        self._publish_failure(self._swing_pub, joint, lambda: joint in self.sim.swinging)
 
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant.
@@ -285,8 +270,8 @@ class Scenario:
     def _deliver_locked_set(self, monitor) -> None:
         """Spin until the controller holds the locked set the monitor has found.
 
-        The monitor announces a lock once it is on disk: at its next joint state, or from a
-        timer on steady time, whichever comes first in wall time. Waiting here for the
+        The monitor announces a lock once it is on disk, from its writer's thread as the
+        write ends (or at its next joint state), in wall time. Waiting here for the
         write and for the controller to take it makes a lock found in one step reach the
         controller's next cycle, wherever and however fast the run goes (campaign runs
         are reproducible, run for run, on any machine and on a cluster).
@@ -332,10 +317,10 @@ class Scenario:
         for _ in range(round(cfg.duration * cfg.rate)):
             if (cfg.lock_joint and rec.injected_at is None
                     and self.sim.t >= start + cfg.lock_time):
-                self.inject(cfg.lock_joint)
+                self._inject_configured()
                 tour = [p for p in range(goal, len(cfg.points)) if p in self.critical]
                 tour += [p for p in range(goal) if p in self.critical]
-                if cfg.reachable_tour:
+                if cfg.reachable_tour and faults.parse_spec(cfg.fault)[0] is faults.FaultKind.LOCK:
                     self.keep_reachable(cfg.lock_joint, tour)
                 goal, since = tour[0], self.sim.t
                 self.send_goal(goal)

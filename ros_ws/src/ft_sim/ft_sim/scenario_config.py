@@ -47,6 +47,8 @@ class ScenarioConfig:
             them once per design: `campaign.design_of`).
         lock_joint: name of the joint to lock ("" for none); lock_time: when (simulated s
             after the task starts).
+        fault: what fails there: `KIND[:VALUE]` (`ft_core.faults.parse_spec`), a lock by
+            default.
         duration: longest run (simulated s after the task starts); rate: sim, controller
             and joint-state rate (Hz).
         noise: position noise (rad); seed: noise seed.
@@ -81,6 +83,7 @@ class ScenarioConfig:
     soft_box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     lock_joint: str = "panda_joint2"
     lock_time: float = 5.0
+    fault: str = "lock"
     duration: float = 60.0
     rate: float = 250.0
     noise: float = 1e-3

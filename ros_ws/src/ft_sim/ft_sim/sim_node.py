@@ -20,9 +20,9 @@ On the physics plant, `response_time` sets the servo's gains (`ft_core.physics`)
 With `refuse_over_limits` (on in the demo, the campaign and the demo's launch file) the
 driver refuses what a real one refuses, as Franka's reflex does: a command whose
 velocity, acceleration or jerk, read by its stamp, is over the arm's limits (`limits.*`,
-`ft_core.command_limits.DriverCheck`; the joints the plant holds locked or swinging are
-not judged) stops the arm, and it takes no command until `~/reset`; the refusal is
-logged as an ERROR and kept in `reflex`.
+`ft_core.command_limits.DriverCheck`; the joints the plant holds failed, by any fault,
+are not judged: the monitor stops a joint it declares at once) stops the arm, and it
+takes no command until `~/reset`; the refusal is logged as an ERROR and kept in `reflex`.
 Velocities are clipped to the URDF limits and positions to the URDF limits; locked
 joints do not move (behind the physics plant's brake: by a fraction of a mrad). It
 publishes `joint_states` (positions with optional Gaussian `position_noise`, and the
@@ -41,6 +41,15 @@ says on the kinematic plant and as MuJoCo integrates it on the physics one (need
 URDF's inertias: a joint without outboard inertia is refused with a warning); a lock
 injected on a swinging joint brakes it; `~/reset` ends both. A lock can also be
 scheduled with `failure.joint` and `failure.time` (s of plant time).
+
+`ft/inject_fault` (DiagnosticArray, `ft_msgs_py.faults`) injects faults of any kind
+(`ft_core.faults`: lock, free swing, viscous and dry friction, lost torque authority, a
+new stop, an intermittent jam), several at once; each message adds to the faults in
+force until `~/reset`. A message with anything wrong (an unknown joint, kind or key, a
+number out of range, a stop outside the joint's range, a free swing without inertia) is
+refused whole with one rate-limited warning. `ft/obstacle` (Marker: ADD a CUBE, DELETE)
+places or removes a rigid box the tool touches, on the physics plant only; `~/reset`
+leaves it. The physics plant's `joint_states` carry its drive torques as `effort` (N m).
 """
 
 from __future__ import annotations
@@ -49,11 +58,15 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from ft_core import robots, swing
 from ft_core.command_limits import DriverCheck, limits_config
+from ft_core.errors import SuiteError
+from ft_core.faults import Fault, FaultKind
 from ft_core.physics import PhysicsPlant
 from ft_core.plant import CommandPath, Plant
 from ft_msgs_py import convert, markers, names, parameter_table, parameters, qos, spin
+from ft_msgs_py import faults as fault_messages
 from ft_msgs_py.node import JointStateLike, SuiteNode
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import Executor
@@ -61,7 +74,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from visualization_msgs.msg import MarkerArray
+from visualization_msgs.msg import Marker, MarkerArray
 
 from ft_sim import settings
 from ft_sim.settings import PARAMETERS
@@ -97,6 +110,9 @@ class SimNode(SuiteNode):
         self.create_subscription(JointState, names.INJECT_FAILURE, self._on_inject, qos.RELIABLE)
         self.create_subscription(JointState, names.INJECT_FREE_SWING, self._on_free_swing,
                                  qos.RELIABLE)
+        self.create_subscription(DiagnosticArray, names.INJECT_FAULT, self._on_fault,
+                                 qos.RELIABLE)
+        self.create_subscription(Marker, names.OBSTACLE, self._on_obstacle, qos.RELIABLE)
         self.create_service(Trigger, names.RESET, self._on_reset)
         parameter_table.on_change(self, PARAMETERS, self._check, self._configure)
         parameters.request_model(self, self._set_model)
@@ -203,7 +219,8 @@ class SimNode(SuiteNode):
         plant = self.plant
         stamp = msg.header.stamp
         refusal = self.driver.check(velocity, stamp.sec + stamp.nanosec * 1e-9,
-                                    exempt=(*plant.locked, *plant.swinging))
+                                    exempt=(*plant.locked, *plant.swinging,
+                                            *plant.faults.faults))
         if refusal is None or not self._refuse:
             return True
         self.reflex = f"{refusal} (t = {self.t:.3f} s)"
@@ -280,6 +297,72 @@ class SimNode(SuiteNode):
         if self.robot is not None:
             self.free_swing(list(msg.name))
 
+    @property
+    def faults(self) -> dict[str, list[str]]:
+        """{joint name: the kinds of its faults in force} (locks and free swings included)."""
+        if self.plant is None:
+            return {}
+        return {self.robot.joint_names[j]: kinds for j, kinds in self.plant.failures().items()}
+
+    def inject_faults(self, faults: list[Fault]) -> None:
+        """Inject `faults` together, or none of them (one warning says why).
+
+        Raises nothing: a fault that cannot act on its joint refuses them all.
+        """
+        plant, index = self.plant, {n: j for j, n in enumerate(self.robot.joint_names)}
+        try:
+            _, inertia = self.robot.gravity_dynamics(plant.q)
+            for fault in faults:
+                if fault.joint not in index:
+                    raise SuiteError(f"unknown joint {fault.joint[:64]!r}")
+                plant.check_fault(index[fault.joint], fault)
+                if fault.kind is FaultKind.FREE_SWING and inertia[index[fault.joint]] <= 0:
+                    raise SuiteError(f"{fault.joint} has no inertia outboard in the URDF, so "
+                                     "it cannot swing")
+        except SuiteError as error:
+            self.get_logger().warning(f"ft/inject_fault ignored: {error}",
+                                      throttle_duration_sec=5.0)
+            return
+        for fault in faults:
+            plant.inject(index[fault.joint], fault)
+            self.get_logger().warning(f"joint {fault.joint}: {fault.describe()} from "
+                                      f"{self.plant.position(index[fault.joint]):.4f} rad "
+                                      f"(t = {self.t:.3f} s)")
+
+    def _on_fault(self, msg: DiagnosticArray) -> None:
+        if self.robot is None:
+            return
+        try:
+            faults = fault_messages.read(msg, self.robot.joint_names)
+        except convert.MessageError as error:
+            self.get_logger().warning(f"ft/inject_fault ignored: {error}",
+                                      throttle_duration_sec=5.0)
+            return
+        self.inject_faults(faults)
+
+    def _on_obstacle(self, msg: Marker) -> None:
+        if self.robot is None:
+            return
+        if not isinstance(self.plant, PhysicsPlant):
+            self.get_logger().warning("ft/obstacle ignored: obstacles need the physics plant "
+                                      "(plant:=physics)", once=True)
+            return
+        try:
+            if msg.header.frame_id not in ("", self.robot.base_link):
+                raise convert.MessageError(f"frame {msg.header.frame_id[:64]!r} is not the "
+                                           f"base link {self.robot.base_link!r}")
+            box = fault_messages.read_obstacle(msg)
+        except convert.MessageError as error:
+            self.get_logger().warning(f"ft/obstacle ignored: {error}", throttle_duration_sec=5.0)
+            return
+        if box is None:
+            self.plant.remove_obstacle()
+            self.get_logger().info(f"obstacle removed (t = {self.t:.3f} s)")
+        else:
+            self.plant.place_obstacle(*box)
+            self.get_logger().info(f"obstacle: a box of {np.round(box[1], 3).tolist()} m at "
+                                   f"{np.round(box[0][:3, 3], 3).tolist()} m (t = {self.t:.3f} s)")
+
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = ([self.robot.joint_names[j] for j in self.plant.release()]
                     if self.plant is not None else [])
@@ -328,8 +411,9 @@ class SimNode(SuiteNode):
             self._clock_pub.publish(ClockMessage(clock=stamp))
         noise = self.param("position_noise")
         measured = plant.q + (self._rng.normal(scale=noise, size=robot.n) if noise > 0 else 0.0)
+        effort = plant.torque if isinstance(plant, PhysicsPlant) else None
         self._state_pub.publish(convert.joint_state(robot.joint_names, stamp, measured,
-                                                    plant.qd))
+                                                    plant.qd, effort))
         self._steps += 1
         if self._steps % self._steps_per_view == 0:
             self._publish_markers(stamp)
@@ -345,7 +429,8 @@ class SimNode(SuiteNode):
         self._trail.add(skeleton[-1])
         if not self._markers_pub.get_subscription_count():
             return
-        colours = {**{j: markers.SWINGING for j in plant.swinging},
+        colours = {**{j: markers.DEGRADED for j in plant.faults.faults},
+                   **{j: markers.SWINGING for j in plant.swinging},
                    **{j: markers.LOCKED for j in plant.locked}}
         self._markers_pub.publish(markers.array(robot.base_link, stamp, lambda header: [
             *markers.arm(header, "arm", skeleton, colours),

@@ -7,6 +7,9 @@ One concept per module:
     identification: the bank of candidate models, their scores and the plausible set.
     rules: the decision rules (observable, stalled, following, at a limit, on its own,
         lost position, plant fault, no decision without evidence), one function each.
+    evidence: each joint's evidence, and when it becomes a declaration (persistence, the
+        settling time of a disturbed arm).
+    follow: the share of its command each joint follows, and degraded joints.
     detector: `LockDetector`, which applies them to streams of commands and measurements.
 """
 

@@ -16,6 +16,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ft_core.detection import rules
+from ft_core.detection.evidence import (
+    Disturbance,
+    JointEvidence,
+    declare_locks,
+    declare_swings,
+)
+from ft_core.detection.follow import FollowMeter
 from ft_core.detection.identification import (
     LATENCY_GRID,
     RESPONSE_TIME_GRID,
@@ -95,33 +102,9 @@ class DetectorConfig:
                 else np.array([self.response_time]))
 
 
-@dataclass
-class JointEvidence:
-    """What the detector saw of one joint at its last update."""
-
-    observable: bool = False
-    following: bool = False
-    measured: float = 0.0  #: slope of the measured positions (rad/s)
-    commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
-    standard_error: float = 0.0  #: of the slope (rad/s)
-    #: position lost against the best plant model during the window (rad, along the
-    #: command; computed only when a never-swinging joint stalls, else 0)
-    deficit: float = 0.0
-    evidence_since: float | None = None  #: when the current lock evidence started (s)
-    at_limit: bool = False  #: stalled at a physical limit
-    #: a lock candidate at the last update: stalled beyond the noise, not at a limit, not
-    #: moving on its own, no plant fault (whether or not a following joint vouches for the
-    #: plant, which the detector's own decision also needs)
-    candidate: bool = False
-    swing_since: float | None = None  #: when the current free-swing evidence started (s)
-    swinging_at: float | None = None  #: time free-swinging was declared (s)
-    locked_at: float | None = None  #: time the lock was declared (s)
-    position: float = 0.0  #: position when locked (rad)
-
-
 @dataclass(frozen=True)
 class Update:
-    """What one measurement decided: joints newly declared locked and free-swinging.
+    """What one measurement decided: joints newly declared locked, free-swinging, degraded.
 
     `released`: those of `swinging` that were declared locked (a swing takes the lock back).
     """
@@ -129,6 +112,7 @@ class Update:
     locked: tuple[int, ...] = ()
     swinging: tuple[int, ...] = ()
     released: tuple[int, ...] = ()
+    degraded: tuple[int, ...] = ()
 
 
 class Decision(enum.StrEnum):
@@ -184,6 +168,8 @@ class LockDetector:
         self.not_observing: str | None = "no command yet"
         self.plant_fault: str | None = None
         self.joints = [JointEvidence() for _ in range(self.n)]
+        self.follow = FollowMeter(self.n)
+        self._declared_at = -math.inf  # when a joint was last declared locked or swinging
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -220,6 +206,7 @@ class LockDetector:
         evidence = self.joints[joint]
         if evidence.locked_at is None:
             evidence.locked_at, evidence.position = time, position
+            self._declared_at = max(self._declared_at, time)
 
     def fill_unknown_positions(self, position: np.ndarray) -> bool:
         """Give locked joints of unknown position (nan) this measured one; True if any."""
@@ -435,36 +422,27 @@ class LockDetector:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return Update()
-        swinging, released = [], []
-        for j, evidence in enumerate(joints):
-            if not own_of[j]:
-                evidence.swing_since = None
-            elif evidence.swinging_at is None:
-                if evidence.swing_since is None:
-                    evidence.swing_since = now
-                if now - evidence.swing_since >= cfg.persistence + rules.swing_wait(
-                        measured_of[j], error_of[j], plausible, plant.settling_time(best),
-                        cfg.confidence, cfg.min_command):
-                    # A joint declared locked that moves was never locked: it swings.
-                    if evidence.locked_at is not None:
-                        released.append(j)
-                    evidence.swinging_at, evidence.locked_at = now, None
-                    swinging.append(j)
-        newly = []
-        for j, evidence in enumerate(joints):
-            # A stalled joint's evidence counts only while another joint follows.
-            supported = candidate_of[j] and n_following - following_of[j] >= 1
-            if not supported:
-                evidence.evidence_since = None
-                continue
-            if evidence.evidence_since is None:
-                evidence.evidence_since = now
-            if now - evidence.evidence_since >= cfg.persistence:
-                evidence.locked_at, evidence.position = now, float(latest[j])
-                # Seen swinging before: should it move on its own again, it swings again.
-                evidence.swinging_at = None
-                newly.append(j)
-        return Update(tuple(newly), tuple(swinging), tuple(released))
+        settle = plant.settling_time(best)
+        disturbance = Disturbance(joints, now, self._declared_at + settle)
+        swinging, released = declare_swings(
+            joints, own_of, now, disturbance, cfg.persistence, settle,
+            lambda j: rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
+                                       cfg.confidence, cfg.min_command))
+        # A stalled joint's evidence counts only while another joint follows.
+        supported = [c and n_following - f >= 1 for c, f in zip(candidate_of, following_of,
+                                                                 strict=True)]
+        newly = declare_locks(joints, supported, latest, now, disturbance, cfg.persistence,
+                              settle)
+        if newly or swinging:
+            self._declared_at = now
+        judged = observable & ~pushing & ~on_its_own & (not disturbance.settling)
+        degraded = []
+        for j in self.follow.update(now, dt, measured, weakest, judged):
+            evidence = joints[j]
+            if evidence.degraded_at is None and evidence.locked_at is None:
+                evidence.degraded_at = now
+                degraded.append(j)
+        return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
 
 
 @functools.cache

@@ -65,27 +65,32 @@ def is_pushing(c: float, position: float, lower: float, upper: float,
 
 
 @njit(cache=True, error_model="numpy")
-def moves_on_its_own(v: float, s: float, low: float, high: float, unlocked: bool,
-                     undeclared: bool, falling: float, gravity_known: bool,
+def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float,
+                     unlocked: bool, undeclared: bool, falling: float, gravity_known: bool,
                      min_command: float, confidence: float) -> bool:
     """Moving on its own: the motion of a joint that lost its torque.
 
     A joint not yet declared free-swinging with |v| >= `min_command`, and v further than
     max(`confidence` s, `min_command`) outside the velocities a healthy joint could show,
-    [min(0, low), max(0, high)] over the plausible predictions ([0, 0] for a locked
-    joint), with no command or one against it. Faster than commanded in the commanded
-    direction (a servo's tracking error or overshoot) never counts. Maciejewski et al.
+    [min(0, low), max(0, high)] over the plausible predictions, with no command or one
+    against it (for a locked joint, whose commands are 0 since its lock, the predictions
+    are its coast after them; it must not move faster). Faster than commanded in the commanded
+    direction (a servo's tracking error or overshoot, a joint pushed by the others)
+    counts only beyond twice `fastest`, the largest plausible prediction of any joint,
+    and the noise, which no servo transient reaches: a joint falling the way it was
+    commanded. Maciejewski et al.
     (sec. 2.3) name a joint that lost its torque by motion under gravity the command does
     not explain: with the arm's gravity known (`gravity_known`), v must also have the sign
     of `falling`, the direction gravity accelerates the joint (0 where it hardly can).
     """
-    # A locked joint should not move at all: its healthy range is [0, 0].
-    healthy_low = min(low, 0.0) if unlocked else 0.0
-    healthy_high = max(high, 0.0) if unlocked else 0.0
+    # A locked joint may only coast as the commands before its lock make it (a lock
+    # declared on ft/declare_failure while the joint moves): those are the predictions.
+    healthy_low, healthy_high = min(low, 0.0), max(high, 0.0)
     outside = max(healthy_low - v, v - healthy_high)
-    beyond = unlocked and ((v > healthy_high and high >= min_command)
-                           or (v < healthy_low and low <= -min_command))
     noise = max(confidence * s, min_command)
+    ahead = unlocked and ((v > healthy_high and high >= min_command)
+                          or (v < healthy_low and low <= -min_command))
+    beyond = ahead and abs(v) <= 2 * fastest + noise
     downhill = not gravity_known or falling * v > 0
     return (undeclared and abs(v) >= min_command and outside > noise
             and not beyond and downhill)
@@ -140,6 +145,7 @@ def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
     weakest = np.zeros(n)
     flags = np.zeros((6, n), dtype=np.bool_)
     observable, following, stalled, pushing, candidate, on_its_own = flags
+    fastest = np.abs(plausible).max() if plausible.size else 0.0
     for j in range(n):
         low, high = plausible[:, j].min(), plausible[:, j].max()
         weakest[j] = weakest_prediction(low, high)
@@ -148,7 +154,7 @@ def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
         stalled[j] = is_stalled(v, c, s, observable[j], ratio, confidence)
         pushing[j] = is_pushing(c, latest[j], lower[j], upper[j], limit_margin)
         following[j] = is_following(v, c, observable[j], following_ratio)
-        on_its_own[j] = moves_on_its_own(v, s, low, high, unlocked[j], undeclared[j],
+        on_its_own[j] = moves_on_its_own(v, s, low, high, fastest, unlocked[j], undeclared[j],
                                          falling[j], gravity_known, min_command, confidence)
         candidate[j] = is_candidate(v, s, stalled[j], pushing[j], on_its_own[j],
                                     undeclared[j], min_command, confidence)

@@ -1,0 +1,127 @@
+"""Each joint's evidence, and when evidence becomes a declaration.
+
+Lock evidence (a candidate of the stall rules, vouched for by a joint that follows) is
+declared once it has held for `persistence`; free-swing evidence (motion on its own)
+for `persistence` plus `rules.swing_wait`. Evidence that begins while the arm is
+**disturbed** must also outlast the plant's settling time (the best model's latency and
+three response times): a joint losing its torque or stopping at a lock pushes the
+others through the links' coupling, and the remap's new commands are a step of their
+own, so the joints around a failure stall or move on their own for a moment (docs/
+detection.md, "After a declaration"). The arm is disturbed within the settling time
+after a declaration, and for a joint whose evidence begins after another joint's
+evidence, still under way, began. Evidence that begins at the same update as another's
+(two joints failing at once) is not delayed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+
+@dataclass
+class JointEvidence:
+    """What the detector saw of one joint at its last update."""
+
+    observable: bool = False
+    following: bool = False
+    measured: float = 0.0  #: slope of the measured positions (rad/s)
+    commanded: float = 0.0  #: weakest plausible predicted velocity (rad/s)
+    standard_error: float = 0.0  #: of the slope (rad/s)
+    #: position lost against the best plant model during the window (rad, along the
+    #: command; computed only when a never-swinging joint stalls, else 0)
+    deficit: float = 0.0
+    evidence_since: float | None = None  #: when the current lock evidence started (s)
+    at_limit: bool = False  #: stalled at a physical limit
+    #: a lock candidate at the last update: stalled beyond the noise, not at a limit, not
+    #: moving on its own, no plant fault (whether or not a following joint vouches for the
+    #: plant, which the detector's own decision also needs)
+    candidate: bool = False
+    swing_since: float | None = None  #: when the current free-swing evidence started (s)
+    swinging_at: float | None = None  #: time free-swinging was declared (s)
+    locked_at: float | None = None  #: time the lock was declared (s)
+    position: float = 0.0  #: position when locked (rad)
+    degraded_at: float | None = None  #: time it was declared degraded (s)
+    #: the current lock / free-swing evidence began while the arm was disturbed
+    #: (`Disturbance`): it must outlast the plant's settling time
+    evidence_late: bool = False
+    swing_late: bool = False
+
+
+
+class Disturbance:
+    """Whether evidence beginning at `now` (s) begins while the arm is disturbed.
+
+    Args:
+        joints: every joint's evidence before this update's.
+        now: the update's time (s).
+        settled_at: s, when the settling time after the latest declaration ends.
+    """
+
+    def __init__(self, joints: list[JointEvidence], now: float, settled_at: float):
+        self._starts = [min(math.inf if e.evidence_since is None else e.evidence_since,
+                            math.inf if e.swing_since is None else e.swing_since)
+                        for e in joints]
+        self._ordered = sorted(self._starts)
+        self.now = now
+        #: within the settling time after a declaration
+        self.settling = now < settled_at
+
+    def late(self, joint: int) -> bool:
+        """Whether evidence of `joint` that begins now begins while the arm is disturbed."""
+        ordered = self._ordered
+        first = self._starts[joint] == ordered[0] and len(ordered) > 1
+        others = ordered[1] if first else ordered[0]  # the earliest start of another joint
+        return self.settling or others < self.now
+
+
+def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
+                   disturbance: Disturbance, persistence: float, settle: float,
+                   wait: Callable[[int], float]) -> tuple[list[int], list[int]]:
+    """Joints newly declared free-swinging at `now` (s), and those of them that were locked.
+
+    `own[j]`: joint j moves on its own at this update; `wait(j)`: `rules.swing_wait` for
+    it (s); `settle`: the plant's settling time (s). A joint declared locked that moves
+    was never locked: it swings, and its lock is taken back.
+    """
+    swinging, released = [], []
+    for j, evidence in enumerate(joints):
+        if not own[j]:
+            evidence.swing_since = None
+            continue
+        if evidence.swinging_at is not None:
+            continue
+        if evidence.swing_since is None:
+            evidence.swing_since, evidence.swing_late = now, disturbance.late(j)
+        needed = persistence + wait(j)
+        if evidence.swing_late:
+            needed = max(needed, persistence + settle)
+        if now - evidence.swing_since >= needed:
+            if evidence.locked_at is not None:
+                released.append(j)
+            evidence.swinging_at, evidence.locked_at = now, None
+            swinging.append(j)
+    return swinging, released
+
+
+def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Sequence[float],
+                  now: float, disturbance: Disturbance, persistence: float,
+                  settle: float) -> list[int]:
+    """Joints newly declared locked at `now` (s), where they are (`latest`, rad).
+
+    `supported[j]`: joint j is a lock candidate and another joint follows.
+    """
+    newly = []
+    for j, evidence in enumerate(joints):
+        if not supported[j]:
+            evidence.evidence_since = None
+            continue
+        if evidence.evidence_since is None:
+            evidence.evidence_since, evidence.evidence_late = now, disturbance.late(j)
+        if now - evidence.evidence_since >= persistence + settle * evidence.evidence_late:
+            evidence.locked_at, evidence.position = now, float(latest[j])
+            # Seen swinging before: should it move on its own again, it swings again.
+            evidence.swinging_at = None
+            newly.append(j)
+    return newly
