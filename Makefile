@@ -87,6 +87,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/soak.py --out bench_out
 	$(BIN)/python bench/observability.py --out bench_out
 	$(BIN)/python bench/recovery.py --out bench_out
+	$(BIN)/python bench/announce.py --out bench_out
 	rm -rf bench_out/runs  # the campaign resumes from kept runs: start afresh
 	$(BIN)/ft-campaign --runs 20 --latency 0.02 --response-time 0.03 --hold-last-command \
 		--out bench_out

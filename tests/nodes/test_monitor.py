@@ -287,7 +287,7 @@ def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:
             lp.monitor.locked.get("panda_joint5", math.nan)), 10.0)
         position = lp.monitor.locked["panda_joint5"]
         assert math.isfinite(position)
-    assert [p.name for p in tmp_path.iterdir()] == [f"monitor--panda--domain{domain}.json"]
+    assert [p.name for p in tmp_path.iterdir()] == [f"monitor--panda--domain{domain}.state"]
     # Another ROS domain (a sim session beside the arm): nothing inherited.
     with loop(monitor_parameters=state) as lp:
         assert spin_until(lp.executor, lambda: bool(lp.locked), 2.0)

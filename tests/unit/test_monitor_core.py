@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +67,8 @@ def test_a_lock_is_announced_once_it_is_on_disk(tmp_path: Path) -> None:
     assert change.changed, "the lock was never handed over"
     assert change.events and change.events[0].startswith("joint panda_joint4 locked at")
     assert lp.monitor.announced == lp.monitor.locked
-    assert json.loads(store.read_text())["locked"] == pytest.approx(lp.monitor.locked)
+    assert locked_set.load(store, "panda", list(PANDA.joint_names)) == pytest.approx(
+        lp.monitor.locked)
     assert lp.problems["state_directory"] is None
     # From now on the locked joint gets exactly 0, the rest are remapped (test_remap.py).
     qd = np.full(7, 0.1)
@@ -168,9 +171,121 @@ def test_the_state_file_is_keyed_by_namespace_robot_and_domain(tmp_path: Path) -
              for domain in (0, 7)}
     assert len(paths) == 8 and all(p.parent == tmp_path for p in paths)
     assert locked_set.path_for(tmp_path, "/arm1/monitor", "panda", 7).name == (
-        "arm1__monitor--panda--domain7.json")
+        "arm1__monitor--panda--domain7.state")
     assert locked_set.path_for("", "/monitor", "panda", 0).parent == (
         locked_set.default_directory())
+
+
+JOINTS = list(PANDA.joint_names)
+
+
+def test_a_change_is_one_write_in_place_and_a_torn_one_leaves_the_set_before(
+        tmp_path: Path, monkeypatch) -> None:
+    """Two slots with a generation and a CRC each: the newest intact copy is read.
+
+    Once the file exists, a change costs one pwrite and one fdatasync: no fsync, no
+    rename, no new file. A crash in the middle of a write (the slot half written) leaves
+    the previous set.
+    """
+    store = tmp_path / "monitor--panda--domain0.state"
+    locked_set.save(store, "panda", {"panda_joint2": 0.5})  # created whole
+    assert store.stat().st_size == 2 * locked_set.SLOT_BYTES
+    calls: list[str] = []
+    real_pwrite, real_fdatasync = os.pwrite, os.fdatasync
+    monkeypatch.setattr(os, "fsync", lambda _fd: calls.append("fsync"))
+    monkeypatch.setattr(os, "replace", lambda *_: calls.append("replace"))
+    monkeypatch.setattr(os, "pwrite", lambda *a: calls.append("pwrite") or real_pwrite(*a))
+    monkeypatch.setattr(os, "fdatasync", lambda fd: calls.append("fdatasync")
+                        or real_fdatasync(fd))
+    inode = store.stat().st_ino
+    for k, name in enumerate(["panda_joint3", "panda_joint5"]):
+        before = locked_set.load(store, "panda", JOINTS)
+        locked_set.save(store, "panda", {**before, name: 0.1 * k})
+        assert calls == ["pwrite", "fdatasync"] and store.stat().st_ino == inode
+        calls.clear()
+    assert locked_set.load(store, "panda", JOINTS) == {
+        "panda_joint2": 0.5, "panda_joint3": 0.0, "panda_joint5": pytest.approx(0.1)}
+    # Generations 1, 2, 3 went to slots B, A, B: generation 3, torn mid-payload, is
+    # skipped for generation 2 in slot A.
+    data = bytearray(store.read_bytes())
+    data[locked_set.SLOT_BYTES + 40:] = bytes(len(data) - locked_set.SLOT_BYTES - 40)
+    store.write_bytes(bytes(data))
+    assert locked_set.load(store, "panda", JOINTS) == {"panda_joint2": 0.5,
+                                                       "panda_joint3": 0.0}
+    locked_set.save(store, "panda", {})  # the torn slot is the older: written over
+    assert locked_set.load(store, "panda", JOINTS) == {}
+    store.write_bytes(locked_set.MAGIC.ljust(2 * locked_set.SLOT_BYTES, b"\0"))
+    with pytest.raises(locked_set.LockedSetError, match="no intact copy"):
+        locked_set.load(store, "panda", JOINTS)
+
+
+def gated_save(monkeypatch) -> threading.Event:
+    """`locked_set.save` waits for the event, then writes: a disk as slow as a test needs."""
+    gate, save = threading.Event(), locked_set.save
+    monkeypatch.setattr(locked_set, "save", lambda *args: gate.wait(10.0) and save(*args))
+    return gate
+
+
+def test_a_lock_on_disk_but_not_yet_announced_is_restored_after_a_crash(
+        tmp_path: Path, monkeypatch) -> None:
+    """Persist, then announce: a crash in between loses nothing, a restart restores it."""
+    store = tmp_path / "monitor--panda--domain0.state"
+    first = Loop(store)
+    gate = gated_save(monkeypatch)
+    assert not first.monitor.restore(0.0).changed  # the empty file, made at the start
+    first.monitor.observe(START, 0.0)
+    assert not first.monitor.declare([3], 0.1).changed
+    gate.set()
+    deadline = time.monotonic() + 5.0
+    while first.monitor.writing and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert not first.monitor.writing and first.monitor.announced == {}  # the crash: now
+    second = Loop(store)
+    restored = second.monitor.restore(0.0)
+    assert restored.changed and second.monitor.announced == {"panda_joint4": START[3]}
+
+
+def test_the_writer_says_when_a_set_is_on_disk_so_it_is_announced_then(
+        tmp_path: Path, monkeypatch) -> None:
+    """`written` is called in the writer's thread as each write ends: what wakes the node.
+
+    The caller serialises the hand-overs (as the node does): a write may end before
+    `declare` has returned.
+    """
+    handed: list[list[str]] = []
+    ready, turns = threading.Event(), threading.Lock()
+    monitor: list[Monitor] = []
+
+    def written() -> None:
+        with turns:
+            change = monitor[0].settled()
+        if change.changed:
+            handed.append(list(monitor[0].announced))
+            ready.set()
+
+    monitor.append(Monitor(PANDA, DetectorConfig(), MonitorConfig(),
+                           tmp_path / "monitor--panda--domain0.state", written=written))
+    gate = gated_save(monkeypatch)
+    with turns:
+        assert not monitor[0].declare([5], 0.0).changed
+    gate.set()
+    assert ready.wait(5.0) and handed == [["panda_joint6"]]
+    assert not monitor[0].writing and not monitor[0].close().changed
+
+
+def test_an_older_versions_json_file_is_restored_and_migrated(tmp_path: Path) -> None:
+    store = locked_set.path_for(tmp_path, "/monitor", "panda", 0)
+    legacy = locked_set.legacy_path(store)
+    assert legacy.name == "monitor--panda--domain0.json"
+    legacy.write_text(json.dumps({"robot": "panda", "locked": {"panda_joint6": 1.25}},
+                                 indent=1))
+    lp = Loop(store)
+    restored = lp.monitor.restore(0.0)
+    assert restored.changed and lp.monitor.announced == {"panda_joint6": 1.25}
+    lp.monitor.flush(5.0)
+    assert not legacy.exists() and store.read_bytes().startswith(locked_set.MAGIC)
+    assert locked_set.load(store, "panda", JOINTS) == {"panda_joint6": 1.25}
+    assert Loop(store).monitor.restore(0.0).events == restored.events
 
 
 def test_a_hostile_state_file_is_refused_at_start_without_a_crash_or_a_hang(

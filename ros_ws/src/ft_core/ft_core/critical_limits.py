@@ -54,6 +54,11 @@ class CriticalPointLimits:
         """Whether limits are still to be computed or taken."""
         return self._dirty or self._job is not None
 
+    @property
+    def computing(self) -> bool:
+        """Whether a computation runs in the worker (its result not back yet)."""
+        return self._job is not None and self._job[1].running
+
     def update(self, q: np.ndarray) -> bool:
         """Take finished limits, start asked-for ones at q (rad); whether `limits` changed."""
         changed = self._job is not None and self._take(*self._job)

@@ -27,14 +27,14 @@ converts messages, runs the watchdog and publishes; everything between is here.
 - **Declared failures and reset** (`declare`, `reset`).
 - **Persist, then announce, without waiting for the disk.** A change of the locked
   set takes effect at once in the command filter, and is written to its file
-  (`ft_core.locked_set`, atomic, fsynced) by a writer thread: the command path never
-  waits for the disk (an fsync under load took seconds). The `Change` a call returns
-  holds only what is on disk by then, its own change or earlier ones (`settled`, which
-  the node also calls on a steady timer, hands over the rest once written); the set to
-  publish is `announced`, the set last written. Our reading of "persist, then
-  announce" for releases: `reset` is answered at once and its empty set published
-  once written, like any change; a crash in between restores the released joints as
-  locked, the safe side.
+  (`ft_core.locked_set`: one write in place and an fdatasync) by a writer thread: the
+  command path never waits for the disk (an fsync under load took seconds). The
+  `Change` a call returns holds only what is on disk by then, its own change or earlier
+  ones (`settled`, which the node calls as the writer says a write ended, hands over
+  the rest once written); the set to publish is `announced`, the set last written.
+  Our reading of "persist, then announce" for releases: `reset` is answered at once
+  and its empty set published once written, like any change; a crash in between
+  restores the released joints as locked, the safe side.
 
 Each `Change` says whether the announced set changed (`Change.changed`) and carries
 the lines to log (`Change.events`, errors, about the arm); problems with the state
@@ -157,10 +157,16 @@ class Monitor:
         store: the file of the persisted locked set (None: kept in memory only).
         report: called with ("state_directory", problem or None, warning=...) and
             ("plant", fault or None).
+        written: called in the writer's thread as each write of the locked set ends: from
+            then on `settled` hands the change over. The core is not thread-safe: a
+            caller that calls `settled` from there serialises it with the calls that
+            hand changes over (`restore`, `observe`, `suspect`, `declare`, `reset`,
+            `settled`, `flush`, `close`).
     """
 
     def __init__(self, robot: Robot, detection: DetectorConfig, config: MonitorConfig,
-                 store: Path | None, report: Report = lambda *_args, **_kwargs: None):
+                 store: Path | None, report: Report = lambda *_args, **_kwargs: None,
+                 written: Callable[[], object] | None = None):
         self.robot = robot
         compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
         self.detector = LockDetector(robot.lower, robot.upper, detection)
@@ -170,7 +176,8 @@ class Monitor:
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
-        self._writer = locked_set.Writer(store, robot.name) if store is not None else None
+        self._writer = (locked_set.Writer(store, robot.name, written) if store is not None
+                        else None)
         #: (generation, change, the set it leaves) written by the writer, not yet handed over
         self._held: list[tuple[int, Change, dict[str, float]]] = []
         self._announced: dict[str, float] = {}
@@ -230,7 +237,11 @@ class Monitor:
                 for j, name in enumerate(robot.joint_names)}
 
     def restore(self, now: float) -> Change:
-        """Take the locked set kept in the store (at start-up)."""
+        """Take the locked set kept in the store (at start-up), and have it written back.
+
+        The write back puts the file in the slot format (created if missing, an older
+        version's migrated), so that a lock decided later costs one write in place.
+        """
         if self.store is None:
             return Change()
         try:
@@ -243,6 +254,8 @@ class Monitor:
             j = self.robot.joint_names.index(name)
             self.detector.lock(j, position, now)
             self.board.declare(j, Health.LOCKED, now, f"restored from {self.store}")
+        if self._writer is not None:  # the file in the slot format now, not at the first lock
+            self._writer.submit(self.locked)
         if not stored:
             return Change()
         self._announced = self.locked  # read from the file: on disk already

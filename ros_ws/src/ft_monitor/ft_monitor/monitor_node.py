@@ -18,7 +18,9 @@ topics, parameters, rules and reactions: docs/monitor.md and docs/detection.md.
 from __future__ import annotations
 
 import math
+import threading
 import time
+import weakref
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -39,8 +41,6 @@ from ft_monitor.outputs import Outputs, Wiring
 from ft_monitor.settings import PARAMETERS
 
 DIAGNOSTICS_PERIOD = 0.5
-#: s between checks for a written locked set while no joint state arrives (steady time).
-ANNOUNCE_PERIOD = 0.02
 #: s (steady) between two re-announcements of an unchanged locked set asked for on
 #: `ft/declare_failure`: a flood of declarations costs one publication per period, and
 #: the latched topic gives a late subscriber the set anyway.
@@ -57,6 +57,10 @@ class MonitorNode(SuiteNode):
         self.core: Monitor | None = None  #: the logic, once the model is known
         self.wiring: Wiring | None = None  #: the model's command order, built with the core
         self._unseen = report.Unseen(self.get_logger().info)
+        #: Held while the core hands changes over and they are announced: the executor's
+        #: callbacks and the locked set's writer thread (`_announce_written`) take turns.
+        self._announcing = threading.RLock()
+        self._closed = False  #: destroyed: the writer thread announces nothing more
         self.outputs = Outputs(self)
         self._command_subscription = self.subscribe_joint_states(
             names.COMMAND_RAW, self._on_command, qos.SENSOR_INPUT, self._on_malformed_command)
@@ -79,10 +83,6 @@ class MonitorNode(SuiteNode):
         self._watchdog = self.create_timer(self.param("command_timeout"), self._check_watchdog,
                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
-        # Every joint state announces what was written meanwhile; this, when none comes
-        # (the EventsExecutor has no guard conditions for the writer thread to wake it).
-        self.create_timer(ANNOUNCE_PERIOD, self._announce_written,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------------ set-up
     def _order(self) -> np.ndarray | None:
@@ -111,19 +111,21 @@ class MonitorNode(SuiteNode):
             self.get_logger().warning(old)
         try:
             core = Monitor(robot, *settings.configs(parameter_table.values(self, PARAMETERS),
-                                                    order), store, self.problems.report)
+                                                    order), store, self.problems.report,
+                           _weakly(self._announce_written))
         except ValueError as error:  # command limits the model refuses
             self.problems.report("model", f"cannot use the model from {source}: {error}")
             return
-        if self.core is not None:
-            self.core.close()  # the old robot's last write, if any; its set is not ours now
-        self.core, self.wiring = core, Wiring(robot, order)
-        self.get_logger().info(core.smoother.limits.describe() if core.smoother is not None
-                               else "commands not smoothed (smooth_commands is false)")
-        self.problems.report("model", None)
-        self.get_logger().info(f"monitoring {robot.name}: joints {self.wiring.joints}")
-        self._announce(self.core.restore(self.now()))
-        self.outputs.send_locked(self.locked, self.now())
+        with self._announcing:
+            if self.core is not None:
+                self.core.close()  # the old robot's last write, if any; its set is not ours
+            self.core, self.wiring = core, Wiring(robot, order)
+            self.get_logger().info(core.smoother.limits.describe() if core.smoother is not None
+                                   else "commands not smoothed (smooth_commands is false)")
+            self.problems.report("model", None)
+            self.get_logger().info(f"monitoring {robot.name}: joints {self.wiring.joints}")
+            self._announce(self.core.restore(self.now()))
+            self.outputs.send_locked(self.locked, self.now())
 
     @property
     def robot(self) -> robots.Robot | None:
@@ -183,9 +185,11 @@ class MonitorNode(SuiteNode):
         if reading is not None:
             q = self.accept_joint_state(*reading, core.absurd)
             if q is not None:
-                self._announce(core.observe(q, self.state_stamp, None if self.outputs.heard
-                                            else "nobody subscribes to ft/command(_array)",
-                                            self._efforts(msg)))
+                efforts = self._efforts(msg)
+                with self._announcing:
+                    self._announce(core.observe(q, self.state_stamp, None if self.outputs.heard
+                                                else "nobody subscribes to ft/command(_array)",
+                                                efforts))
         for listener in self._state_listeners:  # after: a cycle they run sees this update
             listener(msg, None if reading is None else (reading[0], core.robot.joint_names,
                                                         reading[1]))
@@ -214,7 +218,9 @@ class MonitorNode(SuiteNode):
         known = self._names(msg, "ft/suspected_failure", limit=convert.MAX_NAMES)
         now = self.now()
         for name, j in (known or {}).items():
-            answer, change = self.core.suspect(j, now)
+            with self._announcing:
+                answer, change = self.core.suspect(j, now)
+                self._announce(change)
             evidence = answer.evidence
             if answer.decision == Decision.REFUSED:
                 reason = " at a joint limit" if evidence.at_limit else ""
@@ -222,7 +228,6 @@ class MonitorNode(SuiteNode):
                     f"suspected lock of {name} not confirmed{reason}: measured "
                     f"{evidence.measured:.4f} rad/s (+-{evidence.standard_error:.4f}), "
                     f"commanded {evidence.commanded:.4f}", throttle_duration_sec=5.0)
-            self._announce(change)
 
     def _names(self, msg: JointState, topic: str, limit: int | None = None,
                log: Callable[..., object] | None = None) -> dict[str, int] | None:
@@ -250,20 +255,22 @@ class MonitorNode(SuiteNode):
         if len(known) < len(msg.name):
             self.get_logger().warning(f"ft/declare_failure: {len(msg.name) - len(known)} unknown "
                                       "joint names ignored", throttle_duration_sec=5.0)
-        now, before = self.now(), self.core.locked
-        change = self.core.declare(known.values(), now)
-        self._announce(change)
-        steady = time.monotonic()
-        if (self.core.locked == before and not change.changed
-                and steady - self._reannounced >= REANNOUNCE_PERIOD):
-            self._reannounced = steady
-            self.outputs.send_locked(self.locked, now)  # nothing new: the sender asked
+        with self._announcing:
+            now, before = self.now(), self.core.locked
+            change = self.core.declare(known.values(), now)
+            self._announce(change)
+            steady = time.monotonic()
+            if (self.core.locked == before and not change.changed
+                    and steady - self._reannounced >= REANNOUNCE_PERIOD):
+                self._reannounced = steady
+                self.outputs.send_locked(self.locked, now)  # nothing new: the sender asked
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response):
         released = []
         if self.core is not None:
-            released = self.core.reset(self.now())  # the empty set is published once written
-            self._announce(self.core.settled())
+            with self._announcing:
+                released = self.core.reset(self.now())  # the empty set: published once written
+                self._announce(self.core.settled())
         self.get_logger().info(f"reset: released {released or 'nothing'}")
         response.success, response.message = True, f"released {released or 'nothing'}"
         return response
@@ -287,8 +294,10 @@ class MonitorNode(SuiteNode):
     # ----------------------------------------------------------------- outputs
     def destroy_node(self) -> None:
         """End the locked set's writer thread too (after the write under way, if any)."""
-        if self.core is not None:
-            self.core.close()
+        with self._announcing:
+            if self.core is not None:
+                self.core.close()
+            self._closed = True
         super().destroy_node()
 
     def stop(self) -> None:
@@ -296,7 +305,8 @@ class MonitorNode(SuiteNode):
         if self.core is not None:
             bound = self.core.smoother.stop_time() if self.core.smoother is not None else 0.0
             self.ramp_now(self._ramp_step, bound + 0.1)
-            self._announce(self.core.close())
+            with self._announcing:
+                self._announce(self.core.close())
 
     def _ramp_step(self, nanoseconds: int) -> bool:
         """The next command of a stop ramp, stamped `nanoseconds`; whether it is at rest."""
@@ -305,9 +315,14 @@ class MonitorNode(SuiteNode):
         return not self.core.stopping
 
     def _announce_written(self) -> None:
-        """Announce the changes of the locked set written since the last announcement."""
-        if self.core is not None:
-            self._announce(self.core.settled())
+        """Announce the changes of the locked set written since the last announcement.
+
+        Called in the writer's thread as each write ends: the announcement goes out then,
+        not at the next joint state (there may be none: a stopped driver) or timer tick.
+        """
+        with self._announcing:
+            if self.core is not None and not self._closed:
+                self._announce(self.core.settled())
 
     def _announce(self, change: Change) -> None:
         """Log what happened and, if the locked set changed (on disk already), publish it.
@@ -330,6 +345,10 @@ class MonitorNode(SuiteNode):
             self.ramp(self._ramp_step)
 
     def _publish_diagnostics(self) -> None:
+        with self._announcing:  # also from the writer's thread (`_announce`)
+            self._publish_diagnostics_now()
+
+    def _publish_diagnostics_now(self) -> None:
         now = self.now()
         age = now - self.commands.last
         values = {"locked_joints": sorted(self.locked),
@@ -348,6 +367,22 @@ class MonitorNode(SuiteNode):
             joints = self.core.health()
             self.outputs.send_health({name: joints[name] for name in self.wiring.joints},
                                      stamp, self.core.robot.name)
+
+
+def _weakly(method: Callable[[], None]) -> Callable[[], None]:
+    """`method`, called while its object lives: a thread holding this keeps nothing alive.
+
+    The writer's thread outlives a node that is never destroyed (a test's), and a node
+    kept alive keeps its context's participant, and its latched messages, on the graph.
+    """
+    reference = weakref.WeakMethod(method)
+
+    def call() -> None:
+        bound = reference()
+        if bound is not None:
+            bound()
+
+    return call
 
 
 def main(args: list[str] | None = None) -> None:

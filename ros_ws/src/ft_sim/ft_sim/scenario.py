@@ -62,8 +62,8 @@ __all__ = ["ANGLE_PER_METRE", "PHYSICS_ROBOT", "PLANNER_CHECK", "PLAN_WAIT", "RE
            "REACH_SAMPLES", "TASK_POINTS", "WAIT_PERIOD", "Record", "Scenario",
            "ScenarioConfig", "planner", "run", "stop_planner"]
 
-#: Wall-clock pause (s) between the steps of a still arm waiting for its soft limits.
-WAIT_PERIOD = 0.01
+#: Wall-clock period (s) at which a step polls the work it waits for (`Scenario.step`).
+WAIT_PERIOD = 0.005
 #: Longest wall-clock wait (s) of the simulated clock for a recovery plan or a write.
 PLAN_WAIT = 60.0
 #: Inverse-kinematics starts that decide whether the locked arm reaches a tour point.
@@ -240,19 +240,22 @@ class Scenario(Injection):
     def step(self) -> None:
         """One period of the loop: the sim steps, then holds the command for the new instant.
 
-        While the controller plans a recovery (in its worker process) or the monitor writes
-        a new locked set (in its writer thread), both in wall time, the simulated clock
-        waits for them, at most `PLAN_WAIT` s: in simulated time a planner and a disk are
-        as fast as the computer allows, like the rest of the loop, so a run's simulated
-        times do not depend on the machine's load.
+        While the controller computes in its worker process (the critical points' soft
+        limits, a start plan, a recovery plan) or the monitor writes a new locked set (in
+        its writer thread), all in wall time, the simulated clock waits for them, at most
+        `PLAN_WAIT` s: in simulated time a planner and a disk are as fast as the computer
+        allows, like the rest of the loop, so the step at which a result is taken, and with
+        it the whole run (the noise drawn at each step included), does not depend on the
+        machine's load.
         """
         core, monitor = self.controller.core, self.monitor.core
         deadline = time.monotonic() + PLAN_WAIT
         while time.monotonic() < deadline and (
-                (core is not None and core.recovery is not None and core.recovery.planning)
-                or (core is not None and core.start_phase.planning)
+                (core is not None and (core.critical.computing or core.start_phase.planning
+                                       or (core.recovery is not None
+                                           and core.recovery.planning)))
                 or (monitor is not None and monitor.writing)):
-            time.sleep(WAIT_PERIOD / 2)
+            time.sleep(WAIT_PERIOD)
         self.sim.advance(self.executor)
         if not np.isfinite(self.command).all():
             self.record.non_finite += 1
@@ -267,8 +270,8 @@ class Scenario(Injection):
     def _deliver_locked_set(self, monitor) -> None:
         """Spin until the controller holds the locked set the monitor has found.
 
-        The monitor announces a lock once it is on disk: at its next joint state, or from a
-        timer on steady time, whichever comes first in wall time. Waiting here for the
+        The monitor announces a lock once it is on disk, from its writer's thread as the
+        write ends (or at its next joint state), in wall time. Waiting here for the
         write and for the controller to take it makes a lock found in one step reach the
         controller's next cycle, wherever and however fast the run goes (campaign runs
         are reproducible, run for run, on any machine and on a cluster).
@@ -369,11 +372,10 @@ class Scenario(Injection):
     def _wait_for_soft_limits(self, timeout: float = 120.0) -> None:
         """Step the still arm until the controller has computed its soft limits (or failed).
 
-        One step per `WAIT_PERIOD` of wall clock at most: the computation runs in a
-        worker process, and a loop stepping a still arm flat out would only take the
-        CPU from it (and from whatever else runs on the machine). The outcome is
-        `Record.soft_limits` (the controller's note, e.g. "3 critical points" or "none
-        (critical points failed)").
+        The computation runs in a worker process; `step` waits for it in wall time, so the
+        task starts at the same simulated instant in every run, however long it took. The
+        outcome is `Record.soft_limits` (the controller's note, e.g. "3 critical points" or
+        "none (critical points failed)").
         """
         deadline = time.monotonic() + timeout
         self.step()  # the controller starts the computation at its first joint state
@@ -381,7 +383,6 @@ class Scenario(Injection):
             if time.monotonic() > deadline:
                 raise TimeoutError(f"the controller had no soft limits after {timeout:g} s "
                                    "(see its 'critical points' diagnostics)")
-            time.sleep(WAIT_PERIOD)
             self.step()
         self.record.soft_limits = self.controller.core.soft_limits_note
 
