@@ -144,9 +144,12 @@ def test_a_degraded_joints_share_is_its_lowest_reported_in_steps_until_the_reset
 
 
 def _run_to_rest(c: Controller, robot, q: np.ndarray, t: float, cycles: int,
-                 check: DriverCheck) -> tuple[list, float]:
+                 check: DriverCheck, twist: np.ndarray | None = None) -> tuple[list, float]:
+    """`cycles` steps at `q`, the `twist` target sent again at each (None: as it is)."""
     steps = []
     for _ in range(cycles):
+        if twist is not None:
+            c.set_twist(twist, t)
         t += DT
         step = c.step(q, 0.0, t)
         assert check.check(step.qd, t, c.pinned) is None, step.qd
@@ -155,22 +158,36 @@ def _run_to_rest(c: Controller, robot, q: np.ndarray, t: float, cycles: int,
 
 
 def test_a_planar3r_with_two_joints_locked_gives_up_its_task_to_rest_and_says_so() -> None:
+    """One joint left, asked to move the tool across its only direction: given up after 1 s.
+
+    Asked along it, the joint left goes on (the engine's least squares).
+    """
     c = core(PLANAR, smooth=True)
     check = DriverCheck(c.smoother.limits)
     q = np.array([0.3, 0.8, -0.6])
-    c.set_twist(np.array([0.2, -0.1]), 0.0)
+    column = PLANAR.jacobian(q)[:, 1]
+    across = 0.2 * np.array([-column[1], column[0]]) / np.linalg.norm(column)
+    c.set_twist(across, 0.0)
     steps, t = _run_to_rest(c, PLANAR, q, 0.0, 50, check)
     assert np.any(steps[-1].qd) and INFEASIBLE not in steps[-1].problems
     c.set_locked([0, 2], t)
-    c.set_twist(np.array([0.2, -0.1]), t)
-    steps, t = _run_to_rest(c, PLANAR, q, t, 200, check)
-    reason = steps[0].problems[INFEASIBLE]
+    locked_at = t
+    along = 0.2 * column / np.linalg.norm(column)  # it goes on
+    steps, t = _run_to_rest(c, PLANAR, q, t, 400, check, along)
+    assert all(INFEASIBLE not in s.problems for s in steps) and np.any(steps[-1].qd)
+    steps, t = _run_to_rest(c, PLANAR, q, t, 400, check, across)
+    given_up = [s for s in steps if s.problems.get(INFEASIBLE)]
+    assert given_up, "never given up"
+    reason = given_up[0].problems[INFEASIBLE]
     assert "1 joints left (joint2) for the 2 coordinates of the planar task" in reason
-    assert all(s.problems[INFEASIBLE] == reason for s in steps)
-    assert not np.any(steps[-1].qd)  # at rest, reached on the ramp
+    assert "can produce 0% of the task velocity asked" in reason
+    first = next(k for k, step in enumerate(steps) if step.problems.get(INFEASIBLE))
+    assert 0.9 < first * DT < 1.2, first * DT  # after GIVE_UP_AFTER
+    assert all(s.problems[INFEASIBLE] == reason for s in steps[first:])
+    assert not np.any(steps[-1].qd) and locked_at < t  # at rest, reached on the ramp
     assert c.smoother.at_rest
     c.set_locked([2], t)  # the monitor's reset of one joint: two left, the task resumes
-    c.set_twist(np.array([0.2, -0.1]), t)
+    c.set_twist(across, t)
     steps, t = _run_to_rest(c, PLANAR, q, t, 50, check)
     assert steps[0].problems[INFEASIBLE] is None
     assert INFEASIBLE not in steps[1].problems and np.any(steps[-1].qd)
@@ -202,15 +219,17 @@ def test_a_singularity_the_joints_left_can_leave_is_not_a_lost_task() -> None:
     result = ResolutionEngine(PLANAR).step(PLANAR.kinematics(stretched), np.array([0.1, 0.0]),
                                            [2])
     assert result.sigma_min < MIN_SIGMA  # singular here ...
-    assert a.judge(result, (2,), stretched) == {}  # ... but not around
+    assert a.judge(result, (2,), stretched, np.array([0.1, 0.0]), 0.0) == {}  # not around
     lost = replace(result, sigma_min=0.0)  # a lost direction: the rules, by pinned set
-    panda = Adaptation(PANDA)
-    assert panda.judge(lost, (), Q) == {}  # a healthy arm is never given up
-    assert panda.judge(lost, (0,), Q) == {}  # six joints left, one singular point
-    assert panda.judge(lost, (0, 1, 2, 3), Q)[INFEASIBLE].startswith("3 joints left")
-    assert panda.judge(replace(lost, sigma_min=1.0), (0, 1, 2, 3), Q)[INFEASIBLE]  # held
-    assert panda.judge(lost, (0, 1, 2), Q) == {INFEASIBLE: None}  # the set changed: said once
-    assert panda.judge(lost, (0, 1, 2), Q) == {}
+    panda, still = Adaptation(PANDA), np.zeros(3)
+    assert panda.judge(lost, (), Q, still, 0.0) == {}  # a healthy arm is never given up
+    assert panda.judge(lost, (0,), Q, still, 0.0) == {}  # six joints left, one singular point
+    assert panda.judge(lost, (0, 1, 2, 3), Q, still, 0.0)[INFEASIBLE].startswith(
+        "3 joints left")
+    assert panda.judge(replace(lost, sigma_min=1.0), (0, 1, 2, 3), Q, still, 0.0)[
+        INFEASIBLE]  # held
+    assert panda.judge(lost, (0, 1, 2), Q, still, 0.0) == {INFEASIBLE: None}  # said once
+    assert panda.judge(lost, (0, 1, 2), Q, still, 0.0) == {}
 
 
 @pytest.mark.parametrize(("fields", "reason"), [

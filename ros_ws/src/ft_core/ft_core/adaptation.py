@@ -27,14 +27,18 @@ measured share wanders with the motion, and is not measured at all (nan) while t
 is hardly commanded, so this way the limits change (and the engine is rebuilt) a few
 times per joint at most, and the joint stays slowed until the monitor's reset, as its
 state stays declared. `Adaptation.judge` says, each cycle, whether the joints left can do
-the task: not with fewer usable joints than task coordinates, nor with joints lost and the
+the task: not with no joint left, nor with joints lost and the
 reduced Jacobian's smallest singular value below `MIN_SIGMA` at the current configuration
 and at every one of `MOVES` configurations around it (the joints left moved by
 `NEIGHBOURHOOD` each way, the lost ones where they are): a direction of the task the
 joints left have lost, not a singularity they can move out of (the planar 3R stretched
 out with its last joint locked is one: bending the elbow leaves it). Then the controller
 commands zeros (on its ramp) and says why, until the set of usable joints changes (the
-monitor's reset).
+monitor's reset). Fewer usable joints than task coordinates is infeasible only once they
+can produce less than `MIN_PRODUCIBLE` of the task velocity asked for `GIVE_UP_AFTER`:
+otherwise the engine's least squares takes the tool to the nearest pose the joints left
+reach (a PUMA 560 with a locked joint on a pose task: within 0 mm and 8 degrees of its
+goals).
 """
 
 from __future__ import annotations
@@ -45,7 +49,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ft_core.engine import CycleResult, EngineConfig, Status
+from ft_core.engine import CycleResult, EngineConfig
 from ft_core.health import Health, JointHealth
 from ft_core.robots import Robot
 
@@ -68,6 +72,11 @@ MIN_SIGMA = 1e-3
 NEIGHBOURHOOD = 0.2
 #: How many configurations around the current one are tried (fixed sign patterns).
 MOVES = 8
+#: Least share of the commanded task velocity (scaled) the joints left must be able to
+#: produce, when fewer than the task coordinates, for the task to go on.
+MIN_PRODUCIBLE = 0.5
+#: s the share may stay below `MIN_PRODUCIBLE` before the task is given up.
+GIVE_UP_AFTER = 1.0
 #: The controller's problem kind (diagnostics, log) while the task is infeasible.
 INFEASIBLE = "task infeasible"
 
@@ -166,6 +175,7 @@ class Adaptation:
         self.infeasible: str | None = None
         self._judged: tuple[int, ...] | None = None  # the pinned set it was judged for
         self._said = False  # whether the controller has reported `infeasible`
+        self._short_since = math.nan  # s, since when too little of the task is producible
         #: Each joint moved by +-NEIGHBOURHOOD, in fixed patterns (`_lost`).
         self._moves = NEIGHBOURHOOD * np.random.default_rng(0).choice([-1.0, 1.0],
                                                                       (MOVES, robot.n))
@@ -207,20 +217,20 @@ class Adaptation:
         """The joints the engine must not use: `locked` and those pinned by health."""
         return tuple(sorted({*locked, *self.derived.pinned}))
 
-    def judge(self, result: CycleResult, pinned: tuple[int, ...],
-              q: np.ndarray) -> dict[str, str | None]:
+    def judge(self, result: CycleResult, pinned: tuple[int, ...], q: np.ndarray,
+              xd: np.ndarray, now: float) -> dict[str, str | None]:
         """The cycle's `INFEASIBLE` problem: {INFEASIBLE: why} while the task is infeasible.
 
         `result`: the engine's cycle at the configuration `q` (rad) with the `pinned`
-        joints held. Once infeasible for a
+        joints held, for the task velocity `xd`, at `now` (s). Once infeasible for a
         pinned set (rules: the module docstring), it stays so until the set changes (the
         arm is commanded to rest: its configuration no longer says anything new).
         {INFEASIBLE: None} once when it ends, {} otherwise.
         """
         if pinned != self._judged:
-            self._judged, self.infeasible = pinned, None
+            self._judged, self.infeasible, self._short_since = pinned, None, math.nan
         if self.infeasible is None:
-            self.infeasible = self._why(result, pinned, q)
+            self.infeasible = self._why(result, pinned, q, xd, now)
         if self.infeasible is not None:
             self._said = True
             return {INFEASIBLE: self.infeasible}
@@ -229,19 +239,43 @@ class Adaptation:
             return {INFEASIBLE: None}
         return {}
 
-    def _why(self, result: CycleResult, pinned: tuple[int, ...], q: np.ndarray) -> str | None:
+    def _why(self, result: CycleResult, pinned: tuple[int, ...], q: np.ndarray,
+             xd: np.ndarray, now: float) -> str | None:
         robot = self.robot
         left = [name for j, name in enumerate(robot.joint_names) if j not in pinned]
         joints = f"{len(left)} joints left ({', '.join(left) or 'none'})"
         until = "commanding zeros until the usable joints change (the monitor's reset)"
-        if result.status == Status.INFEASIBLE:
-            return (f"{joints} for the {robot.m} coordinates of the {robot.task_space} task; "
-                    f"{until}")
+        if not left:
+            return f"no joint left for the {robot.task_space} task; {until}"
+        share = self._producible(q, pinned, xd) if len(left) < robot.m else math.nan
+        if not share < MIN_PRODUCIBLE:  # also nan: not judged (enough joints, or idle)
+            self._short_since = math.nan
+        elif math.isnan(self._short_since):
+            self._short_since = now
+        elif now - self._short_since >= GIVE_UP_AFTER:
+            return (f"{joints} for the {robot.m} coordinates of the {robot.task_space} task "
+                    f"can produce {share:.0%} of the task velocity asked (for "
+                    f"{GIVE_UP_AFTER:g} s); {until}")
         if pinned and result.sigma_min < MIN_SIGMA and self._lost(q, pinned):
             return (f"{joints} have lost a direction of the {robot.task_space} task "
                     f"(smallest singular value {result.sigma_min:.2g} m, below {MIN_SIGMA:g}, "
                     f"here and within {NEIGHBOURHOOD:g} rad of the joints left); {until}")
         return None
+
+    def _producible(self, q: np.ndarray, pinned: tuple[int, ...], xd: np.ndarray) -> float:
+        """Share of the task velocity `xd` the joints not `pinned` produce at best (scaled).
+
+        nan for a task velocity too small to say (the arm at its goal).
+        """
+        robot = self.robot
+        wanted = robot.scale_task(np.asarray(xd, dtype=float)[:, None])[:, 0]
+        size = float(np.linalg.norm(wanted))
+        if size < 1e-4:
+            return math.nan
+        left = np.setdiff1d(np.arange(robot.n), pinned)
+        J = robot.scale_task(robot.jacobian(q))[:, left]
+        produced = J @ np.linalg.lstsq(J, wanted, rcond=None)[0]
+        return float(np.linalg.norm(produced)) / size
 
     def _lost(self, q: np.ndarray, pinned: tuple[int, ...]) -> bool:
         """Whether the joints not `pinned` lack a task direction at every move around q."""

@@ -372,7 +372,7 @@ class Controller:
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})
-        self.last, infeasible = result, self.adaptation.judge(result, pinned, q)
+        self.last, infeasible = result, self.adaptation.judge(result, pinned, q, xd, now)
         if infeasible.get(INFEASIBLE):  # the joints left cannot do the task: to rest
             return Step(self.smooth(zeros, now), result, {"engine": None, **infeasible})
         qd = result.qd
