@@ -22,12 +22,15 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from ft_msgs_py import convert, qos
+from ft_core.faults import Fault
+from ft_core.health import JointHealth
+from ft_msgs_py import convert, faults, health, qos
 from ft_msgs_py.spin import spin_until
 from geometry_msgs.msg import PoseStamped
 from paths import INSTALL, PACKAGES
 from rosutil import ros_context
 from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker
 
 EXECUTABLES = {"sim": ("ft_sim", "sim_node"), "controller": ("ft_controller", "controller_node"),
                "monitor": ("ft_monitor", "monitor_node"),
@@ -98,6 +101,13 @@ class Graph:
         self._free = self.node.create_publisher(JointState, "ft/inject_free_swing", qos.RELIABLE)
         self._declare = self.node.create_publisher(JointState, "ft/declare_failure",
                                                    qos.RELIABLE)
+        self._fault = self.node.create_publisher(DiagnosticArray, "ft/inject_fault",
+                                                 qos.RELIABLE)
+        self._obstacle = self.node.create_publisher(Marker, "ft/obstacle", qos.RELIABLE)
+        #: Every `ft/joint_health` received.
+        self.health: list[DiagnosticArray] = []
+        self.node.create_subscription(DiagnosticArray, "ft/joint_health", self.health.append,
+                                      qos.LATCHED)
         self._goal_index = 0
         #: Orientation (x, y, z, w) of every goal sent (a pose task needs a reachable one).
         self.orientation = (0.0, 0.0, 0.0, 1.0)
@@ -207,6 +217,27 @@ class Graph:
     def inject_free_swing(self, joint: str) -> None:
         """Make a joint of the sim lose its torque (the monitor is not told)."""
         self._free.publish(JointState(name=[joint]))
+
+    def inject_fault(self, fault: Fault) -> None:
+        """Inject `fault` in the sim (`ft/inject_fault`; the monitor is not told)."""
+        self._fault.publish(faults.message([fault]))
+
+    def place_obstacle(self, pose: np.ndarray, size: tuple[float, float, float]) -> None:
+        """A box of edges `size` (m) at `pose` (4x4, base frame) in the sim (`ft/obstacle`)."""
+        self._obstacle.publish(faults.obstacle_message(pose, size))
+
+    def remove_obstacle(self) -> None:
+        """No obstacle in the sim."""
+        self._obstacle.publish(Marker(action=Marker.DELETE))
+
+    def joint_health(self) -> dict[str, JointHealth]:
+        """The newest `ft/joint_health` read ({} before any)."""
+        return health.read(self.health[-1], [s.name for s in self.health[-1].status])[0] \
+            if self.health else {}
+
+    def ever_unhealthy(self) -> set[str]:
+        """Every joint any `ft/joint_health` named other than healthy."""
+        return {s.name for msg in self.health for s in msg.status if s.message != "healthy"}
 
     def locked_names(self) -> list[str]:
         """The newest locked set seen (empty before any message)."""

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from deployment import Graph, graph
+from deployment import GOALS, Graph, graph
 from ft_core import robots
 from ft_core.command_limits import DriverCheck, command_limits
 from ft_msgs_py import convert, qos, thread_priority
@@ -387,6 +387,67 @@ def test_on_the_physics_plant_a_lock_is_found_and_healthy_motion_declares_nothin
                                    exempt=(3,) if c.velocity[3] == 0.0 else ())
             assert refusal is None, refusal
         assert driver.peaks[1].max() > 0.1  # the stream was judged, and moved
+
+
+def _wall_between(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """The pose of a wall across the way from `start` to `goal`, 40 % of the way."""
+    normal = (goal - start) / np.linalg.norm(goal - start)
+    side = np.cross(normal, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
+    pose[:3, 3] = start + 0.4 * (goal - start)
+    return pose
+
+
+def _tool(g: Graph, arm: robots.Robot) -> np.ndarray:
+    """Where the tool point is by the newest joint state (m)."""
+    return arm.transform(convert.joint_vector(g.states[-1], arm.joint_names))[:3, 3]
+
+
+@pytest.mark.slow
+@pytest.mark.no_other_graph
+def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
+        tmp_path: Path) -> None:
+    """Issue 54: the tool pushes into a wall for 3 s, then a joint jams now and then.
+
+    Through the wall no joint may be declared anything but healthy (the efforts the
+    physics plant reports, less gravity, are a force on the tool); once it is removed the
+    goal is reached. Then joint 4 jams for 0.5 s in every second: named locked, alone,
+    on `ft/locked_joints` and `ft/joint_health`.
+    """
+    from ft_core.faults import Fault
+
+    arm = robots.load("panda_inertial", tip_link="panda_link8")
+    with graph(tmp_path, parameters(tmp_path, PHYSICS_PLANT, **PHYSICS_MODEL)) as g:
+        g.spin(2.0, goal_period=1.5)
+        observing(g)
+        g.send_goal(0)
+        g.spin(4.0)
+        start, goal = _tool(g, arm), np.array(GOALS[1])
+        assert np.linalg.norm(start - np.array(GOALS[0])) < 0.01, start
+        g.place_obstacle(_wall_between(start, goal), (0.6, 0.6, 0.02))
+        g.spin(0.5)
+        g.send_goal(1)
+        g.spin(3.0)
+        stopped = _tool(g, arm)
+        assert np.linalg.norm(stopped - goal) > 0.1, "the wall did not hold the tool"
+        assert g.health, "no ft/joint_health"
+        assert g.ever_unhealthy() == set() and g.ever_locked() == set(), (
+            g.log("monitor")[-3000:])
+        g.remove_obstacle()
+        g.spin(4.0)
+        assert np.linalg.norm(_tool(g, arm) - goal) < 0.01, "goal not reached after the wall"
+        g.inject_fault(Fault("intermittent", "panda_joint4", period=0.5))
+        g.wait(lambda: g.locked_names() == ["panda_joint4"], 8.0, "panda_joint4 named",
+               goal_period=1.5)
+        g.wait(lambda: g.joint_health().get("panda_joint4") is not None
+               and g.joint_health()["panda_joint4"].state == "locked", 2.0,
+               "panda_joint4 locked on ft/joint_health")
+        g.spin(2.0, goal_period=1.5)
+        assert g.ever_locked() == {"panda_joint4"}
+        assert g.ever_unhealthy() == {"panda_joint4"}, g.log("monitor")[-3000:]
+        assert "driver reflex" not in g.log("sim"), g.log("sim")[-3000:]
 
 
 @pytest.mark.slow

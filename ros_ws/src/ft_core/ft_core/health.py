@@ -16,8 +16,12 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # the detector's package, not loaded where only health is read
+    from ft_core.detection.evidence import JointEvidence
 
 
 class Health(enum.StrEnum):
@@ -133,3 +137,27 @@ class HealthBoard:
         """`joint`'s `JointHealth`, with the measured share, margin and range given."""
         return JointHealth(self.states[joint], follows, torque_margin, lower, upper,
                            self.since[joint], self.braked[joint], self.evidence[joint])
+
+
+class JointCondition(enum.StrEnum):
+    """A joint's state for diagnostics (`JointReport.state`)."""
+
+    OK = "ok"
+    LOCKED = "locked"
+    FREE_SWINGING = "free-swinging"
+    AT_LIMIT = "stalled at a joint limit"
+    DEGRADED = "degraded"
+
+
+@dataclass(frozen=True)
+class JointReport:
+    """One joint's state for diagnostics.
+
+    Attributes:
+        state: ok, degraded, locked, free-swinging or stalled at a joint limit
+            (`JointCondition`).
+        evidence: the detector's evidence at its last update (a copy).
+    """
+
+    state: JointCondition
+    evidence: JointEvidence

@@ -25,16 +25,13 @@ converts messages, runs the watchdog and publishes; everything between is here.
   likewise only grows until `reset` (a locked joint that moves on its own is
   free-swinging and locked again where it is).
 - **Declared failures and reset** (`declare`, `reset`).
-- **Persist, then announce, without waiting for the disk.** A change of the locked
-  set takes effect at once in the command filter, and is written to its file
-  (`ft_core.locked_set`: one write in place and an fdatasync) by a writer thread: the
-  command path never waits for the disk (an fsync under load took seconds). The
-  `Change` a call returns holds only what is on disk by then, its own change or earlier
-  ones (`settled`, which the node calls as the writer says a write ended, hands over
-  the rest once written); the set to publish is `announced`, the set last written.
-  Our reading of "persist, then announce" for releases: `reset` is answered at once
-  and its empty set published once written, like any change; a crash in between
-  restores the released joints as locked, the safe side.
+- **Persist, then announce, without waiting for the disk** (docs/monitor.md). A change
+  of the locked set takes effect at once in the command filter, and is written to its
+  file (`ft_core.locked_set`) by a writer thread. The `Change` a call returns holds only
+  what is on disk by then (`settled` hands over the rest once written); the set to
+  publish is `announced`, the set last written. `reset` is answered at once and its
+  empty set published once written; a crash in between restores the released joints as
+  locked, the safe side.
 
 Each `Change` says whether the announced set changed (`Change.changed`) and carries
 the lines to log (`Change.events`, errors, about the arm); problems with the state
@@ -43,7 +40,6 @@ file go to `report` as with the controller's core.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
@@ -61,8 +57,8 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
-from ft_core.detection.contact import explained_by_contact
-from ft_core.health import Health, HealthBoard, JointHealth
+from ft_core.detection.contact import in_contact
+from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
 from ft_core.smoothing import Smoother
@@ -121,30 +117,6 @@ class Change:
         """Several changes as one, in order."""
         return Change(any(c.changed for c in changes), [e for c in changes for e in c.events],
                       changes[-1].time if changes else math.nan)
-
-
-class JointCondition(enum.StrEnum):
-    """A joint's state for diagnostics (`JointReport.state`)."""
-
-    OK = "ok"
-    LOCKED = "locked"
-    FREE_SWINGING = "free-swinging"
-    AT_LIMIT = "stalled at a joint limit"
-    DEGRADED = "degraded"
-
-
-@dataclass(frozen=True)
-class JointReport:
-    """One joint's state for diagnostics.
-
-    Attributes:
-        state: ok, degraded, locked, free-swinging or stalled at a joint limit
-            (`JointCondition`).
-        evidence: the detector's evidence at its last update (a copy).
-    """
-
-    state: JointCondition
-    evidence: JointEvidence
 
 
 class Monitor:
@@ -380,21 +352,10 @@ class Monitor:
         return self.detector.contact
 
     def _contact(self, joints: list[int], _since: float) -> str | None:
-        """Why stalled `joints` are in contact and not failed, or None.
-
-        The efforts less the gravity torques, against a force on the tool
-        (`detection.contact.explained_by_contact`).
-        """
+        """Why stalled `joints` are in contact and not failed, or None (`detection.contact`)."""
         if self.effort is None or self.q is None:
             return None
-        external = self.effort - self.robot.gravity_dynamics(self.q)[0]
-        jacobian = self.robot.base_jacobian(self.q)[:3]
-        contact, by_force, by_locks = explained_by_contact(external, jacobian, joints)
-        if not contact:
-            return None
-        names = [self.robot.joint_names[j] for j in joints]
-        return (f"{names} stalled by a force on the tool, not locked: it explains "
-                f"{by_force:.0%} of the efforts' change, the stalled joints {by_locks:.0%}")
+        return in_contact(self.robot, self.q, self.effort, joints)
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.

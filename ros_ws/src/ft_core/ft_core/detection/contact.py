@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from ft_core.robots import Robot
+
 #: Least share of the external torques a tool force must explain for contact.
 CONTACT_SHARE = 0.8
 #: N m, the smallest external torque (norm over the joints) that says anything.
@@ -52,3 +54,19 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
     by_force = 1.0 - float(residual @ residual) / total
     by_locks = float(external[stalled] @ external[stalled]) / total
     return by_force >= CONTACT_SHARE and by_force > by_locks, by_force, by_locks
+
+
+def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int]) -> str | None:
+    """Why the `stalled` joints are held by a force on the tool, not failed; None if not.
+
+    At the configuration `q` (rad) with the drives' `effort` (N m); the arm's URDF must
+    have inertias (gravity torques).
+    """
+    external = effort - robot.gravity_dynamics(q)[0]
+    contact, by_force, by_locks = explained_by_contact(external, robot.base_jacobian(q)[:3],
+                                                       stalled)
+    if not contact:
+        return None
+    names = [robot.joint_names[j] for j in stalled]
+    return (f"{names} stalled by a force on the tool, not locked: it explains "
+            f"{by_force:.0%} of the external torques, the stalled joints {by_locks:.0%}")
