@@ -76,6 +76,9 @@ class Run:
     named: str = "healthy"  #: the faulty joint's first declared state
     delay: float = math.nan  #: s from the fault (the second's, for a second lock) to it
     second_delay: float = math.nan  #: s from the second lock to its declaration
+    #: s from the first command of at least `MOVING` to the second locked joint to its
+    #: declaration (a lock shows only while its joint is commanded)
+    second_commanded_delay: float = math.nan
     least_share: float = math.nan  #: the faulty joint's smallest share after the fault
     others: list[str] = field(default_factory=list)  #: healthy joints declared
     goals: int = 0
@@ -107,16 +110,20 @@ def run_one(kind: str, severity: float, label: str, driver: str, joint: int) -> 
     loop.goal_period = AFTER_PERIOD  # from the next goal on
     start, board, names = loop.t, loop.monitor.board, loop.robot.joint_names
     shares, second_at, goals = [], math.inf if kind != "second" else start + severity, {}
+    commanded_at = math.inf  # when the second locked joint was first commanded
     for _ in range(round(AFTER / loop.dt)):
         if loop.t >= second_at and second not in loop.plant.locked:
             loop.plant.lock(second)
             second_at = loop.t
         loop.run(loop.dt)
+        if loop.t >= second_at and abs(loop.sent[second]) >= MOVING:
+            commanded_at = min(commanded_at, loop.t)
         if result.named == "healthy" and board.states[joint] != Health.HEALTHY:
             result.named, result.delay = str(board.states[joint]), loop.t - start
         if (kind == "second" and math.isnan(result.second_delay)
                 and board.states[second] != Health.HEALTHY and loop.t >= second_at):
             result.second_delay = loop.t - second_at
+            result.second_commanded_delay = loop.t - min(commanded_at, loop.t)
         share = loop.monitor.detector.follow.shares[joint]
         if not math.isnan(share):
             shares.append(float(share))
@@ -163,6 +170,7 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
             continue
         right = [r for r in rows if _named_right(r)]
         delays = [1e3 * (r.second_delay if r.kind == "second" else r.delay) for r in right]
+        commanded = [1e3 * r.second_commanded_delay for r in right if r.kind == "second"]
         named: dict[str, int] = {}
         for r in rows:
             named[r.named] = named.get(r.named, 0) + 1
@@ -171,7 +179,9 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
         lines.append(
             f"| {label} | {len(rows)} | {len(right)} | "
             + ", ".join(f"{k} {v}" for k, v in sorted(named.items())) + " | "
-            f"{_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f} | "
+            f"{_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f}"
+            + (f" ({_percentile(commanded, 50):.0f} / {_percentile(commanded, 99):.0f} from "
+               "its first command)" if commanded else "") + " | "
             f"{np.median(shares) if shares else math.nan:.2f} | "
             f"{sum(r.named != 'healthy' for r in slowed)} of {len(slowed)} | "
             f"{sum(bool(r.others) for r in rows)} | "

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots
-from ft_core.detection.contact import MIN_TORQUE, explained_by_contact, in_contact
+from ft_core.detection.contact import MIN_TORQUE, driven, explained_by_contact, in_contact
+from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_sim.closed_loop import DRIVERS, ClosedLoop
 
@@ -83,3 +84,22 @@ def test_a_lock_while_pushing_is_named_at_the_latest_once_the_tool_leaves_the_wa
     loop.plant.remove_obstacle()
     loop.run(4.0)
     assert _declared(loop) == {loop.robot.joint_names[joint]: "locked"}
+
+
+def test_a_drive_that_gives_torque_is_driving_its_joint() -> None:
+    gravity = PANDA.gravity_dynamics(Q)[0]
+    assert driven(PANDA, Q, gravity, 1)  # holding its link up
+    assert not driven(PANDA, Q, 0.1 * gravity, 1)  # lost its torque
+    assert not driven(PANDA, Q, np.zeros(7), 6)  # none, where gravity is small anyway
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+def test_an_intermittent_jam_is_locked_and_stays_locked_when_it_lets_go(driver: str) -> None:
+    """Joint 3 jams for 1 s in every 2 s: locked, not free-swinging when its servo catches up."""
+    loop = ClosedLoop("position", DRIVERS[driver], seed=2)
+    loop.run(4.0)
+    loop.plant.inject(2, Fault(FaultKind.INTERMITTENT, "panda_joint3", period=1.0))
+    loop.run(8.0)
+    assert _declared(loop) == {"panda_joint3": "locked"}
+    assert loop.declared, "the jam was not named"
+    assert all(names == ["panda_joint3"] for _, names in loop.declared)  # never released

@@ -57,7 +57,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
-from ft_core.detection.contact import in_contact
+from ft_core.detection.contact import driven, in_contact
 from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
@@ -309,11 +309,18 @@ class Monitor:
         brake, board = self.config.brake_free_swinging, self.board
         for j in update.swinging:
             evidence = joints[j]
-            line = (f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
-                    f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}")
             # Declared locked once, it stays in the locked set (no flapping): a swing that
             # takes the detector's lock back is braked again where the joint is now.
             stays = j in update.released
+            if stays and self._driven(j, q):
+                line = (f"joint {names[j]} moved again after its lock (t = {now:.3f} s) with "
+                        "its drive's torque: a jam that let go; it stays locked")
+                change.events.append(line)
+                board.declare(j, Health.LOCKED, now, line)
+                self.detector.lock(j, float(q[j]), now)
+                continue
+            line = (f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
+                    f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}")
             change.events.append(line + ("; declaring it locked where it is (brake)" if brake
                                          else "; it stays locked" if stays else ""))
             board.declare(j, Health.FREE_SWINGING, now, line, braked=brake or stays)
@@ -356,6 +363,11 @@ class Monitor:
         if self.effort is None or self.q is None:
             return None
         return in_contact(self.robot, self.q, self.effort, joints)
+
+    def _driven(self, joint: int, q: np.ndarray) -> bool:
+        """Whether `joint`'s drive gives torque at q (`detection.contact.driven`)."""
+        return (self.effort is not None and self.robot.has_inertias
+                and driven(self.robot, q, self.effort, joint))
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.

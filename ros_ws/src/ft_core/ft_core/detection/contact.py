@@ -18,6 +18,10 @@ torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R
 and they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m). A lock
 while the tool pushes leaves its own joint's torque unexplained by a tool force, and is
 named when that is most of it. Without efforts or inertias nothing is vetoed.
+
+The efforts also tell a joint that moved again after its lock with its drive's torque (a
+jam that let go, its servo catching up: `driven`) from one whose drive lost its torque
+(a free swing).
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from ft_core.robots import Robot
 CONTACT_SHARE = 0.8
 #: N m, the smallest external torque (norm over the joints) that says anything.
 MIN_TORQUE = 5.0
+#: Share of the gravity torque a drive must give to be driving its joint (`driven`).
+DRIVEN_SHARE = 0.3
 
 
 def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
@@ -70,3 +76,13 @@ def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[in
     names = [robot.joint_names[j] for j in stalled]
     return (f"{names} stalled by a force on the tool, not locked: it explains "
             f"{by_force:.0%} of the external torques, the stalled joints {by_locks:.0%}")
+
+
+def driven(robot: Robot, q: np.ndarray, effort: np.ndarray, joint: int) -> bool:
+    """Whether `joint`'s drive gives torque at q (rad) by the `effort` reported (N m).
+
+    A drive that lost its torque gives none against the gravity torque g(q); one that
+    gives at least `DRIVEN_SHARE` of it and 1 N m moves its joint itself.
+    """
+    gravity = abs(float(robot.gravity_dynamics(q)[0][joint]))
+    return abs(float(effort[joint])) >= max(DRIVEN_SHARE * gravity, 1.0)
