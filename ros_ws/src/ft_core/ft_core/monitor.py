@@ -57,7 +57,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
-from ft_core.detection.contact import driven, in_contact
+from ft_core.detection.contact import ContactWatch, driven, in_contact
 from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
@@ -67,8 +67,6 @@ from ft_core.smoothing import Smoother
 Report = Callable[..., None]
 #: s `close` waits for the locked set's last write.
 CLOSE_TIMEOUT = 2.0
-#: s between two looks at whether the tool is in contact (`detection.contact`).
-CONTACT_PERIOD = 0.02
 #: s without being observable after which a joint counts as unseen (`Monitor.unseen`).
 UNSEEN_AFTER = 5.0
 
@@ -144,7 +142,7 @@ class Monitor:
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
-        self._touch_checked = -math.inf  # s, when contact was last looked at
+        self._touch = ContactWatch()
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
@@ -295,10 +293,8 @@ class Monitor:
         self.effort = effort
         if effort is not None:
             self.board.effort(now, effort)
-            if now - self._touch_checked >= CONTACT_PERIOD and self.robot.has_inertias:
-                self._touch_checked = now
-                if self._contact([], now) is not None:  # a stall then says nothing of a drive
-                    self.detector.follow.forget(list(range(self.robot.n)))
+            if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now):
+                self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q),

@@ -36,6 +36,11 @@ from ft_core.robots import Robot
 CONTACT_SHARE = 0.8
 #: N m, the smallest external torque (norm over the joints) that says anything.
 MIN_TORQUE = 5.0
+#: s between two looks at whether the tool is in contact (`ContactWatch`).
+CONTACT_PERIOD = 0.02
+#: s after a contact during which the joints' motion still says nothing of their drives
+#: (the arm leaving the obstacle, its servos catching up).
+AFTER_CONTACT = 1.0
 #: Share of the gravity torque a drive must give to be driving its joint (`driven`).
 DRIVEN_SHARE = 0.3
 
@@ -86,3 +91,23 @@ def driven(robot: Robot, q: np.ndarray, effort: np.ndarray, joint: int) -> bool:
     """
     gravity = abs(float(robot.gravity_dynamics(q)[0][joint]))
     return abs(float(effort[joint])) >= max(DRIVEN_SHARE * gravity, 1.0)
+
+
+class ContactWatch:
+    """Whether the tool is in contact, or was within `AFTER_CONTACT` s.
+
+    Looked at every `CONTACT_PERIOD` s: the joints' shares of their commands then say
+    nothing of their drives (`ft_core.detection.follow`).
+    """
+
+    def __init__(self) -> None:
+        self._looked = -math.inf  # s, when contact was last looked at
+        self._touched = -math.inf  # s, when the tool was last seen in contact
+
+    def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float) -> bool:
+        """Whether the tool is or was lately in contact at `now` (s), by `in_contact`."""
+        if now - self._looked >= CONTACT_PERIOD:
+            self._looked = now
+            if in_contact(robot, q, effort, []) is not None:
+                self._touched = now
+        return now - self._touched < AFTER_CONTACT
