@@ -142,7 +142,7 @@ class Monitor:
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
-        self._touch = ContactWatch()
+        self._touch = ContactWatch(robot)
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)

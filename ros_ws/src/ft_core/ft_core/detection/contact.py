@@ -41,6 +41,11 @@ CONTACT_PERIOD = 0.02
 #: s after a contact during which the joints' motion still says nothing of their drives
 #: (the arm leaving the obstacle, its servos catching up).
 AFTER_CONTACT = 1.0
+#: Least external torque, as a share of the effort limits (norm over the joints), for
+#: `ContactWatch` to see contact with no joint stalled: above what the servos' transients
+#: give in free motion (at most 0.13 of the Panda's limits on the physics plant, against
+#: 0.2 and more pushing into a wall).
+WATCH_SHARE = 0.15
 #: Share of the gravity torque a drive must give to be driving its joint (`driven`).
 DRIVEN_SHARE = 0.3
 
@@ -67,13 +72,16 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
     return by_force >= CONTACT_SHARE and by_force > by_locks, by_force, by_locks
 
 
-def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int]) -> str | None:
+def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
+               least: float = MIN_TORQUE) -> str | None:
     """Why the `stalled` joints are held by a force on the tool, not failed; None if not.
 
-    At the configuration `q` (rad) with the drives' `effort` (N m); the arm's URDF must
-    have inertias (gravity torques).
+    At the configuration `q` (rad) with the drives' `effort` (N m), an external torque of
+    at least `least` N m; the arm's URDF must have inertias (gravity torques).
     """
     external = effort - robot.gravity_dynamics(q)[0]
+    if not float(external @ external) >= least ** 2:
+        return None
     contact, by_force, by_locks = explained_by_contact(external, robot.base_jacobian(q)[:3],
                                                        stalled)
     if not contact:
@@ -100,14 +108,18 @@ class ContactWatch:
     nothing of their drives (`ft_core.detection.follow`).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, robot: Robot) -> None:
+        limits = robot.effort_limits
+        #: N m: `WATCH_SHARE` of the effort limits (no watch without finite limits)
+        self.least = (WATCH_SHARE * float(np.linalg.norm(limits)) if np.isfinite(limits).all()
+                      else math.inf)
         self._looked = -math.inf  # s, when contact was last looked at
         self._touched = -math.inf  # s, when the tool was last seen in contact
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float) -> bool:
         """Whether the tool is or was lately in contact at `now` (s), by `in_contact`."""
-        if now - self._looked >= CONTACT_PERIOD:
+        if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
-            if in_contact(robot, q, effort, []) is not None:
+            if in_contact(robot, q, effort, [], self.least) is not None:
                 self._touched = now
         return now - self._touched < AFTER_CONTACT
