@@ -84,6 +84,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/engine_scaling.py --out bench_out
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 	$(BIN)/python bench/detection.py --out bench_out
+	$(BIN)/python bench/faults.py --out bench_out
 	$(BIN)/python bench/soak.py --out bench_out
 	$(BIN)/python bench/observability.py --out bench_out
 	$(BIN)/python bench/recovery.py --out bench_out

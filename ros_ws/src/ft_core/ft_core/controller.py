@@ -64,6 +64,7 @@ from ft_core.targets import (
     TwistTarget,
     norm,
     pose_velocity,
+    stale_state,
     staleness_scale,
 )
 from ft_core.task_channel import TaskChannel
@@ -124,18 +125,6 @@ class Step:
     suspect: int | None = None
     new_suspect: bool = False
     announce: bool = False
-
-
-#: s: a joint state this much older than the node's clock is stamped by another clock.
-OTHER_CLOCK = 86400.0
-
-
-def stale_state(age: float) -> str:
-    """Why a joint state `age` s old stops the arm (another clock's, or just old)."""
-    if age > OTHER_CLOCK:
-        return (f"joint states are stamped {age:.0f} s before this node's clock: another "
-                "clock's (use_sim_time set on one node and not on the other?)")
-    return f"no joint state for {age:.3f} s"
 
 
 #: Reports a problem of a named input (None: solved), `warning` for a WARN, not an ERROR.
