@@ -101,6 +101,14 @@ def _fault(kind: str, severity: float, loop: ClosedLoop, joint: int) -> Fault:
 def run_one(kind: str, severity: float, label: str, driver: str, joint: int) -> Run:
     """Inject one fault of the grid on `joint` behind `driver`; its outcome."""
     loop = ClosedLoop("position", DRIVERS[driver], seed=joint)
+    try:
+        return _run(loop, kind, severity, label, driver, joint)
+    finally:
+        loop.close()
+
+
+def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
+         joint: int) -> Run:
     loop.run(HEALTHY)
     loop.run(3 * GOAL_PERIOD, stop=lambda: min(abs(loop.plant.qd[joint]),
                                                abs(loop.sent[joint])) > MOVING)
@@ -142,13 +150,16 @@ def healthy_minutes(driver: str, minutes: float) -> dict[str, float]:
     """Declarations in `minutes` of healthy goals behind `driver`."""
     loop = ClosedLoop("position", DRIVERS[driver], seed=99)
     declared: list[str] = []
-    for _ in range(round(minutes * 60 / 10)):
-        loop.run(10.0)
-        declared += [loop.robot.joint_names[j] for j, s in enumerate(loop.monitor.board.states)
-                     if s != Health.HEALTHY]
-        if declared:  # an operator's ~/reset, and on
-            loop.monitor.reset(loop.t)
-            loop.controller.set_locked([])
+    try:
+        for _ in range(round(minutes * 60 / 10)):
+            loop.run(10.0)
+            declared += [loop.robot.joint_names[j]
+                         for j, s in enumerate(loop.monitor.board.states) if s != Health.HEALTHY]
+            if declared:  # an operator's ~/reset, and on
+                loop.monitor.reset(loop.t)
+                loop.controller.set_locked([])
+    finally:
+        loop.close()
     return {"driver": driver, "minutes": minutes, "declared": len(declared),
             "joints": sorted(set(declared))}
 

@@ -89,6 +89,11 @@ class ClosedLoop:
         """The distance (m) between the tool and the current goal."""
         return float(np.linalg.norm(self.robot.transform(self.plant.q)[:3, 3] - self.goal))
 
+    def close(self) -> None:
+        """End the controller's worker process and the monitor's writer thread."""
+        self.controller.close()
+        self.monitor.close()
+
     def run(self, seconds: float, stop: Callable[[], bool] = lambda: False) -> None:
         """Cycle for `seconds`, a goal every `goal_period`, until `stop()`."""
         for _ in range(round(seconds / self.dt)):
