@@ -11,10 +11,12 @@ all). A second lock follows the first on joint (j + 3) mod 6 after 0, 2 or 5 s.
 
 Per run: the state the monitor first declared the faulty joint in and when (s after the
 fault), its smallest share of the command after the fault (`follows`), every other
-joint declared (a healthy joint declared: as bad as a missed failure), and the goals
-after the fault the tool came within 1 cm of. Healthy motion: `--healthy-minutes` per
-driver, every declaration counted. The loop runs in simulated time: its figures do not
-depend on the machine's load (the nodes under load: tests/processes).
+joint declared (a healthy joint declared: as bad as a missed failure), the goals after
+the fault the tool came within 1 cm of, and how many of them the arm could still reach
+with its failed joints held where they ended (`ft_core.recovery.reachable`). Healthy
+motion: `--healthy-minutes` per driver, every declaration counted. The loop runs in
+simulated time: its figures do not depend on the machine's load (the nodes under load:
+tests/processes).
 
 Writes `<out>/faults.md`, `<out>/faults.json` and `<out>/faults.png`.
 """
@@ -33,6 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from engine_cycle import machine, report
+from ft_core import recovery
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, ClosedLoop
@@ -50,6 +53,8 @@ AFTER = (GOALS_AFTER + 1) * AFTER_PERIOD
 MOVING = 0.1
 #: m within which a goal counts as reached.
 REACHED = 0.01
+#: Inverse-kinematics starts for whether a goal not reached was still reachable.
+REACH_ATTEMPTS = 20
 #: The grid's conditions: (kind, severity or period or cut, label).
 CONDITIONS = ([("lock", math.nan, "lock"), ("free_swing", math.nan, "free swing")]
               + [("viscous", s, f"viscous {s:g}") for s in (5.0, 20.0, 50.0)]
@@ -83,6 +88,8 @@ class Run:
     others: list[str] = field(default_factory=list)  #: healthy joints declared
     goals: int = 0
     reached: int = 0
+    #: goals the arm could still reach, its failed joints held where they ended
+    reachable: int = 0
 
 
 def _fault(kind: str, severity: float, loop: ClosedLoop, joint: int) -> Fault:
@@ -119,6 +126,7 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     start, board, names = loop.t, loop.monitor.board, loop.robot.joint_names
     shares, second_at, goals = [], math.inf if kind != "second" else start + severity, {}
     commanded_at = math.inf  # when the second locked joint was first commanded
+    where: dict[int, np.ndarray] = {}  # each goal's position (m)
     for _ in range(round(AFTER / loop.dt)):
         if loop.t >= second_at and second not in loop.plant.locked:
             loop.plant.lock(second)
@@ -137,12 +145,17 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
             shares.append(float(share))
         if loop.goal_sent_at >= start and len(goals) <= GOALS_AFTER:  # sent after the fault
             goals[loop.goals] = min(goals.get(loop.goals, math.inf), loop.tool_error())
+            where[loop.goals] = loop.goal
     faulty = {joint, second} if kind == "second" else {joint}
     result.others = [names[j] for j, s in enumerate(board.states)
                      if s != Health.HEALTHY and j not in faulty]
     result.least_share = min(shares, default=math.nan)
     counted = sorted(goals)[:GOALS_AFTER]
     result.goals, result.reached = len(counted), sum(goals[g] < REACHED for g in counted)
+    q, failed = loop.plant.q, sorted({*loop.plant.locked, *loop.plant.swinging})
+    result.reachable = result.reached + sum(
+        recovery.reachable(loop.robot, where[g], q, failed, [q], REACH_ATTEMPTS)
+        for g in counted if goals[g] >= REACHED)
     return result
 
 
@@ -173,7 +186,7 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
     """The markdown table of the grid, by condition."""
     lines = ["| fault | runs | named right | named as (first) | delay p50 / p99 (ms) | "
              "least share (median) | slowed below half: named | healthy joints declared | "
-             "goals reached after |",
+             "goals reached after (of those still reachable) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for _kind, _severity, label in CONDITIONS:
         rows = [r for r in runs if r.label == label]
@@ -196,7 +209,8 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
             f"{np.median(shares) if shares else math.nan:.2f} | "
             f"{sum(r.named != 'healthy' for r in slowed)} of {len(slowed)} | "
             f"{sum(bool(r.others) for r in rows)} | "
-            f"{sum(r.reached for r in rows)} of {sum(r.goals for r in rows)} |")
+            f"{sum(r.reached for r in rows)} of {sum(r.goals for r in rows)} "
+            f"({sum(r.reachable for r in rows)}) |")
     lines += ["", "| driver | healthy minutes | declarations |", "|---|---|---|"]
     lines += [f"| {h['driver']} | {h['minutes']:g} | {h['declared']} {h['joints'] or ''} |"
               for h in healthy]

@@ -407,19 +407,24 @@ def _tool(g: Graph, arm: robots.Robot) -> np.ndarray:
 
 @pytest.mark.slow
 @pytest.mark.no_other_graph
+@pytest.mark.parametrize("loaded", [False, True], ids=["idle", "loaded"])
 def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
-        tmp_path: Path) -> None:
+        tmp_path: Path, loaded: bool) -> None:
     """Issue 54: the tool pushes into a wall for 3 s, then a joint jams now and then.
 
     Through the wall no joint may be declared anything but healthy (the efforts the
     physics plant reports, less gravity, are a force on the tool); once it is removed the
     goal is reached. Then joint 4 jams for 0.5 s in every second: named locked, alone,
-    on `ft/locked_joints` and `ft/joint_health`.
+    on `ft/locked_joints` and `ft/joint_health`. Once on an idle machine, once with a
+    busy process on every core.
     """
+    from contextlib import nullcontext
+
     from ft_core.faults import Fault
 
     arm = robots.load("panda_inertial", tip_link="panda_link8")
-    with graph(tmp_path, parameters(tmp_path, PHYSICS_PLANT, **PHYSICS_MODEL)) as g:
+    with graph(tmp_path, parameters(tmp_path, PHYSICS_PLANT, **PHYSICS_MODEL)) as g, \
+            (busy_cores() if loaded else nullcontext()):
         g.spin(2.0, goal_period=1.5)
         observing(g)
         g.send_goal(0)
@@ -439,7 +444,7 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
         g.spin(4.0)
         assert np.linalg.norm(_tool(g, arm) - goal) < 0.01, "goal not reached after the wall"
         g.inject_fault(Fault("intermittent", "panda_joint4", period=0.5))
-        g.wait(lambda: g.locked_names() == ["panda_joint4"], 8.0, "panda_joint4 named",
+        g.wait(lambda: g.locked_names() == ["panda_joint4"], 15.0, "panda_joint4 named",
                goal_period=1.5)
         g.wait(lambda: g.joint_health().get("panda_joint4") is not None
                and g.joint_health()["panda_joint4"].state == "locked", 2.0,
