@@ -24,6 +24,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import Marker
 
 #: The ROS 2 distro of the message definitions (rosbags' type store) and of the metadata.
 DISTRO = "jazzy"
@@ -36,6 +37,9 @@ TOPICS = (
     (names.COMMAND, JointState, qos.SENSOR_INPUT),
     (names.LOCKED_JOINTS, JointState, qos.LATCHED),
     (names.INJECT_FAILURE, JointState, qos.RELIABLE),
+    (names.INJECT_FAULT, DiagnosticArray, qos.RELIABLE),
+    (names.OBSTACLE, Marker, qos.RELIABLE),
+    (names.JOINT_HEALTH, DiagnosticArray, qos.LATCHED),
     (names.METRICS, Float64MultiArray, qos.RELIABLE),
     (names.DIAGNOSTICS, DiagnosticArray, qos.RELIABLE),
 )
