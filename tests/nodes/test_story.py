@@ -37,8 +37,8 @@ def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> No
     metadata = yaml.safe_load((tmp_path / "bag" / "metadata.yaml").read_text())
     assert metadata["rosbag2_bagfile_information"]["ros_distro"] == "jazzy"
     assert set(topics) == {"/joint_states", "/ft/target_pose", "/ft/command_raw", "/ft/command",
-                           "/ft/locked_joints", "/ft/inject_failure", "/ft/metrics",
-                           "/diagnostics"}
+                           "/ft/locked_joints", "/ft/joint_health", "/ft/inject_failure",
+                           "/ft/inject_fault", "/ft/obstacle", "/ft/metrics", "/diagnostics"}
     assert len(topics["/joint_states"]) > 1000  # 250 Hz for several simulated seconds
     (injected_ns, injection), = topics["/ft/inject_failure"]
     assert list(injection.name) == ["panda_joint4"]
@@ -47,6 +47,9 @@ def test_the_demo_story_holds_and_its_recording_reads_back(tmp_path: Path) -> No
     assert 0 < locks[0][0] - injected_ns < 2e9  # logged in simulated time, after the lock
     detected = float(text.split("detected | panda_joint4 at ")[1].split(" s")[0])
     assert abs(locks[0][0] / 1e9 - detected) < 0.1
+    _, health = topics["/ft/joint_health"][-1]  # each joint's state, recorded as published
+    assert {s.name: s.message for s in health.status if s.message != "healthy"} == {
+        "panda_joint4": "locked"}
 
 
 def recorded(bag: Path) -> dict[str, list[tuple[int, object]]]:
