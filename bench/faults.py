@@ -8,6 +8,9 @@ held). Each run moves through healthy goals for 4 s, waits until the faulty join
 commanded and moves (at least 0.1 rad/s, as a lock shows only then), injects the fault
 (`ft_core.faults`) and runs on: the goal under way, then four goals, 3 s each (15 s in
 all). A second lock follows the first on joint (j + 3) mod 6 after 0, 2 or 5 s.
+Contact: the tool driven into a wall across its way to a fresh goal for 3 s, 10 times
+per driver (the least-share column then holds how far, m, the wall held the tool from
+its goal).
 
 Per run: the state the monitor first declared the faulty joint in and when (s after the
 fault), its smallest share of the command after the fault (`follows`), every other
@@ -55,6 +58,10 @@ MOVING = 0.1
 REACHED = 0.01
 #: Inverse-kinematics starts for whether a goal not reached was still reachable.
 REACH_ATTEMPTS = 20
+#: s the tool is held by a wall in a contact run.
+CONTACT = 3.0
+#: Contact runs per driver.
+CONTACTS = 10
 #: The grid's conditions: (kind, severity or period or cut, label).
 CONDITIONS = ([("lock", math.nan, "lock"), ("free_swing", math.nan, "free swing")]
               + [("viscous", s, f"viscous {s:g}") for s in (5.0, 20.0, 50.0)]
@@ -159,6 +166,43 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     return result
 
 
+def contact_run(driver: str, seed: int) -> Run:
+    """The tool held by a wall across its way for `CONTACT` s, then freed; the outcome.
+
+    Every joint declared counts as a healthy joint declared; the goal is reached once the
+    wall is gone.
+    """
+    loop = ClosedLoop("position", DRIVERS[driver], seed=seed)
+    try:
+        loop.run(HEALTHY + 0.3 * seed)
+        while loop.tool_error() < 0.12:  # a goal far enough away
+            loop.run(loop.dt)
+        loop.goal_period = CONTACT + AFTER_PERIOD  # the goal under way, held and reached
+        tool = loop.robot.transform(loop.plant.q)[:3, 3]
+        way = loop.goal - tool
+        normal = way / np.linalg.norm(way)
+        side = np.cross(normal, [0.0, 0.0, 1.0])
+        side /= np.linalg.norm(side)
+        pose = np.eye(4)
+        pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
+        pose[:3, 3] = tool + 0.4 * way + 0.01 * normal
+        loop.plant.place_obstacle(pose, np.array([0.6, 0.6, 0.02]))
+        loop.run(CONTACT)
+        held = loop.tool_error()
+        loop.plant.remove_obstacle()
+        loop.run(AFTER_PERIOD)
+        result = Run("contact", CONTACT, f"contact {CONTACT:g} s", driver, -1)
+        result.others = [loop.robot.joint_names[j]
+                         for j, state in enumerate(loop.monitor.board.states)
+                         if state != Health.HEALTHY]
+        result.least_share = held  # m: how far the wall held the tool from its goal
+        result.goals, result.reached = 1, int(loop.tool_error() < REACHED)
+        result.reachable = 1
+        return result
+    finally:
+        loop.close()
+
+
 def healthy_minutes(driver: str, minutes: float) -> dict[str, float]:
     """Declarations in `minutes` of healthy goals behind `driver`."""
     loop = ClosedLoop("position", DRIVERS[driver], seed=99)
@@ -188,7 +232,7 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
              "least share (median) | slowed below half: named | healthy joints declared | "
              "goals reached after (of those still reachable) |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for _kind, _severity, label in CONDITIONS:
+    for _kind, _severity, label in [*CONDITIONS, ("contact", CONTACT, f"contact {CONTACT:g} s")]:
         rows = [r for r in runs if r.label == label]
         if not rows:
             continue
@@ -231,6 +275,7 @@ def figure(runs: list[Run], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     labels = [label for _, _, label in CONDITIONS if any(r.label == label for r in runs)]
+    runs = [r for r in runs if r.kind != "contact"]  # nothing to name
     fig, ax = plt.subplots(figsize=(9, 4.5))
     for i, label in enumerate(labels):
         for r in (r for r in runs if r.label == label):
@@ -259,8 +304,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     cases = [(kind, severity, label, driver, joint) for kind, severity, label in CONDITIONS
              for driver in args.drivers for joint in args.joints]
+    contacts = [(driver, seed) for driver in args.drivers for seed in range(CONTACTS)]
     with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         runs = list(pool.map(run_one, *zip(*cases, strict=True)))
+        runs += list(pool.map(contact_run, *zip(*contacts, strict=True)))
         healthy = list(pool.map(healthy_minutes, args.drivers,
                                 [args.healthy_minutes] * len(args.drivers)))
     lines = table(runs, healthy)
