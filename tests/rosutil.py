@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import threading
@@ -42,6 +43,12 @@ def ros_context(shared: bool = False, executor_type: type[Executor] = LockStepEx
     try:
         yield context, executor
     finally:
+        # Destroyed here, not when garbage collected: a node alive after its context (a
+        # test's local, a thread's reference) keeps its DDS entities, and its latched
+        # locked set reached a later test's context in the same domain.
+        for node in executor.get_nodes():
+            with contextlib.suppress(Exception):  # destroyed by the test already
+                node.destroy_node()
         executor.shutdown()
         rclpy.shutdown(context=context)
 

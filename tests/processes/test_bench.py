@@ -183,3 +183,20 @@ def test_observability_benchmark_writes_its_outputs(tmp_path: Path) -> None:
     assert latency is None or latency > 0
     assert 0 < deviation < 0.01
     assert "| trials | detected |" in (tmp_path / "observability.md").read_text()
+
+
+def test_fault_grid_benchmark_names_a_lock_and_holds_a_contact(tmp_path: Path) -> None:
+    """`bench/faults.py`: one run of the grid, one contact, and the table and figure of them."""
+    faults = _bench_module("faults")
+    lock = faults.run_one("lock", float("nan"), "lock", "fast", 3)
+    assert (lock.named, lock.others) == ("locked", [])
+    assert 0 < lock.delay < 1.0 and lock.goals == 4 and lock.reachable >= lock.reached
+    contact = faults.contact_run("fast", 0)
+    assert contact.others == [] and contact.least_share > 0.05  # held off its goal
+    assert contact.reached == 1  # and reached once the wall was gone
+    lines = faults.table([lock, contact], [{"driver": "fast", "minutes": 0.0, "declared": 0,
+                                            "joints": []}])
+    assert lines[2].startswith("| lock | 1 | 1 | locked 1 |")
+    assert any(line.startswith("| contact 3 s | 1 |") for line in lines)
+    faults.figure([lock, contact], tmp_path / "faults.png")
+    assert (tmp_path / "faults.png").stat().st_size > 10_000
