@@ -246,6 +246,11 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
         for r in rows:
             named[r.named] = named.get(r.named, 0) + 1
         shares = [r.least_share for r in rows if math.isfinite(r.least_share)]
+        if rows[0].kind == "contact":  # nothing to name: only false declarations count
+            lines.append(f"| {label} | {len(rows)} | - | - | - | held {np.median(shares):.2f} m "
+                         f"from its goal | - | {sum(bool(r.others) for r in rows)} | "
+                         f"{sum(r.reached for r in rows)} of {len(rows)} (after the wall) |")
+            continue
         slowed = [r for r in rows if r.least_share < 0.5]
         lines.append(
             f"| {label} | {len(rows)} | {len(right)} | "
