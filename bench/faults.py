@@ -41,7 +41,7 @@ from engine_cycle import machine, report
 from ft_core import recovery
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
-from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, ClosedLoop
+from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, WALL, ClosedLoop, wall_across
 
 #: s of healthy goals before a fault (the monitor identifies the plant meanwhile).
 HEALTHY = 4.0
@@ -179,14 +179,7 @@ def contact_run(driver: str, seed: int) -> Run:
             loop.run(loop.dt)
         loop.goal_period = math.inf  # the goal under way: held by the wall, then reached
         tool = loop.robot.transform(loop.plant.q)[:3, 3]
-        way = loop.goal - tool
-        normal = way / np.linalg.norm(way)
-        side = np.cross(normal, [0.0, 0.0, 1.0])
-        side /= np.linalg.norm(side)
-        pose = np.eye(4)
-        pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
-        pose[:3, 3] = tool + 0.4 * way + 0.01 * normal
-        loop.plant.place_obstacle(pose, np.array([0.6, 0.6, 0.02]))
+        loop.plant.place_obstacle(wall_across(tool, loop.goal, beyond=0.01), np.array(WALL))
         loop.run(CONTACT)
         held = loop.tool_error()
         loop.plant.remove_obstacle()

@@ -389,17 +389,6 @@ def test_on_the_physics_plant_a_lock_is_found_and_healthy_motion_declares_nothin
         assert driver.peaks[1].max() > 0.1  # the stream was judged, and moved
 
 
-def _wall_between(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-    """The pose of a wall across the way from `start` to `goal`, 40 % of the way."""
-    normal = (goal - start) / np.linalg.norm(goal - start)
-    side = np.cross(normal, [0.0, 0.0, 1.0])
-    side /= np.linalg.norm(side)
-    pose = np.eye(4)
-    pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
-    pose[:3, 3] = start + 0.4 * (goal - start)
-    return pose
-
-
 def _tool(g: Graph, arm: robots.Robot) -> np.ndarray:
     """Where the tool point is by the newest joint state (m)."""
     return arm.transform(convert.joint_vector(g.states[-1], arm.joint_names))[:3, 3]
@@ -421,6 +410,7 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
     from contextlib import nullcontext
 
     from ft_core.faults import Fault
+    from ft_sim.closed_loop import WALL, wall_across
 
     arm = robots.load("panda_inertial", tip_link="panda_link8")
     with graph(tmp_path, parameters(tmp_path, PHYSICS_PLANT, **PHYSICS_MODEL)) as g, \
@@ -431,7 +421,7 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
         g.spin(4.0)
         start, goal = _tool(g, arm), np.array(GOALS[1])
         assert np.linalg.norm(start - np.array(GOALS[0])) < 0.01, start
-        g.place_obstacle(_wall_between(start, goal), (0.6, 0.6, 0.02))
+        g.place_obstacle(wall_across(start, goal), WALL)
         g.spin(0.5)
         g.send_goal(1)
         g.spin(3.0)

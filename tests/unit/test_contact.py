@@ -14,7 +14,7 @@ from ft_core import robots
 from ft_core.detection.contact import MIN_TORQUE, driven, explained_by_contact, in_contact
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
-from ft_sim.closed_loop import DRIVERS, ClosedLoop
+from ft_sim.closed_loop import DRIVERS, WALL, ClosedLoop, wall_across
 
 PANDA = robots.load("panda_inertial", tip_link="panda_link8", task_space="position")
 Q = PANDA.home()
@@ -46,14 +46,7 @@ def _push(driver: str, seed: int) -> ClosedLoop:
     while loop.tool_error() < 0.12:  # a goal far enough away
         loop.run(loop.dt)
     tool = loop.robot.transform(loop.plant.q)[:3, 3]
-    way = loop.goal - tool
-    normal = way / np.linalg.norm(way)
-    side = np.cross(normal, [0.0, 0.0, 1.0])
-    side /= np.linalg.norm(side)
-    pose = np.eye(4)
-    pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
-    pose[:3, 3] = tool + 0.4 * way + 0.01 * normal
-    loop.plant.place_obstacle(pose, np.array([0.6, 0.6, 0.02]))
+    loop.plant.place_obstacle(wall_across(tool, loop.goal, beyond=0.01), np.array(WALL))
     return loop
 
 

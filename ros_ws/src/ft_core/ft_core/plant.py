@@ -25,6 +25,7 @@ Times are seconds on the plant's clock; velocities rad/s (m/s for prismatic join
 
 from __future__ import annotations
 
+import abc
 import math
 from collections import deque
 from collections.abc import Callable
@@ -115,7 +116,7 @@ class CommandPath:
         return np.clip(velocity, -self.velocity_limits, self.velocity_limits)
 
 
-class BasePlant:
+class BasePlant(abc.ABC):
     """What every plant shares: the command path, the clock, the failed joints.
 
     Attributes:
@@ -148,17 +149,17 @@ class BasePlant:
         """A command arrived at `time` (s)."""
         self.path.command(time, velocity)
 
+    @abc.abstractmethod
     def position(self, joint: int) -> float:
         """Joint index `joint`'s position (rad)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def lock(self, joint: int) -> None:
         """Lock a joint where it is."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def swing(self, joint: int) -> None:
         """The joint's drive loses its torque."""
-        raise NotImplementedError
 
     def check_fault(self, joint: int, fault: Fault) -> None:
         """Raise `ft_core.faults.FaultError` if `fault` cannot act on joint index `joint`."""
@@ -182,7 +183,7 @@ class BasePlant:
             self.faults.add(joint, fault, self.t, stops)
             self._degrade(joint)
 
-    def _degrade(self, joint: int) -> None:
+    def _degrade(self, joint: int) -> None:  # noqa: B027 (a hook: most plants need none)
         """Make the faults in `self.faults` on joint index `joint` act (plants that must)."""
 
     def failures(self) -> dict[int, list[str]]:

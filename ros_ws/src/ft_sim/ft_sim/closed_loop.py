@@ -30,12 +30,31 @@ GOALS = ((0.5, 0.1, 0.4), (0.45, -0.15, 0.35), (0.4, 0.05, 0.55))
 GOAL_PERIOD = 1.5
 #: rad, the measured positions' noise (the sim's default in the deployment tests).
 NOISE = 1e-3
+#: m, the edges of the wall `wall_across` places (wide, thin).
+WALL = (0.6, 0.6, 0.02)
 #: s between the monitor's publications of every joint's health (its diagnostics period).
 HEALTH_PERIOD = 0.5
 #: Two drivers: a fast one and the slowest of the detection targets (50 ms latency, a 50 ms
 #: servo, the last command held).
 DRIVERS = {"fast": PlantConfig(latency=0.01, response_time=0.02),
            "slow": PlantConfig(latency=0.05, response_time=0.05, hold_last_command=True)}
+
+
+def wall_across(start: np.ndarray, goal: np.ndarray, share: float = 0.4,
+                beyond: float = 0.0) -> np.ndarray:
+    """The pose (4x4, base frame) of a wall of edges `WALL` across the way start -> goal (m).
+
+    Its centre `share` of the way along and `beyond` m further, its thin edge along the
+    way: a tool going straight to `goal` meets it.
+    """
+    way = np.asarray(goal, float) - np.asarray(start, float)
+    normal = way / np.linalg.norm(way)
+    side = np.cross(normal, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([side, np.cross(normal, side), normal])
+    pose[:3, 3] = np.asarray(start, float) + share * way + beyond * normal
+    return pose
 
 
 class ClosedLoop:
