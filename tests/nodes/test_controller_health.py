@@ -19,6 +19,7 @@ from geometry_msgs.msg import TwistStamped
 from rclpy.parameter import Parameter
 from rosutil import FakePlant, ros_context
 from std_msgs.msg import String
+from test_controller import controller_status  # the controller tests read it so
 
 PANDA = robots.load("panda")
 Q0 = np.array([0.4, 0.3, -0.5, -1.9, 0.6, 1.4, -0.2])
@@ -70,14 +71,6 @@ def twist_sender(plant: FakePlant, twist: np.ndarray = TWIST):
         publisher.publish(msg)
 
     return send
-
-
-def controller_status(plant: FakePlant):
-    for array in reversed(plant.diagnostics):
-        for status in array.status:
-            if status.name == "/controller":
-                return status
-    return None
 
 
 def test_a_degraded_joint_is_slowed_and_a_free_swinging_one_pinned() -> None:

@@ -11,26 +11,10 @@ from ft_core import robots
 from ft_core.faults import DRIVE_DAMPING, Fault, FaultError, FaultKind
 from ft_core.physics import TOOL_RADIUS, PhysicsPlant
 from ft_core.plant import Plant, PlantConfig
+from test_physics import DT, drive, unit  # the physics plant's own tests drive it so
 
 ARM = robots.load("panda_inertial")
-DT = 0.002  # the sim's default period (500 Hz)
 J4 = 3  # panda_joint4
-
-
-def drive(plant, command: np.ndarray, seconds: float) -> np.ndarray:
-    """Command `command` (rad/s) every period for `seconds`; the velocities (steps, n)."""
-    velocities = []
-    for _ in range(round(seconds / DT)):
-        plant.command(plant.t, command)
-        plant.step(plant.t + DT)
-        velocities.append(plant.qd)
-    return np.array(velocities)
-
-
-def unit(joint: int, value: float) -> np.ndarray:
-    u = np.zeros(ARM.n)
-    u[joint] = value
-    return u
 
 
 def physics(q: np.ndarray | None = None) -> PhysicsPlant:

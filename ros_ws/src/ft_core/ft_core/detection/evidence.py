@@ -107,12 +107,9 @@ def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
             needed = max(needed, persistence + settle)
         if now - evidence.swing_since >= needed:
             ready.append(j)
-    if ready and veto is not None:
-        reason = veto(ready, min(joints[j].swing_since or now for j in ready))
-        if reason is not None:
-            for j in ready:
-                joints[j].swing_since = now
-            return [], [], reason
+    reason = _vetoed(joints, ready, veto, "swing_since", now)
+    if reason is not None:
+        return [], [], reason
     released = [j for j in ready if joints[j].locked_at is not None]
     for j in ready:
         joints[j].swinging_at, joints[j].locked_at = now, None
@@ -137,15 +134,24 @@ def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Se
             evidence.evidence_since, evidence.evidence_late = now, disturbance.late(j)
         if now - evidence.evidence_since >= persistence + settle * evidence.evidence_late:
             ready.append(j)
-    if ready and veto is not None:
-        reason = veto(ready, min(joints[j].evidence_since or now for j in ready))
-        if reason is not None:
-            for j in ready:
-                joints[j].evidence_since = now
-            return [], reason
+    reason = _vetoed(joints, ready, veto, "evidence_since", now)
+    if reason is not None:
+        return [], reason
     for j in ready:
         evidence = joints[j]
         evidence.locked_at, evidence.position = now, float(latest[j])
         # Seen swinging before: should it move on its own again, it swings again.
         evidence.swinging_at = None
     return ready, None
+
+
+def _vetoed(joints: list[JointEvidence], ready: list[int], veto: Veto | None, since: str,
+            now: float) -> str | None:
+    """`veto`'s reason for the `ready` joints, whose evidence (field `since`) then starts anew."""
+    if not ready or veto is None:
+        return None
+    reason = veto(ready, min(getattr(joints[j], since) or now for j in ready))
+    if reason is not None:
+        for j in ready:
+            setattr(joints[j], since, now)
+    return reason
