@@ -119,6 +119,29 @@ def test_the_old_injection_topics_are_lock_and_free_swing() -> None:
         assert node.faults == {"panda_joint2": ["free_swing"], "panda_joint3": ["lock"]}
 
 
+def test_the_sim_brakes_a_swinging_joint_the_monitor_declares_locked() -> None:
+    """A driver acting on ft/locked_joints: braked where it is, freed when no longer declared."""
+    with sim() as (node, harness, executor, log):
+        declared = harness.create_publisher(JointState, names.LOCKED_JOINTS, qos.LATCHED)
+        node._on_free_swing(JointState(name=["panda_joint2"]))
+        for _ in range(20):
+            node.step()
+        declared.publish(JointState(name=["panda_joint2", "bogus"]))
+        assert spin_until(executor, lambda: node.swinging == [], 5.0), "not braked"
+        assert node.faults == {"panda_joint2": ["lock"]}
+        at = node.q[1]
+        for _ in range(100):
+            node.step()
+        assert abs(node.q[1] - at) < 1e-3
+        assert any("panda_joint2 braked" in w for w in log.warnings())
+        assert any("1 unknown joints rejected" in w for w in log.warnings())
+        declared.publish(JointState())  # the monitor's ~/reset
+        assert spin_until(executor, lambda: node.swinging == ["panda_joint2"], 5.0)
+        for _ in range(100):
+            node.step()
+        assert abs(node.q[1] - at) > 0.01  # it falls again
+
+
 def test_an_obstacle_is_placed_moved_and_removed_on_the_physics_plant() -> None:
     with sim() as (node, harness, executor, log):
         publisher = harness.create_publisher(Marker, names.OBSTACLE, qos.RELIABLE)

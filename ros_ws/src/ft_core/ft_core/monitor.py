@@ -58,6 +58,7 @@ from ft_core.detection import (
     compile_ahead,
 )
 from ft_core.detection.contact import ContactWatch, driven, in_contact
+from ft_core.detection.drives import DriveWatch
 from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
@@ -143,6 +144,7 @@ class Monitor:
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
         self._touch = ContactWatch(robot)
+        self._drives = DriveWatch(robot)
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
@@ -287,7 +289,8 @@ class Monitor:
                 effort: np.ndarray | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing.
 
-        `effort`: the joints' efforts (N m) where the driver reports them (torque margins).
+        `effort`: the joints' efforts (N m) where the driver reports them (torque margins,
+        contact, silent drives).
         """
         self.q = q
         self.effort = effort
@@ -296,10 +299,11 @@ class Monitor:
             if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now):
                 self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
+        silent = None if effort is None else self._drives.update(now, q, effort)
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q),
                                        self._contact if self.robot.has_inertias
-                                       and effort is not None else None)
+                                       and effort is not None else None, silent)
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
         brake, board = self.config.brake_free_swinging, self.board
@@ -355,9 +359,9 @@ class Monitor:
         return self.detector.contact
 
     def _contact(self, joints: list[int], _since: float) -> str | None:
-        """Why stalled `joints` are in contact and not failed, or None (`detection.contact`)."""
-        if self.effort is None or self.q is None:
-            return None
+        """Why stalled `joints` are in contact, not failed, or None (`detection.contact`)."""
+        if self.effort is None or self.q is None or self._drives.silent[joints].any():
+            return None  # a silent drive pushes against nothing (`detection.drives`)
         return in_contact(self.robot, self.q, self.effort, joints)
 
     def _driven(self, joint: int, q: np.ndarray) -> bool:
@@ -414,6 +418,7 @@ class Monitor:
         """
         released = sorted(self.locked)
         self.detector.reset()
+        self._drives.reset()
         self.board.reset()
         self._held.clear()
         self._hold(Change(True), now)

@@ -219,6 +219,13 @@ class PhysicsPlant(BasePlant):
         self._brake_on(joint)
         self.swinging.discard(joint)
 
+    def unlock(self, joint: int) -> None:
+        """Release one joint's brake (an intermittent jam's follows its own clock)."""
+        if self.locked.pop(joint, None) is not None:
+            self._data.eq_active[self._brake[joint]] = int(
+                joint in self.faults.braked(self._clock))
+            self._reference[joint] = self.position(joint)
+
     def _brake_on(self, joint: int) -> None:
         """Engage joint index `joint`'s brake where the joint is."""
         k = self._brake[joint]

@@ -134,6 +134,8 @@ class BasePlant(abc.ABC):
         self.t = time
         self.locked: dict[int, float] = {}
         self.swinging: set[int] = set()
+        #: free-swinging joints braked on the monitor's word (`follow_declared`)
+        self.held: set[int] = set()
         self.faults = FaultState(self.n)
 
     def configure(self, config: PlantConfig) -> None:
@@ -158,8 +160,30 @@ class BasePlant(abc.ABC):
         """Lock a joint where it is."""
 
     @abc.abstractmethod
+    def unlock(self, joint: int) -> None:
+        """Release the lock of one joint (its other faults stay)."""
+
+    @abc.abstractmethod
     def swing(self, joint: int) -> None:
         """The joint's drive loses its torque."""
+
+    def follow_declared(self, declared: set[int]) -> tuple[list[int], list[int]]:
+        """The driver's brakes on the monitor's word: its locked set `declared` (indices).
+
+        A free-swinging joint declared locked is braked where it is, as a driver that acts
+        on `ft/locked_joints` must (the controller counts it held); one no longer declared
+        (the monitor's `~/reset`) is released and swings again. Returns (braked, released).
+        """
+        braked = sorted(j for j in declared if j in self.swinging)
+        for j in braked:
+            self.lock(j)
+        self.held.update(braked)
+        released = sorted(self.held - declared)
+        for j in released:
+            self.unlock(j)
+            self.swing(j)
+        self.held.difference_update(released)
+        return braked, released
 
     def check_fault(self, joint: int, fault: Fault) -> None:
         """Raise `ft_core.faults.FaultError` if `fault` cannot act on joint index `joint`."""
@@ -198,6 +222,7 @@ class BasePlant(abc.ABC):
         released = sorted(set(self.locked) | self.swinging | set(self.faults.faults))
         self.locked.clear()
         self.swinging.clear()
+        self.held.clear()
         self.faults.clear()
         return released
 
@@ -222,6 +247,10 @@ class Plant(BasePlant):
         self.locked.setdefault(joint, self.position(joint))
         self.swinging.discard(joint)
         self.qd[joint] = 0.0
+
+    def unlock(self, joint: int) -> None:
+        """Release the lock of one joint (its other faults stay)."""
+        self.locked.pop(joint, None)
 
     def swing(self, joint: int) -> None:
         """The joint loses its torque: from now on it follows `free_swing_acceleration`."""

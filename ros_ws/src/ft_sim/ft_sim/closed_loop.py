@@ -66,8 +66,10 @@ class ClosedLoop:
         goal_period: s between goals (`GOAL_PERIOD`; may change between runs).
         goal_sent_at: s, when the current goal was sent (-inf before the first).
         declared: (time, locked set) at every change of the monitor's locked set; the
-            controller is given the set at once and every joint's health with each change
-            and every `HEALTH_PERIOD`, as the nodes publish them.
+            controller and the plant's driver (`BasePlant.follow_declared`: it brakes a
+            free-swinging joint declared) are given the set at once, the controller every
+            joint's health with each change and every `HEALTH_PERIOD`, as the nodes
+            publish them.
         sent: rad/s, the last command the plant got.
     """
 
@@ -123,7 +125,9 @@ class ClosedLoop:
             if change.changed:
                 names = list(self.monitor.locked)
                 self.declared.append((self.t, names))
-                self.controller.set_locked([self.robot.joint_names.index(n) for n in names])
+                locked = [self.robot.joint_names.index(n) for n in names]
+                self.controller.set_locked(locked)
+                self.plant.follow_declared(set(locked))  # the driver's brakes
             if change.events or self.t - self._health_at >= HEALTH_PERIOD:
                 self.controller.set_health(dict(enumerate(self.monitor.health().values())),
                                            self.t)

@@ -113,6 +113,8 @@ class SimNode(SuiteNode):
         self.create_subscription(DiagnosticArray, names.INJECT_FAULT, self._on_fault,
                                  qos.RELIABLE)
         self.create_subscription(Marker, names.OBSTACLE, self._on_obstacle, qos.RELIABLE)
+        self.create_subscription(JointState, names.LOCKED_JOINTS, self._on_declared,
+                                 qos.LATCHED)
         self.create_service(Trigger, names.RESET, self._on_reset)
         parameter_table.on_change(self, PARAMETERS, self._check, self._configure)
         parameters.request_model(self, self._set_model)
@@ -270,6 +272,21 @@ class SimNode(SuiteNode):
     def _on_inject(self, msg: JointState) -> None:
         if self.robot is not None:
             self.lock(list(msg.name))
+
+    def _on_declared(self, msg: JointState) -> None:
+        """The driver's brakes on the monitor's word (`BasePlant.follow_declared`)."""
+        if self.robot is None or self.plant is None:
+            return
+        known = self._known("locked_joints", list(msg.name))
+        braked, released = self.plant.follow_declared(set(known.values()))
+        for j in braked:
+            self.get_logger().warning(f"joint {self.robot.joint_names[j]} braked at "
+                                      f"{self.plant.position(j):.4f} rad: declared locked "
+                                      f"while free-swinging (t = {self.t:.3f} s)")
+        for j in released:
+            self.get_logger().warning(f"joint {self.robot.joint_names[j]} released: no "
+                                      f"longer declared locked, it swings again "
+                                      f"(t = {self.t:.3f} s)")
 
     @property
     def swinging(self) -> list[str]:

@@ -238,7 +238,7 @@ class LockDetector:
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
                 falling: Callable[[], np.ndarray | None] | None = None,
-                veto: Veto | None = None) -> Update:
+                veto: Veto | None = None, silent: np.ndarray | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
@@ -248,6 +248,10 @@ class LockDetector:
         it is called only when a joint moves on its own by the other tests (gravity's
         test can only clear a joint), so a healthy cycle pays nothing for it. `veto`
         (`evidence.Veto`) is asked before joints are declared locked (contact).
+        `silent` (n,) bool: joints whose drives give no torque while gravity turns them
+        (`drives.DriveWatch`); such a joint outside its plausible predictions, the way
+        gravity turns it, moves on its own at once: with no allowance for a servo's
+        transient (it needs torque) and no wait for it to settle.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -264,7 +268,7 @@ class LockDetector:
             self.plant_fault = None  # no evidence either way
             self._clear_evidence()
             return Update()
-        return self._update(time, dt, falling, veto)
+        return self._update(time, dt, falling, veto, silent)
 
     def _into_window(self, time: float, position: np.ndarray) -> None:
         """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
@@ -355,7 +359,7 @@ class LockDetector:
 
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None,
-                veto: Veto | None) -> Update:
+                veto: Veto | None, silent: np.ndarray | None) -> Update:
         cfg, plant = self.config, self._plant
         samples = self._samples
         times, positions, _predicted = window = samples.window()
@@ -383,6 +387,12 @@ class LockDetector:
             flags = rules.classify(*evidence_of, np.asarray(directions, dtype=float), True,
                                    *limits)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
+        if silent is not None and silent.any():
+            gravity = directions if directions is not None else falling() if falling else None
+            if gravity is not None:
+                on_its_own = on_its_own | rules.silent_and_on_its_own(
+                    silent, measured, plausible, error, unlocked, undeclared,
+                    np.asarray(gravity, dtype=float), cfg.min_command, cfg.confidence)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():
             # The best model alone: the plausible models' offsets differ by their lags
@@ -432,8 +442,9 @@ class LockDetector:
         disturbance = Disturbance(joints, now, self._declared_at + settle)
         swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
-            lambda j: rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
-                                       cfg.confidence, cfg.min_command), veto)
+            lambda j: 0.0 if silent is not None and silent[j] else rules.swing_wait(
+                measured_of[j], error_of[j], plausible, settle, cfg.confidence,
+                cfg.min_command), veto)
         # A stalled joint's evidence counts only while another joint follows.
         supported = [c and n_following - f >= 1 for c, f in zip(candidate_of, following_of,
                                                                  strict=True)]

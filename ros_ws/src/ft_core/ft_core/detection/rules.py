@@ -96,6 +96,25 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float
             and not beyond and downhill)
 
 
+def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: np.ndarray,
+                          error: np.ndarray, unlocked: np.ndarray, undeclared: np.ndarray,
+                          falling: np.ndarray, min_command: float,
+                          confidence: float) -> np.ndarray:
+    """`moves_on_its_own` for the joints whose drives are `silent` (no torque against gravity).
+
+    Without the allowance for a servo's transient (`fastest` 0): a joint faster than its
+    plausible predictions the way gravity turns it, its drive giving no torque, is not
+    overshooting, it is falling. Arguments as `classify`'s; returns (n,) bool.
+    """
+    own = np.zeros(measured.size, dtype=np.bool_)
+    for j in np.flatnonzero(silent):
+        column = plausible[:, j]
+        own[j] = moves_on_its_own(measured[j], error[j], column.min(), column.max(), 0.0,
+                                  unlocked[j], undeclared[j], falling[j], True, min_command,
+                                  confidence)
+    return own
+
+
 @njit(cache=True, error_model="numpy")
 def is_candidate(v: float, s: float, stalled: bool, pushing: bool, on_its_own: bool,
                  undeclared: bool, min_command: float, confidence: float) -> bool:

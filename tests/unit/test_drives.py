@@ -1,0 +1,106 @@
+"""ft_core.detection.drives: a drive that gives no torque against gravity, and what it names.
+
+Silence (an effort under a tenth of the gravity torque while the joint falls) lifts the
+lock detector's allowance for servo transients, so a free swing is named within 200 ms
+of the lost torque on every Panda joint gravity turns; a healthy drive silent while its
+command accelerates downhill is not named, since its joint stays within its commands.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from ft_core import robots, swing
+from ft_core.detection import drives
+from ft_core.detection.drives import DriveWatch
+from ft_core.faults import Fault, FaultKind
+from ft_core.health import Health
+from ft_sim.closed_loop import DRIVERS, ClosedLoop
+
+pytestmark = pytest.mark.unit
+
+PANDA = robots.load("panda_inertial", tip_link="panda_link8")
+Q = PANDA.home()
+DT = 0.004  # s, the engine period
+
+
+def _watch(effort_of, step: np.ndarray, cycles: int) -> list[np.ndarray]:
+    """The silent flags of a DriveWatch over `cycles` updates, q moving by `step` each."""
+    watch, q, flags = DriveWatch(PANDA), Q.copy(), []
+    for k in range(cycles):
+        flags.append(watch.update(k * DT, q, effort_of(q)).copy())
+        q = q + step
+    return flags
+
+
+def _falling(joint: int) -> np.ndarray:
+    """A step (rad per cycle) of `joint` the way gravity turns it, 1 mrad."""
+    step = np.zeros(PANDA.n)
+    step[joint] = 1e-3 * swing.falling_directions(PANDA, Q)[joint]
+    return step
+
+
+def test_a_drive_without_torque_whose_joint_falls_is_silent_after_its_time() -> None:
+    gravity = lambda q: PANDA.gravity_dynamics(q)[0]  # noqa: E731
+
+    def lost(q: np.ndarray) -> np.ndarray:
+        effort = gravity(q)
+        effort[1] = 0.0
+        return effort
+
+    flags = _watch(lost, _falling(1), 40)
+    first = next(k for k, f in enumerate(flags) if f.any())
+    assert np.flatnonzero(flags[first]).tolist() == [1]
+    assert drives.SILENT_TIME - 1e-9 <= first * DT <= 0.2
+    # The same drive giving its gravity torque, or the joint going uphill: never.
+    assert not any(f.any() for f in _watch(gravity, _falling(1), 40))
+    assert not any(f.any() for f in _watch(lost, -_falling(1), 40))
+
+
+def test_a_joint_gravity_does_not_turn_is_never_silent() -> None:
+    flags = _watch(lambda q: np.zeros(PANDA.n), np.full(PANDA.n, 1e-3), 40)
+    assert not any(f[0] or f[6] for f in flags)  # vertical axis; the flange
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+@pytest.mark.parametrize("joint", [1, 3, 4])
+def test_a_free_swing_is_named_within_200_ms_and_braked_by_the_driver(driver: str,
+                                                                      joint: int) -> None:
+    loop = ClosedLoop("position", DRIVERS[driver], seed=joint)
+    loop.run(4.0)
+    loop.run(4.5, stop=lambda: min(abs(loop.plant.qd[joint]), abs(loop.sent[joint])) > 0.1)
+    assert loop.declared == [], "declared in healthy motion"
+    start = loop.t
+    loop.plant.inject(joint, Fault(FaultKind.FREE_SWING, PANDA.joint_names[joint]))
+    loop.run(1.0, stop=lambda: bool(loop.declared))
+    assert loop.declared, "the swing was not named"
+    when, names = loop.declared[0]
+    assert names == [PANDA.joint_names[joint]]
+    assert when - start <= 0.2
+    assert loop.monitor.board.states[joint] == Health.FREE_SWINGING
+    assert loop.plant.held == {joint}  # the driver braked it on the monitor's word
+    at = loop.plant.q[joint]
+    loop.run(2.0)
+    assert abs(loop.plant.q[joint] - at) < 1e-3
+    assert [s for j, s in enumerate(loop.monitor.board.states) if j != joint] == \
+        [Health.HEALTHY] * (PANDA.n - 1)
+    loop.close()
+
+
+def test_a_healthy_drive_silent_while_its_command_accelerates_downhill_is_not_named() -> None:
+    """After joint 4's lock, the remap swings the shoulder at its acceleration limit."""
+    loop = ClosedLoop("position", DRIVERS["slow"], seed=3)
+    silent: set[int] = set()
+    try:
+        loop.run(4.0)
+        loop.run(4.5, stop=lambda: min(abs(loop.plant.qd[3]), abs(loop.sent[3])) > 0.1)
+        loop.plant.lock(3)
+        loop.goal_period = 3.0
+        for _ in range(round(15.0 / loop.dt)):
+            loop.run(loop.dt)
+            silent.update(np.flatnonzero(loop.monitor._drives.silent).tolist())
+    finally:
+        loop.close()
+    assert 1 in silent, "the shoulder's drive was never silent: the case is gone"
+    assert [j for j, s in enumerate(loop.monitor.board.states) if s != Health.HEALTHY] == [3]
+    assert loop.monitor.board.states[3] == Health.LOCKED
