@@ -74,6 +74,8 @@ NAMED_RIGHT = {"lock": {Health.LOCKED}, "second": {Health.LOCKED},
                "intermittent": {Health.LOCKED}, "range": {Health.LOCKED, Health.DEGRADED},
                "free_swing": {Health.FREE_SWINGING, Health.LOCKED}}
 DEGRADING = {Health.DEGRADED, Health.LOCKED, Health.FREE_SWINGING}
+#: The share of its command below which a joint has slowed (the degraded target's "half").
+SLOWED = 0.5
 
 
 @dataclass
@@ -92,6 +94,9 @@ class Run:
     #: declaration (a lock shows only while its joint is commanded)
     second_commanded_delay: float = math.nan
     least_share: float = math.nan  #: the faulty joint's smallest share after the fault
+    #: s from its share first falling below one half to its first declaration (a fault
+    #: that leaves a joint following shows only once it slows)
+    slowed_delay: float = math.nan
     others: list[str] = field(default_factory=list)  #: healthy joints declared
     goals: int = 0
     reached: int = 0
@@ -133,6 +138,7 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     start, board, names = loop.t, loop.monitor.board, loop.robot.joint_names
     shares, second_at, goals = [], math.inf if kind != "second" else start + severity, {}
     commanded_at = math.inf  # when the second locked joint was first commanded
+    slowed_at = math.inf  # when the faulty joint's share first fell below SLOWED
     where: dict[int, np.ndarray] = {}  # each goal's position (m)
     for _ in range(round(AFTER / loop.dt)):
         if loop.t >= second_at and second not in loop.plant.locked:
@@ -150,6 +156,7 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
         share = loop.monitor.detector.follow.shares[joint]
         if not math.isnan(share):
             shares.append(float(share))
+            slowed_at = min(slowed_at, loop.t) if share < SLOWED else slowed_at
         if loop.goal_sent_at >= start and len(goals) <= GOALS_AFTER:  # sent after the fault
             goals[loop.goals] = min(goals.get(loop.goals, math.inf), loop.tool_error())
             where[loop.goals] = loop.goal
@@ -157,6 +164,8 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     result.others = [names[j] for j, s in enumerate(board.states)
                      if s != Health.HEALTHY and j not in faulty]
     result.least_share = min(shares, default=math.nan)
+    if math.isfinite(slowed_at):
+        result.slowed_delay = max(start + result.delay - slowed_at, 0.0)
     counted = sorted(goals)[:GOALS_AFTER]
     result.goals, result.reached = len(counted), sum(goals[g] < REACHED for g in counted)
     q, failed = loop.plant.q, sorted({*loop.plant.locked, *loop.plant.swinging})
@@ -244,7 +253,8 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
                          f"from its goal | - | {sum(bool(r.others) for r in rows)} | "
                          f"{sum(r.reached for r in rows)} of {len(rows)} (after the wall) |")
             continue
-        slowed = [r for r in rows if r.least_share < 0.5]
+        slowed = [r for r in rows if r.least_share < SLOWED]
+        late = [1e3 * r.slowed_delay for r in slowed if math.isfinite(r.slowed_delay)]
         lines.append(
             f"| {label} | {len(rows)} | {len(right)} | "
             + ", ".join(f"{k} {v}" for k, v in sorted(named.items())) + " | "
@@ -252,7 +262,8 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
             + (f" ({_percentile(commanded, 50):.0f} / {_percentile(commanded, 99):.0f} from "
                "its first command)" if commanded else "") + " | "
             f"{np.median(shares) if shares else math.nan:.2f} | "
-            f"{sum(r.named != 'healthy' for r in slowed)} of {len(slowed)} | "
+            f"{sum(r.named != 'healthy' for r in slowed)} of {len(slowed)}"
+            + (f", at most {max(late):.0f} ms after it slowed" if late else "") + " | "
             f"{sum(bool(r.others) for r in rows)} | "
             f"{sum(r.reached for r in rows)} of {sum(r.goals for r in rows)} "
             f"({sum(r.reachable for r in rows)}) |")

@@ -20,10 +20,12 @@ process per core beside the nodes (`ft_sim.cpu_load.busy_cores`, normal schedule
 Counted per half (idle, loaded):
 - false locks: every non-empty `ft/locked_joints` message, with its joints; each is
   followed by a call of the monitor's `~/reset` (as an operator would) and the run goes on;
-- free-swing declarations: the monitor's log lines "joint ... free-swinging (t = ...)"
+- free-swing and degraded declarations: the monitor's log lines "joint ... free-swinging
+  (t = ...)" and "joint ... degraded (t = ...)"
   (its stdout and stderr are kept in a file); the probe also sees them in the monitor's
   diagnostics (`free_swinging_joints`) and resets the monitor after each, or a joint
-  declared once would never be declared again;
+  declared once would never be declared again (a degraded joint is logged once until
+  the next reset);
 - observing: the share of the monitor's diagnostics (2 Hz) with `observing == yes` (a
   reset restarts the plant identification, so it drops after each);
 - motion: the joint-space path travelled (rad, of positions averaged over blocks of 50
@@ -82,15 +84,16 @@ def spin_phase(probe: Probe, executor: EventsExecutor, seconds: float,
 
 
 def monitor_log(path: Path, phases: list[Phase], context: int = 4) -> dict[str, dict]:
-    """Free-swing and lock lines of the monitor's log, counted per phase (by log time).
+    """Free-swing, lock and degraded lines of the monitor's log, counted per phase (log time).
 
-    Returns {phase name: {"swings", "locks", "suspicions_refused" (the controller's
+    Returns {phase name: {"swings", "locks", "degraded", "suspicions_refused" (the controller's
     task-space channel suspected a lock, the monitor's evidence refused it: logged at most
     every 5 s), "events": [lines around each swing and lock]}}.
     """
     lines = path.read_text(errors="replace").splitlines() if path.is_file() else []
-    result: dict[str, dict] = {p.name: {"swings": 0, "locks": 0, "suspicions_refused": 0,
-                                        "events": []} for p in phases}
+    result: dict[str, dict] = {p.name: {"swings": 0, "locks": 0, "degraded": 0,
+                                        "suspicions_refused": 0, "events": []}
+                               for p in phases}
     for i, line in enumerate(lines):
         match = LOG_LINE.match(line)
         if match is None:
@@ -104,8 +107,9 @@ def monitor_log(path: Path, phases: list[Phase], context: int = 4) -> dict[str, 
             entry["suspicions_refused"] += 1
         swing = "free-swinging (t =" in message
         lock = " locked at " in message or "locked (suspected" in message
-        if swing or lock:
-            entry["swings" if swing else "locks"] += 1
+        degraded = " degraded (t =" in message
+        if swing or lock or degraded:
+            entry["swings" if swing else "locks" if lock else "degraded"] += 1
             entry["events"].append(lines[max(0, i - context):i + context + 1])
     return result
 
@@ -170,7 +174,8 @@ def summary(phase: Phase, logged: dict, exit_codes: dict[str, int | None]) -> di
         "seconds": phase.seconds,
         "false_locks": len(phase.locks), "locks": phase.locks,
         "free_swing_declarations": logged["swings"], "swings_in_diagnostics": phase.swings_seen,
-        "locks_in_log": logged["locks"], "log_events": logged["events"],
+        "locks_in_log": logged["locks"], "degraded_declarations": logged["degraded"],
+        "log_events": logged["events"],
         "suspicions_refused_in_log": logged["suspicions_refused"],
         "false_locks_per_hour": len(phase.locks) / hours,
         "free_swings_per_hour": logged["swings"] / hours,
@@ -195,15 +200,17 @@ def summary(phase: Phase, logged: dict, exit_codes: dict[str, int | None]) -> di
 def table(results: dict[str, dict]) -> list[str]:
     """The Markdown table of every plant and phase."""
     lines = ["| plant | phase | minutes | false locks | free-swing declarations | "
+             "degraded declarations | "
              "per hour (locks / swings) | observing % | ft/command messages | "
              "command gap max (ms, stamps / arrivals) | travelled (rad) | "
              "other users' CPU (cores) |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for plant, result in results.items():
         for name, p in result["phases"].items():
             lines.append(
                 f"| {plant} | {name} | {p['seconds'] / 60:.1f} | {p['false_locks']} | "
-                f"{p['free_swing_declarations']} | {p['false_locks_per_hour']:.1f} / "
+                f"{p['free_swing_declarations']} | {p['degraded_declarations']} | "
+                f"{p['false_locks_per_hour']:.1f} / "
                 f"{p['free_swings_per_hour']:.1f} | {100 * p['observing_fraction']:.1f} | "
                 f"{p['commands']} | {p['command_stamp_gap_max_ms']:.0f} / "
                 f"{p['command_arrival_gap_max_ms']:.0f} | {p['travelled_rad']:.1f} | "

@@ -1,9 +1,12 @@
-"""ft_core.detection.drives: a drive that gives no torque against gravity, and what it names.
+"""ft_core.detection.drives: what the efforts say, a drive that gives no torque or pushes in vain.
 
 Silence (an effort under a tenth of the gravity torque while the joint falls) lifts the
 lock detector's allowance for servo transients, so a free swing is named within 200 ms
-of the lost torque on every Panda joint gravity turns; a healthy drive silent while its
-command accelerates downhill is not named, since its joint stays within its commands.
+of the lost torque on the Panda joints gravity turns most; a healthy drive silent while
+its command accelerates downhill is not named, since its joint stays within its
+commands. A push (an external torque of 0.3 of the effort limit) on a joint that stays
+still while commanded names a lock the velocity test misses: commands that change sign
+faster than the plant's plausible lags, two joints stalled at once.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots, swing
-from ft_core.detection import drives
+from ft_core.detection import drives, rules
 from ft_core.detection.drives import DriveWatch
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
@@ -28,7 +31,7 @@ def _watch(effort_of, step: np.ndarray, cycles: int) -> list[np.ndarray]:
     """The silent flags of a DriveWatch over `cycles` updates, q moving by `step` each."""
     watch, q, flags = DriveWatch(PANDA), Q.copy(), []
     for k in range(cycles):
-        flags.append(watch.update(k * DT, q, effort_of(q)).copy())
+        flags.append(watch.update(k * DT, q, effort_of(q)).silent)
         q = q + step
     return flags
 
@@ -88,7 +91,7 @@ def test_a_free_swing_is_named_within_200_ms_and_braked_by_the_driver(driver: st
 
 
 def test_a_healthy_drive_silent_while_its_command_accelerates_downhill_is_not_named() -> None:
-    """After joint 4's lock, the remap swings the shoulder at its acceleration limit."""
+    """After joint 4's lock, the remap swings joint 5 downhill about as fast as gravity."""
     loop = ClosedLoop("position", DRIVERS["slow"], seed=3)
     silent: set[int] = set()
     try:
@@ -101,6 +104,42 @@ def test_a_healthy_drive_silent_while_its_command_accelerates_downhill_is_not_na
             silent.update(np.flatnonzero(loop.monitor._drives.silent).tolist())
     finally:
         loop.close()
-    assert 1 in silent, "the shoulder's drive was never silent: the case is gone"
+    assert 4 in silent, "joint 5's drive was never silent: the case is gone"
     assert [j for j, s in enumerate(loop.monitor.board.states) if s != Health.HEALTHY] == [3]
     assert loop.monitor.board.states[3] == Health.LOCKED
+
+
+def test_a_pushed_joint_that_stays_still_while_commanded_is_held() -> None:
+    positions = np.zeros((20, 3))
+    positions[:, 1] = np.linspace(0.0, 0.02, 20)  # joint 1 moves 20 mrad
+    plausible = np.array([[0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])  # joint 2 not commanded
+    pushing = np.array([True, True, True])
+    assert rules.held_still(pushing, positions, plausible, 0.05, 0.008).tolist() == \
+        [True, False, False]
+    assert not rules.held_still(~pushing, positions, plausible, 0.05, 0.008).any()
+
+
+@pytest.mark.parametrize(("driver", "joints"), [("slow", [1]), ("slow", [3]),
+                                                ("fast", [1, 4]), ("slow", [1, 4])])
+def test_a_lock_the_velocity_test_misses_is_named_by_its_drives_push(driver: str,
+                                                                     joints: list[int]) -> None:
+    """One lock under commands that reverse within the plant's lags, or two at once."""
+    loop = ClosedLoop("position", DRIVERS[driver], seed=joints[0])
+    try:
+        loop.run(4.0)
+        first = joints[0]
+        loop.run(4.5, stop=lambda: min(abs(loop.plant.qd[first]), abs(loop.sent[first])) > 0.1)
+        start = loop.t
+        for j in joints:
+            loop.plant.lock(j)
+        loop.goal_period = 3.0
+        loop.run(2.0, stop=lambda: len(loop.monitor.locked) == len(joints))
+        named = {PANDA.joint_names[j] for j in joints}
+        assert set(loop.monitor.locked) == named, loop.monitor.locked
+        assert loop.declared[-1][0] - start <= 0.25
+        assert any("held still while commanded" in h.evidence
+                   for h in loop.monitor.health().values())
+        loop.run(4.0)
+        assert set(loop.monitor.locked) == named  # and no healthy joint after them
+    finally:
+        loop.close()

@@ -289,21 +289,20 @@ class Monitor:
                 effort: np.ndarray | None = None) -> Change:
         """A measured configuration (rad) at `now` (s); `blind`: a reason to decide nothing.
 
-        `effort`: the joints' efforts (N m) where the driver reports them (torque margins,
-        contact, silent drives).
+        `effort`: the joints' efforts (N m) where the driver reports them.
         """
-        self.q = q
-        self.effort = effort
+        self.q, self.effort = q, effort
         if effort is not None:
             self.board.effort(now, effort)
-            if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now):
+            if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now,
+                                                              list(self.detector.locked)):
                 self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
-        silent = None if effort is None else self._drives.update(now, q, effort)
+        drives = None if effort is None else self._drives.update(now, q, effort)
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q),
                                        self._contact if self.robot.has_inertias
-                                       and effort is not None else None, silent)
+                                       and effort is not None else None, drives)
         self._report("plant", self.detector.plant_fault)
         names, joints = self.robot.joint_names, self.detector.joints
         brake, board = self.config.brake_free_swinging, self.board
@@ -312,7 +311,8 @@ class Monitor:
             # Declared locked once, it stays in the locked set (no flapping): a swing that
             # takes the detector's lock back is braked again where the joint is now.
             stays = j in update.released
-            if stays and self._driven(j, q):
+            if stays and self.effort is not None and self.robot.has_inertias and driven(
+                    self.robot, q, self.effort, j):  # `detection.contact.driven`
                 line = (f"joint {names[j]} moved again after its lock (t = {now:.3f} s) with "
                         "its drive's torque: a jam that let go; it stays locked")
                 change.events.append(line)
@@ -329,8 +329,10 @@ class Monitor:
         for j in update.locked:
             evidence = joints[j]
             line = (f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
-                    f"measured {evidence.measured:.4f} rad/s against at least "
-                    f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad behind")
+                    + ("held still while commanded, its drive pushing" if evidence.held else
+                       f"measured {evidence.measured:.4f} rad/s against at least "
+                       f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad "
+                       "behind"))
             change.events.append(line)
             board.declare(j, Health.LOCKED, now, line)
         shares = self.detector.follow.shares
@@ -362,12 +364,8 @@ class Monitor:
         """Why stalled `joints` are in contact, not failed, or None (`detection.contact`)."""
         if self.effort is None or self.q is None or self._drives.silent[joints].any():
             return None  # a silent drive pushes against nothing (`detection.drives`)
-        return in_contact(self.robot, self.q, self.effort, joints)
-
-    def _driven(self, joint: int, q: np.ndarray) -> bool:
-        """Whether `joint`'s drive gives torque at q (`detection.contact.driven`)."""
-        return (self.effort is not None and self.robot.has_inertias
-                and driven(self.robot, q, self.effort, joint))
+        return in_contact(self.robot, self.q, self.effort, joints,
+                          braked=list(self.detector.locked))
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.

@@ -27,6 +27,7 @@ jam that let go, its servo catching up: `driven`) from one whose drive lost its 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -73,17 +74,19 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
 
 
 def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
-               least: float = MIN_TORQUE) -> str | None:
+               least: float = MIN_TORQUE, braked: Sequence[int] = ()) -> str | None:
     """Why the `stalled` joints are held by a force on the tool, not failed; None if not.
 
     At the configuration `q` (rad) with the drives' `effort` (N m), an external torque of
-    at least `least` N m; the arm's URDF must have inertias (gravity torques).
+    at least `least` N m; the arm's URDF must have inertias (gravity torques). The
+    `braked` joints (locked already) are left out: their brakes take any torque.
     """
     external = effort - robot.gravity_dynamics(q)[0]
+    jacobian = robot.base_jacobian(q)[:3]
+    external[list(braked)], jacobian[:, list(braked)] = 0.0, 0.0
     if not float(external @ external) >= least ** 2:
         return None
-    contact, by_force, by_locks = explained_by_contact(external, robot.base_jacobian(q)[:3],
-                                                       stalled)
+    contact, by_force, by_locks = explained_by_contact(external, jacobian, stalled)
     if not contact:
         return None
     names = [robot.joint_names[j] for j in stalled]
@@ -116,10 +119,11 @@ class ContactWatch:
         self._looked = -math.inf  # s, when contact was last looked at
         self._touched = -math.inf  # s, when the tool was last seen in contact
 
-    def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float) -> bool:
+    def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
+               braked: Sequence[int] = ()) -> bool:
         """Whether the tool is or was lately in contact at `now` (s), by `in_contact`."""
         if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
-            if in_contact(robot, q, effort, [], self.least) is not None:
+            if in_contact(robot, q, effort, [], self.least, braked) is not None:
                 self._touched = now
         return now - self._touched < AFTER_CONTACT

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ft_core.detection import rules
+from ft_core.detection.drives import Drives
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
@@ -41,6 +42,10 @@ from ft_core.detection.window import Offsets, Samples, _ingest, _window_fit
 #: exact multiple of a common period, so that rounding in the stamps' differences
 #: (3 ms coming out as 2.9999 ms) cannot skip one more.
 DECISION_PERIOD = 0.0025
+#: rad, the most a joint's measured positions may spread over the window for it to stand
+#: still (`rules.held_still`): beyond the range of the window's samples under the sim's
+#: 1 mrad noise, short of what a healthy joint pushed that hard moves.
+STILL_SPAN = 0.008
 #: s over which a suspect from elsewhere, commanded too slowly for the window's test, is
 #: judged (`LockDetector.confirm`): the task-space channel's window, over which it
 #: suspected the joint.
@@ -238,7 +243,7 @@ class LockDetector:
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
                 falling: Callable[[], np.ndarray | None] | None = None,
-                veto: Veto | None = None, silent: np.ndarray | None = None) -> Update:
+                veto: Veto | None = None, drives: Drives | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update.
@@ -248,10 +253,12 @@ class LockDetector:
         it is called only when a joint moves on its own by the other tests (gravity's
         test can only clear a joint), so a healthy cycle pays nothing for it. `veto`
         (`evidence.Veto`) is asked before joints are declared locked (contact).
-        `silent` (n,) bool: joints whose drives give no torque while gravity turns them
-        (`drives.DriveWatch`); such a joint outside its plausible predictions, the way
-        gravity turns it, moves on its own at once: with no allowance for a servo's
-        transient (it needs torque) and no wait for it to settle.
+        `drives` (`drives.DriveWatch`, from the efforts): a joint whose drive is silent
+        (no torque while gravity turns it) outside its plausible predictions, the way
+        gravity turns it, moves on its own at once, with no allowance for a servo's
+        transient (it needs torque) and no wait for it to settle; a joint whose drive
+        pushes, still within `STILL_SPAN` over the window while a plausible model
+        commands it and another joint moves, is a lock candidate.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -268,7 +275,7 @@ class LockDetector:
             self.plant_fault = None  # no evidence either way
             self._clear_evidence()
             return Update()
-        return self._update(time, dt, falling, veto, silent)
+        return self._update(time, dt, falling, veto, drives)
 
     def _into_window(self, time: float, position: np.ndarray) -> None:
         """The measurement into the window, its offsets kept (`_ingest`, compiled)."""
@@ -359,7 +366,7 @@ class LockDetector:
 
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None,
-                veto: Veto | None, silent: np.ndarray | None) -> Update:
+                veto: Veto | None, drives: Drives | None) -> Update:
         cfg, plant = self.config, self._plant
         samples = self._samples
         times, positions, _predicted = window = samples.window()
@@ -387,11 +394,11 @@ class LockDetector:
             flags = rules.classify(*evidence_of, np.asarray(directions, dtype=float), True,
                                    *limits)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
-        if silent is not None and silent.any():
+        if drives is not None and drives.silent.any():  # what the efforts say (`drives`)
             gravity = directions if directions is not None else falling() if falling else None
             if gravity is not None:
                 on_its_own = on_its_own | rules.silent_and_on_its_own(
-                    silent, measured, plausible, error, unlocked, undeclared,
+                    drives.silent, measured, plausible, error, unlocked, undeclared,
                     np.asarray(gravity, dtype=float), cfg.min_command, cfg.confidence)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():
@@ -404,24 +411,30 @@ class LockDetector:
                 offsets.values[offsets.end - 1, best], past[:, best], weakest,
                 rules.mean_difference_error(error, times), cfg.confidence)
             candidates = candidates & (lost | ~undeclared)
-        # Python lists from here on: per-joint bookkeeping on numpy scalars costs more
-        # than the fits.
+        held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
+            drives.pushing & unlocked & ~pushing,  # a push the joint does not follow
+            positions, plausible, cfg.min_command, STILL_SPAN)  # (~pushing: not at a limit)
+        candidates = candidates | held
+        # Python lists from here on (per-joint numpy scalars cost more than the fits).
         measured_of, weakest_of, error_of = measured.tolist(), weakest.tolist(), error.tolist()
         candidate_of, following_of = candidates.tolist(), following.tolist()
         own_of = on_its_own.tolist()
-        for evidence, observes, follows, v, c, s, at_limit, candidate, lost_position in zip(
+        for evidence, observes, follows, v, c, s, at_limit, candidate, behind, is_held in zip(
                 joints, observable.tolist(), following_of, measured_of, weakest_of, error_of,
-                (stalled & pushing).tolist(), candidate_of, deficit.tolist(), strict=True):
+                (stalled & pushing).tolist(), candidate_of, deficit.tolist(), held.tolist(),
+                strict=True):
             evidence.observable, evidence.following = observes, follows
             evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
             evidence.at_limit, evidence.candidate = at_limit, candidate
-            evidence.deficit = lost_position
+            evidence.deficit, evidence.held = behind, is_held
         n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
         if n_stalled == 0 and n_own == 0 and identify:
             plant.identify(now, measured, slopes, error, unlocked & ~pushing,
                            window=cfg.window, min_command=cfg.min_command,
                            memory=cfg.memory, min_excitation=cfg.min_excitation)
-        odd = rules.plant_fault(candidate_of, following_of, own_of)
+        # A joint held against its drive's push is no sign of a stopped plant (it pushes nothing).
+        unheld = [c and not h for c, h in zip(candidate_of, held.tolist(), strict=True)]
+        odd = rules.plant_fault(unheld, following_of, own_of)
         if odd is not None:
             self.plant_fault = "plant not following commands: " + ", ".join(
                 f"joint {j} measured {measured_of[j]:.3f} rad/s, expected {weakest_of[j]:.3f}"
@@ -433,7 +446,7 @@ class LockDetector:
             return Update()
         self.plant_fault = None
         if self._seen_following < cfg.follow_time:
-            if n_following and not n_stalled:
+            if n_following and not any(unheld):
                 self._seen_following += dt
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
@@ -442,12 +455,13 @@ class LockDetector:
         disturbance = Disturbance(joints, now, self._declared_at + settle)
         swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
-            lambda j: 0.0 if silent is not None and silent[j] else rules.swing_wait(
+            lambda j: 0.0 if drives is not None and drives.silent[j] else rules.swing_wait(
                 measured_of[j], error_of[j], plausible, settle, cfg.confidence,
                 cfg.min_command), veto)
         # A stalled joint's evidence counts only while another joint follows.
-        supported = [c and n_following - f >= 1 for c, f in zip(candidate_of, following_of,
-                                                                 strict=True)]
+        # (a joint held against its drive's push: while another joint moves, `held_still`)
+        supported = [h or (c and n_following - f >= 1)
+                     for h, c, f in zip(held.tolist(), candidate_of, following_of, strict=True)]
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)
         contact = contact or pushed

@@ -21,11 +21,24 @@ contact veto does not hold it back (a drive pushing against an obstacle gives mo
 torque, not none). A joint gravity hardly turns (a vertical axis) is never silent: its
 free swing is told by its motion alone. Without efforts, inertias or effort limits
 nothing is silent.
+
+The other way round, a drive that *pushes* a joint that does not move: a brake or a jam
+takes its drive's torque, so the external torque tau - g(q) of its joint grows with the
+command it cannot follow, while a healthy joint pushed that hard accelerates away (a
+Panda shoulder at 26 N m moves 24 mrad in 80 ms). `DriveWatch` names a joint *pushing*
+while |tau - g(q)| reached `PUSH_SHARE` of its effort limit (and `PUSH_TORQUE`) within
+the last `PUSH_MEMORY` s: in free motion on the physics plant the servos' transients and
+the 10 % gravity-model error reach at most 0.26 of a Panda's limits. The lock detector
+takes a pushing joint that stays still while commanded, another joint moving, as a lock
+candidate even where the commands change too fast for its velocity test
+(`LockDetector.measure`); the contact test still holds back a push a force on the tool
+explains (a wall loads every joint, a brake its own).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,10 +54,24 @@ GRAVITY_SHARE = 0.05
 SILENT_TIME = 0.05
 #: rad the joint must have fallen meanwhile (five times the sim's position noise).
 FALL = 0.005
+#: Least external torque, as a share of the joint's effort limit, of a pushing drive.
+PUSH_SHARE = 0.3
+#: N m, and at least this (a wrist's model errors are a large share of its small limit).
+PUSH_TORQUE = 5.0
+#: s a push counts after it was last seen (the commands it follows may change sign).
+PUSH_MEMORY = 0.1
+
+
+@dataclass(frozen=True)
+class Drives:
+    """What the efforts said of every joint at one update ((n,) bool each)."""
+
+    silent: np.ndarray  #: no torque against gravity while the joint falls
+    pushing: np.ndarray  #: a push far beyond what moving the joint needs, lately
 
 
 class DriveWatch:
-    """Which joints' drives give no torque while gravity turns them (see the module)."""
+    """Which joints' drives give no torque while gravity turns them, or push (the module)."""
 
     def __init__(self, robot: Robot) -> None:
         self._robot = robot
@@ -54,19 +81,27 @@ class DriveWatch:
                                math.inf)
         self._since = np.full(robot.n, math.nan)  # s, when each drive fell silent
         self._from = np.zeros(robot.n)  # rad, where its joint was then
+        #: N m, the least external torque of a push per joint
+        self._push = np.where(np.isfinite(limits) & (limits > 0),
+                              np.maximum(PUSH_SHARE * limits, PUSH_TORQUE), math.inf)
+        self._pushed_at = np.full(robot.n, -math.inf)  # s, when each last pushed
         self.silent = np.zeros(robot.n, bool)  #: the joints named silent at the last update
 
     def reset(self) -> None:
-        """Forget every silence."""
+        """Forget every silence and push."""
         self._since[:] = math.nan
+        self._pushed_at[:] = -math.inf
         self.silent[:] = False
 
-    def update(self, now: float, q: np.ndarray, effort: np.ndarray) -> np.ndarray:
-        """The joints (n,) bool whose drives are silent at `now` (s), q (rad), `effort` (N m)."""
+    def update(self, now: float, q: np.ndarray, effort: np.ndarray) -> Drives:
+        """What the `effort` (N m) says of each joint at `now` (s) and q (rad)."""
         robot = self._robot
         if not robot.has_inertias or not np.isfinite(self._least).any():
-            return self.silent
-        gravity = np.abs(robot.gravity_dynamics(q)[0])
+            return Drives(self.silent, np.zeros(robot.n, bool))
+        signed = robot.gravity_dynamics(q)[0]
+        self._pushed_at[np.abs(effort - signed) >= self._push] = now
+        pushing = now - self._pushed_at <= PUSH_MEMORY
+        gravity = np.abs(signed)
         quiet = (gravity >= self._least) & (np.abs(effort) < SILENT_SHARE * gravity)
         started = quiet & np.isnan(self._since)
         self._since[started], self._from[started] = now, q[started]
@@ -81,4 +116,4 @@ class DriveWatch:
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
                                   & (fallen >= FALL))
-        return self.silent
+        return Drives(self.silent.copy(), pushing)

@@ -38,6 +38,8 @@ class JointEvidence:
     #: moving on its own, no plant fault (whether or not a following joint vouches for the
     #: plant, which the detector's own decision also needs)
     candidate: bool = False
+    #: held still against its drive's push (`rules.held_still`), a lock candidate so
+    held: bool = False
     swing_since: float | None = None  #: when the current free-swing evidence started (s)
     swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)

@@ -115,6 +115,24 @@ def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: n
     return own
 
 
+def held_still(pushing: np.ndarray, positions: np.ndarray, plausible: np.ndarray,
+               min_command: float, span: float) -> np.ndarray:
+    """Joints held against their drives' push: a brake or a jam, seen by the efforts.
+
+    A `pushing` joint (its drive's external torque far beyond what moving it needs,
+    `drives.DriveWatch`) whose measured `positions` (window, n) spread by at most `span`
+    (rad) while some plausible model (`plausible`, models x n, rad/s) commands it at least
+    `min_command`. The velocity test misses such a joint when its commands change sign
+    within the plausible lags, and takes two joints stalled together, the others hardly
+    commanded, for a stopped plant; a drive's push shows neither is the case (a stopped
+    driver pushes nothing). Returns (n,) bool.
+    """
+    if positions.shape[0] < 2 or plausible.size == 0:
+        return np.zeros(pushing.size, dtype=bool)
+    still = positions.max(axis=0) - positions.min(axis=0) <= span
+    return pushing & still & (np.abs(plausible).max(axis=0) >= min_command)
+
+
 @njit(cache=True, error_model="numpy")
 def is_candidate(v: float, s: float, stalled: bool, pushing: bool, on_its_own: bool,
                  undeclared: bool, min_command: float, confidence: float) -> bool:
