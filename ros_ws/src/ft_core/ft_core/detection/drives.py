@@ -49,7 +49,7 @@ from ft_core.robots import Robot
 SILENT_SHARE = 0.1
 #: Least gravity torque, as a share of the joint's effort limit, for a silent drive to say
 #: anything (below it a healthy drive's torque is mostly its servo's).
-GRAVITY_SHARE = 0.05
+GRAVITY_SHARE = 0.03
 #: s a drive must stay silent, its joint falling, to be named.
 SILENT_TIME = 0.05
 #: rad the joint must have fallen meanwhile (five times the sim's position noise).
