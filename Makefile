@@ -74,8 +74,9 @@ demo: $(STAMP)
 	$(BIN)/ft-demo
 
 # Speed and detection-quality figures (not asserted in tests): writes bench_out/*.md and
-# *.json; about two and a half hours (the fault campaign on a realistic plant, 160 runs, and
-# on the physics plant, 40; the command streams against the arm's limits; the deployed
+# *.json; about three hours (the fault campaign on a realistic plant, 160 runs, and
+# on the physics plant, 40; the fault grid in process and 60 faults deployed, idle and
+# loaded; the command streams against the arm's limits; the deployed
 # nodes' 30-minute soak on each plant, the nodes' 10-minute memory run, the two layouts at
 # two rates). The soft-limits study with 200 runs per condition is docs/campaign.md's
 # longer ft-campaign command.
@@ -85,6 +86,8 @@ bench: $(STAMP)
 	$(BIN)/python bench/selfmotion_trace.py --out bench_out
 	$(BIN)/python bench/detection.py --out bench_out
 	$(BIN)/python bench/faults.py --out bench_out
+	$(BIN)/python bench/faults_processes.py --out bench_out
+	$(BIN)/python bench/faults_processes.py --loaded --out bench_out
 	$(BIN)/python bench/soak.py --out bench_out
 	$(BIN)/python bench/observability.py --out bench_out
 	$(BIN)/python bench/recovery.py --out bench_out

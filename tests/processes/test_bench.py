@@ -200,3 +200,19 @@ def test_fault_grid_benchmark_names_a_lock_and_holds_a_contact(tmp_path: Path) -
     assert any(line.startswith("| contact 3 s | 1 |") for line in lines)
     faults.figure([lock, contact], tmp_path / "faults.png")
     assert (tmp_path / "faults.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
+    """`bench/faults_processes.py`: two locks into the installed executables, and the table."""
+    env = {**os.environ, "FT_BENCH_DOMAIN_FAULTS": os.environ["ROS_DOMAIN_ID"]}
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "faults_processes.py"), "--out", str(tmp_path),
+         "--faults", "2"], capture_output=True, text=True, timeout=300, check=False, env=env)
+    assert result.returncode == 0, result.stderr[-2000:]
+    outcomes = json.loads((tmp_path / "faults_processes.json").read_text())["outcomes"]
+    assert [(o["kind"], o["joint"]) for o in outcomes] == [("lock", 0), ("lock", 1)]
+    assert all(o["named"] == "locked" and 0 < o["delay"] < 2.0 and o["others"] == []
+               for o in outcomes), outcomes
+    table = (tmp_path / "faults_processes.md").read_text()
+    assert "| lock | 2 | 2 | locked 2 |" in table

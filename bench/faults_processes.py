@@ -1,0 +1,253 @@
+"""`make bench`: the fault grid's faults injected into the installed executables, deployed.
+
+The separate-process counterpart of `bench/faults.py`: `sim_node` (the MuJoCo Panda with
+its inertias behind the slow driver: 50 ms latency, a 50 ms servo, the last command held,
+1e-3 rad noise, efforts reported), `monitor_node` and `controller_node` from the colcon
+install space at their default parameters, as `bench/soak.py` starts them, in real time
+on this machine. A probe in this process sends pose goals every 1.5 s; for each fault it
+waits until the monitor observes and the faulty joint is commanded and moves at 0.1 rad/s
+or more, publishes the fault on `ft/inject_fault` (a second lock follows on joint
+(j + 3) mod 6 after `SECOND` s), watches `ft/joint_health` for `WATCH` s while the goals
+go on, then resets the sim and the monitor (`~/reset`) for the next one. Kinds, in turn
+on each of the six joints the position task commands: lock, free swing, intermittent
+jam (0.5 s), viscous 50 N m s/rad, dry 5 N m, authority 0.25, a range cut 0.05 rad ahead,
+a second lock, lock and free swing again: 60 faults; `--loaded` runs them with one busy
+process per core beside the nodes (`ft_sim.cpu_load.busy_cores`).
+
+Per fault: the state the monitor first declared the faulty joint in, and when (s from the
+injection's publication to the `ft/joint_health` message's arrival here: the delay a
+subscriber sees), and every other joint declared (a healthy joint declared; the second
+lock's joint excepted). Writes `<out>/faults_processes.md` and `.json` (`_loaded` with
+`--loaded`), the processes' logs under `<out>/faults_processes_logs/`. DDS domain
+`FT_BENCH_DOMAIN_FAULTS` (default 64).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from engine_cycle import machine, report
+from ft_core.faults import Fault, FaultKind
+from ft_core.health import Health
+from ft_msgs_py import faults as fault_messages
+from ft_msgs_py import health as health_messages
+from ft_msgs_py import names, qos
+from ft_sim.cpu_load import busy_cores
+from rclpy.context import Context
+from rclpy.experimental.events_executor import EventsExecutor
+from sensor_msgs.msg import JointState
+from soak_probe import STREAM, Probe
+from soak_processes import deployed
+from std_srvs.srv import Trigger
+
+JOINTS = [f"panda_joint{k}" for k in range(1, 8)]
+#: (kind, value) in turn; "second" is a lock, then another `SECOND` s later.
+KINDS = [("lock", math.nan), ("free_swing", math.nan), ("intermittent", 0.5),
+         ("viscous", 50.0), ("dry", 5.0), ("authority", 0.25), ("range", 0.05),
+         ("second", math.nan), ("lock", math.nan), ("free_swing", math.nan)]
+#: s after the first lock of a "second" run that the second joint locks.
+SECOND = 2.0
+#: s each fault is watched.
+WATCH = 8.0
+#: rad/s the faulty joint must be commanded and move at when it fails.
+MOVING = 0.1
+#: s the probe waits for the joint to move before it injects anyway.
+MOVE_TIMEOUT = 20.0
+#: The states that name a fault of each kind right (the rest: any but healthy).
+RIGHT = {"lock": {Health.LOCKED}, "second": {Health.LOCKED}, "intermittent": {Health.LOCKED},
+         "free_swing": {Health.FREE_SWINGING, Health.LOCKED}}
+
+
+@dataclass
+class Outcome:
+    """One fault's outcome as a subscriber of `ft/joint_health` saw it."""
+
+    kind: str
+    joint: int
+    moving: bool = False  #: the joint moved at `MOVING` when it failed
+    named: str = "healthy"  #: the faulty joint's first declared state
+    delay: float = math.nan  #: s from the injection to that message
+    second_delay: float = math.nan  #: s from the second lock to its joint's declaration
+    others: list[str] = field(default_factory=list)  #: healthy joints declared
+
+
+class FaultProbe(Probe):
+    """The soak's probe, with the fault injection, the health and both resets."""
+
+    def __init__(self, context: Context):
+        super().__init__(context, goal_period=1.5, cycle=math.inf, pause=0.0)
+        node = self.node
+        self._inject = node.create_publisher(DiagnosticArray, names.INJECT_FAULT, qos.RELIABLE)
+        self._sim_reset = node.create_client(Trigger, "sim/reset")
+        node.create_subscription(DiagnosticArray, names.JOINT_HEALTH, self._on_health,
+                                 qos.LATCHED)
+        node.create_subscription(JointState, names.JOINT_STATES, self._on_q, STREAM)
+        node.create_subscription(JointState, names.COMMAND, self._on_sent, STREAM)
+        self.states: dict[str, tuple[Health, float]] = {}  #: joint -> (state, arrival)
+        self.q = np.zeros(7)
+        self.qd = np.zeros(7)
+        self.sent = np.zeros(7)
+
+    def _on_health(self, msg: DiagnosticArray) -> None:
+        arrival = time.monotonic()
+        health, _ = health_messages.read(msg, JOINTS)
+        for name, h in health.items():
+            if h.state != Health.HEALTHY and name not in self.states:
+                self.states[name] = (h.state, arrival)
+
+    def _on_q(self, msg: JointState) -> None:
+        index = {name: k for k, name in enumerate(msg.name)}
+        if all(name in index for name in JOINTS) and len(msg.velocity) == len(msg.name):
+            self.q = np.array([msg.position[index[name]] for name in JOINTS])
+            self.qd = np.array([msg.velocity[index[name]] for name in JOINTS])
+
+    def _on_sent(self, msg: JointState) -> None:
+        index = {name: k for k, name in enumerate(msg.name)}
+        if all(name in index for name in JOINTS) and len(msg.velocity) == len(msg.name):
+            self.sent = np.array([msg.velocity[index[name]] for name in JOINTS])
+
+    def tick(self, send_goals: bool = True) -> None:
+        """Send the next goal when due (no resets: the run does them)."""
+        now = time.monotonic()
+        if send_goals and now >= self._next_goal:
+            self._send_goal()
+            self._next_goal = now + self.goal_period
+
+    def inject(self, fault: Fault) -> float:
+        """Publish `fault`; the monotonic time of publication."""
+        self._inject.publish(fault_messages.message([fault]))
+        return time.monotonic()
+
+    def reset(self, executor: EventsExecutor) -> None:
+        """Reset the sim and the monitor, waiting for both answers (5 s at most each)."""
+        for client in (self._sim_reset, self._reset):
+            future = client.call_async(Trigger.Request())
+            spin(self, executor, 5.0, future.done)
+        self.states = {}
+
+
+def spin(probe: FaultProbe, executor: EventsExecutor, seconds: float,
+         until=lambda: False) -> bool:
+    """Spin `seconds` (wall clock) with the goals going on; stop early once `until()`."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        probe.tick()
+        executor.spin_once(timeout_sec=0.005)
+        if until():
+            return True
+    return False
+
+
+def _fault(kind: str, value: float, joint: int, probe: FaultProbe) -> Fault:
+    name = JOINTS[joint]
+    if kind in ("lock", "second"):
+        return Fault(FaultKind.LOCK, name)
+    if kind == "free_swing":
+        return Fault(FaultKind.FREE_SWING, name)
+    if kind == "intermittent":
+        return Fault(FaultKind.INTERMITTENT, name, period=value)
+    if kind == "range":  # a stop `value` rad ahead of the joint in its motion
+        ahead = probe.q[joint] + math.copysign(value, probe.qd[joint])
+        return Fault(FaultKind.RANGE, name, **({"upper": ahead} if probe.qd[joint] > 0
+                                              else {"lower": ahead}))
+    return Fault(FaultKind(kind), name, severity=value)
+
+
+def run_fault(probe: FaultProbe, executor: EventsExecutor, kind: str, value: float,
+              joint: int) -> Outcome:
+    """One fault, from waiting for its joint to move to the resets after it."""
+    outcome = Outcome(kind, joint)
+    spin(probe, executor, 30.0, lambda: probe.observing == "yes")
+    outcome.moving = spin(probe, executor, MOVE_TIMEOUT, lambda: min(
+        abs(probe.sent[joint]), abs(probe.qd[joint])) >= MOVING)
+    injected = probe.inject(_fault(kind, value, joint, probe))
+    second, second_at = (joint + 3) % 6, math.inf
+    end = injected + WATCH
+    while time.monotonic() < end:
+        if kind == "second" and math.isinf(second_at) and \
+                time.monotonic() - injected >= SECOND:
+            second_at = probe.inject(Fault(FaultKind.LOCK, JOINTS[second]))
+        spin(probe, executor, 0.02)
+    name = JOINTS[joint]
+    if name in probe.states:
+        state, arrival = probe.states[name]
+        outcome.named, outcome.delay = str(state), arrival - injected
+    if kind == "second" and JOINTS[second] in probe.states:
+        outcome.second_delay = probe.states[JOINTS[second]][1] - second_at
+    faulty = {name} | ({JOINTS[second]} if kind == "second" else set())
+    outcome.others = sorted(set(probe.states) - faulty)
+    probe.reset(executor)
+    spin(probe, executor, 2.0)
+    print(f"{time.strftime('%H:%M:%S')} {kind} {name}: {outcome.named} after "
+          f"{1e3 * outcome.delay:.0f} ms, moving {outcome.moving}, others {outcome.others}",
+          flush=True)
+    return outcome
+
+
+def _percentile(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q)) if values else math.nan
+
+
+def table(outcomes: list[Outcome]) -> list[str]:
+    """The markdown table, by kind."""
+    lines = ["| fault | runs | named right | named as | delay p50 / p99 (ms) | "
+             "healthy joints declared |", "|---|---|---|---|---|---|"]
+    for kind in dict.fromkeys(k for k, _ in KINDS):
+        rows = [o for o in outcomes if o.kind == kind]
+        right = [o for o in rows if o.named in {str(s) for s in RIGHT.get(kind, {
+            Health.DEGRADED, Health.LOCKED, Health.FREE_SWINGING})}]
+        delays = [1e3 * (o.second_delay if kind == "second" else o.delay) for o in right]
+        named: dict[str, int] = {}
+        for o in rows:
+            named[o.named] = named.get(o.named, 0) + 1
+        lines.append(f"| {kind} | {len(rows)} | {len(right)} | "
+                     + ", ".join(f"{k} {v}" for k, v in sorted(named.items()))
+                     + f" | {_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f} | "
+                     f"{sum(bool(o.others) for o in rows)} |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the series and write its table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("bench_out"))
+    parser.add_argument("--loaded", action="store_true",
+                        help="one busy process per core beside the nodes")
+    parser.add_argument("--faults", type=int, default=len(KINDS) * 6)
+    args = parser.parse_args(argv)
+    domain = int(os.environ.get("FT_BENCH_DOMAIN_FAULTS", "64"))
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    executor = EventsExecutor(context=context)
+    probe = FaultProbe(context)
+    executor.add_node(probe.node)
+    cases = [(kind, value, joint) for kind, value in KINDS for joint in range(6)][:args.faults]
+    outcomes: list[Outcome] = []
+    try:
+        with deployed("physics", domain, args.out / "faults_processes_logs", "separate"):
+            spin(probe, executor, 90.0, lambda: probe.observing == "yes")
+            if args.loaded:
+                with busy_cores():
+                    outcomes = [run_fault(probe, executor, *case) for case in cases]
+            else:
+                outcomes = [run_fault(probe, executor, *case) for case in cases]
+    finally:
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+    report(args.out, "faults_processes_loaded" if args.loaded else "faults_processes",
+           table(outcomes),
+           {"machine": machine(), "loaded": args.loaded,
+            "outcomes": [asdict(o) for o in outcomes]})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
