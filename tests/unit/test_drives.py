@@ -136,7 +136,7 @@ def test_a_lock_the_velocity_test_misses_is_named_by_its_drives_push(driver: str
         loop.run(2.0, stop=lambda: len(loop.monitor.locked) == len(joints))
         named = {PANDA.joint_names[j] for j in joints}
         assert set(loop.monitor.locked) == named, loop.monitor.locked
-        assert loop.declared[-1][0] - start <= 0.25
+        assert loop.declared[-1][0] - start <= 0.25 * len(joints) ** 0.5  # 0.35 s for two
         assert any("held still while commanded" in h.evidence
                    for h in loop.monitor.health().values())
         loop.run(4.0)

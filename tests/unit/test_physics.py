@@ -99,17 +99,19 @@ def test_gravity_directions_need_inertias_and_skip_a_vertical_axis() -> None:
     assert set(falling.tolist()) <= {-1.0, 0.0, 1.0} and np.count_nonzero(falling) >= 2
 
 
-def test_the_driver_brakes_a_swinging_joint_the_monitor_declares_and_frees_it_on_reset() -> None:
+def test_the_driver_brakes_every_joint_the_monitor_declares_and_frees_it_on_reset() -> None:
     q = ARM.home()
     plant = PhysicsPlant(ARM, q, PlantConfig(response_time=0.03))
     plant.swing(1)
     plant.lock(3)  # an injected lock: its own brake
     drive(plant, np.zeros(ARM.n), 0.1)
-    assert plant.follow_declared({1, 3}) == ([1], [])
+    assert plant.follow_declared({1, 3, 5}) == ([1, 5], [])  # 5: a healthy joint
     at = plant.q[1]
-    drive(plant, np.zeros(ARM.n), 0.3)
-    assert abs(plant.q[1] - at) < 1e-3 and plant.held == {1}
-    assert plant.follow_declared(set()) == ([], [1])  # the monitor's ~/reset
-    drive(plant, np.zeros(ARM.n), 0.2)
+    v = drive(plant, unit(5, 0.3), 0.3)
+    assert abs(plant.q[1] - at) < 1e-3 and plant.held == {1, 5}
+    assert np.abs(v[50:, 5]).max() < 1e-3  # braked: it no longer follows its command
+    assert plant.follow_declared(set()) == ([], [1, 5])  # the monitor's ~/reset
+    v = drive(plant, unit(5, 0.3), 0.3)
     assert plant.swinging == {1} and abs(plant.q[1] - at) > 0.01  # it falls again
+    assert abs(v[-1, 5] - 0.3) < 0.03  # and 5 follows again
     assert set(plant.locked) == {3}

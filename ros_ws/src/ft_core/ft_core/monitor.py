@@ -329,7 +329,8 @@ class Monitor:
         for j in update.locked:
             evidence = joints[j]
             line = (f"joint {names[j]} locked at {evidence.position:.4f} rad (t = {now:.3f} s): "
-                    + ("held still while commanded, its drive pushing" if evidence.held else
+                    + ("held still while commanded, its drive pushing"
+                       if evidence.held_since is not None else
                        f"measured {evidence.measured:.4f} rad/s against at least "
                        f"{evidence.commanded:.4f} expected, {1e3 * evidence.deficit:.1f} mrad "
                        "behind"))

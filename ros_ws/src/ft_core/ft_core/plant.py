@@ -134,8 +134,9 @@ class BasePlant(abc.ABC):
         self.t = time
         self.locked: dict[int, float] = {}
         self.swinging: set[int] = set()
-        #: free-swinging joints braked on the monitor's word (`follow_declared`)
+        #: joints braked on the monitor's word (`follow_declared`)
         self.held: set[int] = set()
+        self._held_swinging: set[int] = set()  # of them, those that had lost their torque
         self.faults = FaultState(self.n)
 
     def configure(self, config: PlantConfig) -> None:
@@ -170,19 +171,25 @@ class BasePlant(abc.ABC):
     def follow_declared(self, declared: set[int]) -> tuple[list[int], list[int]]:
         """The driver's brakes on the monitor's word: its locked set `declared` (indices).
 
-        A free-swinging joint declared locked is braked where it is, as a driver that acts
-        on `ft/locked_joints` must (the controller counts it held); one no longer declared
-        (the monitor's `~/reset`) is released and swings again. Returns (braked, released).
+        Every joint declared locked is braked where it is, as a driver that acts on
+        `ft/locked_joints` must: the controller counts it held, and a joint that lost its
+        torque (or most of it) would fall on, one stuck by friction jump when it slips.
+        One no longer declared (the monitor's `~/reset`) is released, and swings again if
+        it had lost its torque. Joints locked otherwise (injected) are left as they are.
+        Returns (braked, released).
         """
-        braked = sorted(j for j in declared if j in self.swinging)
+        braked = sorted(j for j in declared if j not in self.locked)
+        self._held_swinging.update(j for j in braked if j in self.swinging)
         for j in braked:
             self.lock(j)
         self.held.update(braked)
         released = sorted(self.held - declared)
         for j in released:
             self.unlock(j)
-            self.swing(j)
+            if j in self._held_swinging:
+                self.swing(j)
         self.held.difference_update(released)
+        self._held_swinging.difference_update(released)
         return braked, released
 
     def check_fault(self, joint: int, fault: Fault) -> None:
@@ -223,6 +230,7 @@ class BasePlant(abc.ABC):
         self.locked.clear()
         self.swinging.clear()
         self.held.clear()
+        self._held_swinging.clear()
         self.faults.clear()
         return released
 

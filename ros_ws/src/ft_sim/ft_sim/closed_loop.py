@@ -66,8 +66,8 @@ class ClosedLoop:
         goal_period: s between goals (`GOAL_PERIOD`; may change between runs).
         goal_sent_at: s, when the current goal was sent (-inf before the first).
         declared: (time, locked set) at every change of the monitor's locked set; the
-            controller and the plant's driver (`BasePlant.follow_declared`: it brakes a
-            free-swinging joint declared) are given the set at once, the controller every
+            controller and the plant's driver (`BasePlant.follow_declared`: it brakes every
+            joint declared) are given the set at once, the controller every
             joint's health with each change and every `HEALTH_PERIOD`, as the nodes
             publish them.
         sent: rad/s, the last command the plant got.

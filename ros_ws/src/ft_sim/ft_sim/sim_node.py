@@ -282,11 +282,10 @@ class SimNode(SuiteNode):
         for j in braked:
             self.get_logger().warning(f"joint {self.robot.joint_names[j]} braked at "
                                       f"{self.plant.position(j):.4f} rad: declared locked "
-                                      f"while free-swinging (t = {self.t:.3f} s)")
+                                      f"(t = {self.t:.3f} s)")
         for j in released:
             self.get_logger().warning(f"joint {self.robot.joint_names[j]} released: no "
-                                      f"longer declared locked, it swings again "
-                                      f"(t = {self.t:.3f} s)")
+                                      f"longer declared locked (t = {self.t:.3f} s)")
 
     @property
     def swinging(self) -> list[str]:

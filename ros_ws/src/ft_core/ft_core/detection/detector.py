@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ft_core.detection import rules
-from ft_core.detection.drives import Drives
+from ft_core.detection.drives import HELD_LIMIT_MARGIN, HELD_TIME, STILL_SPAN, Drives
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
@@ -42,10 +42,6 @@ from ft_core.detection.window import Offsets, Samples, _ingest, _window_fit
 #: exact multiple of a common period, so that rounding in the stamps' differences
 #: (3 ms coming out as 2.9999 ms) cannot skip one more.
 DECISION_PERIOD = 0.0025
-#: rad, the most a joint's measured positions may spread over the window for it to stand
-#: still (`rules.held_still`): beyond the range of the window's samples under the sim's
-#: 1 mrad noise, short of what a healthy joint pushed that hard moves.
-STILL_SPAN = 0.008
 #: s over which a suspect from elsewhere, commanded too slowly for the window's test, is
 #: judged (`LockDetector.confirm`): the task-space channel's window, over which it
 #: suspected the joint.
@@ -412,9 +408,12 @@ class LockDetector:
                 rules.mean_difference_error(error, times), cfg.confidence)
             candidates = candidates & (lost | ~undeclared)
         held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
-            drives.pushing & unlocked & ~pushing,  # a push the joint does not follow
-            positions, plausible, cfg.min_command, STILL_SPAN)  # (~pushing: not at a limit)
-        candidates = candidates | held
+            drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
+            & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
+            cfg.min_command, STILL_SPAN)  # a push the joint does not follow
+        since = np.array([math.nan if e.held_since is None else e.held_since for e in joints])
+        held_long = held & (now - np.fmin(since, now) >= HELD_TIME)
+        candidates = candidates | held_long
         # Python lists from here on (per-joint numpy scalars cost more than the fits).
         measured_of, weakest_of, error_of = measured.tolist(), weakest.tolist(), error.tolist()
         candidate_of, following_of = candidates.tolist(), following.tolist()
@@ -426,7 +425,9 @@ class LockDetector:
             evidence.observable, evidence.following = observes, follows
             evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
             evidence.at_limit, evidence.candidate = at_limit, candidate
-            evidence.deficit, evidence.held = behind, is_held
+            evidence.deficit = behind
+            evidence.held_since = (now if evidence.held_since is None else
+                                   evidence.held_since) if is_held else None
         n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
         if n_stalled == 0 and n_own == 0 and identify:
             plant.identify(now, measured, slopes, error, unlocked & ~pushing,
@@ -460,8 +461,8 @@ class LockDetector:
                 cfg.min_command), veto)
         # A stalled joint's evidence counts only while another joint follows.
         # (a joint held against its drive's push: while another joint moves, `held_still`)
-        supported = [h or (c and n_following - f >= 1)
-                     for h, c, f in zip(held.tolist(), candidate_of, following_of, strict=True)]
+        supported = [h or (c and n_following - f >= 1) for h, c, f in zip(
+            held_long.tolist(), candidate_of, following_of, strict=True)]
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)
         contact = contact or pushed

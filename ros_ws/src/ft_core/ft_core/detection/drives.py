@@ -60,6 +60,15 @@ PUSH_SHARE = 0.3
 PUSH_TORQUE = 5.0
 #: s a push counts after it was last seen (the commands it follows may change sign).
 PUSH_MEMORY = 0.1
+#: rad, the most a joint's measured positions may spread over the detector's window for
+#: it to stand still (`rules.held_still`): beyond the range of the window's samples under
+#: the sim's 1 mrad noise, short of what a healthy joint pushed that hard moves.
+STILL_SPAN = 0.008
+#: s a joint must stay held before it is a lock candidate: longer than a healthy joint
+#: reversing at its acceleration limit stands still, pushed as hard.
+HELD_TIME = 0.03
+#: rad: nor within this of a position limit, whose stop may be what holds it.
+HELD_LIMIT_MARGIN = 0.05
 
 
 @dataclass(frozen=True)

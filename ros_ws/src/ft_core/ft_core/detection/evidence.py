@@ -38,8 +38,9 @@ class JointEvidence:
     #: moving on its own, no plant fault (whether or not a following joint vouches for the
     #: plant, which the detector's own decision also needs)
     candidate: bool = False
-    #: held still against its drive's push (`rules.held_still`), a lock candidate so
-    held: bool = False
+    #: held still against its drive's push (`rules.held_still`) since (s), or None; a
+    #: lock candidate once that lasts `detector.HELD_TIME`
+    held_since: float | None = None
     swing_since: float | None = None  #: when the current free-swing evidence started (s)
     swinging_at: float | None = None  #: time free-swinging was declared (s)
     locked_at: float | None = None  #: time the lock was declared (s)
