@@ -159,7 +159,7 @@ def controller():
 
 @pytest.fixture(scope="module")
 def monitor():
-    with ros_context() as (context, _), tempfile.TemporaryDirectory() as state:
+    with tempfile.TemporaryDirectory() as state, ros_context() as (context, _):
         node = MonitorNode(context=context, parameter_overrides=[
             Parameter("robot_model", value="panda"), Parameter("state_directory", value=state),
             # the filter's own output: a refusal is zeros at once (the smoother's

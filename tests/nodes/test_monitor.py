@@ -116,8 +116,9 @@ class Loop:
 @contextmanager
 def loop(noise: float = 0.0, monitor_parameters: dict | None = None,
          sim_parameters: dict | None = None, domain: int | None = None) -> Iterator[Loop]:
-    with ros_context(domain=domain) as (context, executor), \
-            tempfile.TemporaryDirectory() as state:
+    # The directory outlives the nodes: the monitor's writer thread ends with its node.
+    with tempfile.TemporaryDirectory() as state, \
+            ros_context(domain=domain) as (context, executor):
         sim = SimNode.stepped_by_hand(context, {
             "robot_model": "panda", "rate": 250.0, "position_noise": noise,
             "initial_positions": START, "seed": 3, **(sim_parameters or {})})

@@ -28,7 +28,7 @@ START = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]
 
 
 def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
-    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
+    with tempfile.TemporaryDirectory() as state, ros_context() as (context, executor):
         sim = SimNode.stepped_by_hand(context, {"robot_model": "panda", "rate": 250.0,
                                                 "initial_positions": START})
         common = {"robot_model": "panda", "task_space": "position", "use_sim_time": True}
@@ -77,7 +77,7 @@ def test_composed_nodes_exchange_commands_and_states_by_call() -> None:
 
 
 def test_a_command_by_call_for_another_chain_goes_by_name() -> None:
-    with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
+    with tempfile.TemporaryDirectory() as state, ros_context() as (context, _executor):
         monitor = MonitorNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in {"robot_model": "panda", "state_directory": state,
                                                "command_timeout": 60.0,
@@ -144,7 +144,7 @@ def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
     The control timer is off meanwhile. When the states stop, the steady watchdog starts
     it again and it cycles: zeros once they are stale.
     """
-    with ros_context() as (context, executor), tempfile.TemporaryDirectory() as state:
+    with tempfile.TemporaryDirectory() as state, ros_context() as (context, executor):
         controller, monitor, take = composed(context, state, {
             "robot_model": "panda", "task_space": "position", "control_rate": 10.0})
         calls: list[str] = []
@@ -186,7 +186,7 @@ def test_each_joint_state_runs_a_cycle_after_the_monitor_observed_it() -> None:
 
 def test_with_simulated_time_the_clock_still_drives_the_cycles() -> None:
     """A state may come before the /clock of its instant: the timer ticks as before."""
-    with ros_context() as (context, _executor), tempfile.TemporaryDirectory() as state:
+    with tempfile.TemporaryDirectory() as state, ros_context() as (context, _executor):
         controller, monitor, take = composed(context, state, {"robot_model": "panda",
                                                               "use_sim_time": True})
         observed = monitor.core.detector.latest_time

@@ -65,7 +65,16 @@ from ft_core.errors import SuiteError
 from ft_core.faults import Fault, FaultKind
 from ft_core.physics import PhysicsPlant
 from ft_core.plant import CommandPath, Plant
-from ft_msgs_py import convert, markers, names, parameter_table, parameters, qos, spin
+from ft_msgs_py import (
+    convert,
+    markers,
+    names,
+    parameter_table,
+    parameters,
+    publishers,
+    qos,
+    spin,
+)
 from ft_msgs_py import faults as fault_messages
 from ft_msgs_py.node import JointStateLike, SuiteNode
 from rclpy.clock import Clock, ClockType
@@ -274,8 +283,19 @@ class SimNode(SuiteNode):
             self.lock(list(msg.name))
 
     def _on_declared(self, msg: JointState) -> None:
-        """The driver's brakes on the monitor's word (`BasePlant.follow_declared`)."""
+        """The driver's brakes on the monitor's word (`BasePlant.follow_declared`).
+
+        Taken from a single publisher only, as the controller takes it (`publishers.judge`):
+        a second one (a forger, a stale monitor) leaves the brakes as they are.
+        """
         if self.robot is None or self.plant is None:
+            return
+        topic = self.resolve_topic_name(names.LOCKED_JOINTS)
+        verdict = publishers.judge([publishers.full_name(p.node_namespace, p.node_name)
+                                    for p in self.get_publishers_info_by_topic(topic)], None)
+        if verdict.take != publishers.Take.ALL:
+            self.get_logger().warning(f"locked_joints: {verdict.problem}",
+                                      throttle_duration_sec=5.0)
             return
         known = self._known("locked_joints", list(msg.name))
         braked, released = self.plant.follow_declared(set(known.values()))
