@@ -382,8 +382,8 @@ class Monitor:
                 if j not in locked and now - self._observed_at[j] >= after]
 
     def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
-        """Decide on a lock of `joint` suspected elsewhere, on the detector's own evidence."""
-        if self.q is None:
+        """Decide on a lock of `joint` suspected elsewhere, on its own evidence (not in contact)."""
+        if self.q is None or self._contact([joint], now) is not None:
             return Confirmation(Decision.REFUSED, JointEvidence()), Change()
         answer = self.detector.confirm(joint, float(self.q[joint]), now)
         if answer.decision != Decision.LOCKED:
