@@ -459,8 +459,7 @@ class LockDetector:
             lambda j: 0.0 if drives is not None and drives.silent[j] else rules.swing_wait(
                 measured_of[j], error_of[j], plausible, settle, cfg.confidence,
                 cfg.min_command), veto)
-        # A stalled joint's evidence counts only while another joint follows.
-        # (a joint held against its drive's push: while another joint moves, `held_still`)
+        # A stalled joint counts only while another follows; a held one alone (a push).
         supported = [h or (c and n_following - f >= 1) for h, c, f in zip(
             held_long.tolist(), candidate_of, following_of, strict=True)]
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
