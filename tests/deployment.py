@@ -191,7 +191,20 @@ class Graph:
         """
         goals = self._goals(goal_period)
         assert spin_until(self.executor, lambda: goals() or condition(), timeout), (
-            f"timed out waiting for {what}")
+            f"timed out waiting for {what}\n{self.report()}")
+
+    def report(self) -> str:
+        """What the graph shows now: the locked set, the processes, the monitor's state.
+
+        A timed-out wait prints it, so a failure on a CI machine says why.
+        """
+        monitor = self.values("/monitor")
+        logs = "\n".join(f"--- {name}, its last lines\n"
+                         + "\n".join(self.log(name).splitlines()[-12:])
+                         for name in self.processes)
+        return (f"locked set {self.locked_names()}, ever {sorted(self.ever_locked())}; "
+                f"running {self.alive()}\nmonitor status {monitor[-1] if monitor else None}\n"
+                f"{logs}")
 
     def send_goal(self, index: int | None = None) -> None:
         """GOALS[index], or the next of GOALS."""

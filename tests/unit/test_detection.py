@@ -405,6 +405,50 @@ def test_a_servo_catching_up_is_refused_as_a_suspect_too() -> None:
     assert decisions == {"refused"}
 
 
+def _excursion(t: float) -> np.ndarray:
+    """Healthy motion for 2 s, then at 3 s the observability motion's excursion.
+
+    Joint 7 follows one period of 0.3 sin(2 pi t) (out and back in 1 s), its witness,
+    joint 5, 0.3 of that, the others still (`ft_core.observability`).
+    """
+    if t < 2.0:
+        return moving_targets(t)
+    command = np.zeros(7)
+    if 3.0 <= t < 4.0:
+        command[6] = 0.3 * np.sin(2 * np.pi * (t - 3.0))
+        command[4] = 0.3 * command[6]
+    return command
+
+
+def test_a_witness_seen_moving_below_the_stall_bar_vouches_for_the_plant() -> None:
+    """Joint 7 locked at 2.5 s, found in its excursion's first half under 1e-3 rad of noise.
+
+    The witness peaks at 0.09 rad/s, under ten standard errors of its slope (not
+    observable for a stall) yet clearly moving as commanded (`rules.vouching`); with the
+    stall's bar for witnesses this lock is never found. In the second half the command
+    brings joint 7 back to where it stands: no position lost, nothing to find there.
+    """
+    plant = PlantConfig(latency=0.02, response_time=0.03)
+    data = record(_excursion, 4.5, plant, ((6,), 2.5), 1e-3, (), None, 0, DT)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    witness_below_the_stall_bar = False
+    events = []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        update = detector.measure(t, values)
+        if update.locked:
+            events.append((t, list(update.locked)))
+        witness = detector.joints[4]
+        if t < 3.5 and detector.joints[6].candidate and not witness.observable:
+            witness_below_the_stall_bar |= (witness.commanded >= 0.05
+                                            and witness.measured >= 0.7 * witness.commanded)
+    assert witness_below_the_stall_bar, "the witness always cleared the stall bar"
+    assert events, "the lock was never found"
+    assert events[0][1] == [6] and 3.0 < events[0][0] < 3.5, events
+
+
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     for k in range(100):  # commanded, never moving: not one lock, and why

@@ -61,7 +61,7 @@ class Excursions:
 
     Each excursion moves two joints: the idle one and a witness, the healthy joint
     observed longest ago after it. The monitor declares a lock only while another
-    joint is seen following its command (a stopped plant is not n locks), and the null
+    joint is seen moving as commanded (a stopped plant is not n locks), and the null
     space alone may move just the idle joint (joint 7 of a Panda position task).
     """
 

@@ -459,9 +459,12 @@ class LockDetector:
             lambda j: 0.0 if drives is not None and drives.silent[j] else rules.swing_wait(
                 measured_of[j], error_of[j], plausible, settle, cfg.confidence,
                 cfg.min_command), veto)
-        # A stalled joint counts only while another follows; a held one alone (a push).
-        supported = [h or (c and n_following - f >= 1) for h, c, f in zip(
-            held_long.tolist(), candidate_of, following_of, strict=True)]
+        # A stalled joint counts only while another is seen moving as commanded (it
+        # cannot be one itself); a held one alone (a push).
+        witnessed = rules.vouching(measured, weakest, error, unlocked, cfg.min_command,
+                                   cfg.confidence, cfg.following_ratio).any()
+        supported = [h or (c and witnessed) for h, c in zip(
+            held_long.tolist(), candidate_of, strict=True)]
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)
         contact = contact or pushed

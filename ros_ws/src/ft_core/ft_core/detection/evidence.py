@@ -124,9 +124,13 @@ def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Se
                   settle: float, veto: Veto | None = None) -> tuple[list[int], str | None]:
     """Joints newly declared locked at `now` (s), where they are (`latest`, rad).
 
-    `supported[j]`: joint j is a lock candidate and another joint follows. When `veto`
-    gives a reason for the joints ready to be declared, none is, their evidence starts
-    anew, and the reason is returned with no joint.
+    `supported[j]`: joint j is a lock candidate and another joint is seen moving as
+    commanded (`rules.vouching`). `veto` is asked at every update with a supported
+    joint; when it gives a reason, none is declared, every supported joint's evidence
+    starts anew, and the reason is returned with no joint. So a stall must last
+    `persistence` after the last moment a veto explained it: a joint stalled by a wall
+    that was just removed, still catching up on what it was commanded meanwhile, is
+    judged only from the removal on.
     """
     ready = []
     for j, evidence in enumerate(joints):
@@ -137,7 +141,8 @@ def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Se
             evidence.evidence_since, evidence.evidence_late = now, disturbance.late(j)
         if now - evidence.evidence_since >= persistence + settle * evidence.evidence_late:
             ready.append(j)
-    reason = _vetoed(joints, ready, veto, "evidence_since", now)
+    under_way = [j for j, s in enumerate(supported) if s]
+    reason = _vetoed(joints, under_way, veto, "evidence_since", now)
     if reason is not None:
         return [], reason
     for j in ready:

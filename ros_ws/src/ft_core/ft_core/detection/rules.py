@@ -56,6 +56,24 @@ def is_following(v: float, c: float, observable: bool, following_ratio: float) -
     return observable and share >= following_ratio
 
 
+def vouching(measured: np.ndarray, weakest: np.ndarray, error: np.ndarray,
+             unlocked: np.ndarray, min_command: float, confidence: float,
+             following_ratio: float) -> np.ndarray:
+    """Joints that show the plant executing commands: the witnesses a lock needs.
+
+    Moving as commanded beyond the noise: not locked, |c| >= `min_command`, v / c >=
+    `following_ratio` and |v| >= `confidence` s. A looser bar than `is_following`'s
+    (|c| >= 2 `confidence` s, which a stall's separation needs): a witness need only be
+    seen moving, and a joint made to move at a peak of 0.15 rad/s beside a locked one
+    (an observability excursion's witness, under 1e-3 rad of noise) clears this one
+    and not that one. A stopped plant moves no joint, so it has none. Returns (n,) bool.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(weakest != 0.0, measured / weakest, 0.0)
+    return (unlocked & (np.abs(weakest) >= min_command) & (share >= following_ratio)
+            & (np.abs(measured) >= confidence * error))
+
+
 @njit(cache=True, error_model="numpy")
 def is_pushing(c: float, position: float, lower: float, upper: float,
                limit_margin: float) -> bool:
