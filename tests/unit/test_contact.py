@@ -34,7 +34,7 @@ def test_a_force_on_the_tool_explains_the_torques_a_lock_does_not() -> None:
     assert not contact
     small = J.T @ np.array([0.0, 0.0, -0.5 * MIN_TORQUE / np.linalg.norm(J[2])])
     assert not explained_by_contact(small, J, [1])[0]  # within a drive's model error
-    gravity = PANDA.gravity_dynamics(Q)[0]
+    gravity = PANDA.gravity(Q)
     assert in_contact(PANDA, Q, gravity + pushed, [1]).startswith("['panda_joint2'] stalled")
     assert in_contact(PANDA, Q, gravity, [1]) is None  # free, at rest: nothing external
 
@@ -80,7 +80,7 @@ def test_a_lock_while_pushing_is_named_at_the_latest_once_the_tool_leaves_the_wa
 
 
 def test_a_drive_that_gives_torque_is_driving_its_joint() -> None:
-    gravity = PANDA.gravity_dynamics(Q)[0]
+    gravity = PANDA.gravity(Q)
     assert driven(PANDA, Q, gravity, 1)  # holding its link up
     assert not driven(PANDA, Q, 0.1 * gravity, 1)  # lost its torque
     assert not driven(PANDA, Q, np.zeros(7), 6)  # none, where gravity is small anyway

@@ -44,7 +44,7 @@ def _falling(joint: int) -> np.ndarray:
 
 
 def test_a_drive_without_torque_whose_joint_falls_is_silent_after_its_time() -> None:
-    gravity = lambda q: PANDA.gravity_dynamics(q)[0]  # noqa: E731
+    gravity = lambda q: PANDA.gravity(q)  # noqa: E731
 
     def lost(q: np.ndarray) -> np.ndarray:
         effort = gravity(q)

@@ -363,3 +363,17 @@ def test_one_kinematics_snapshot_gives_what_the_separate_calls_give() -> None:
             goal = robot.forward(robot.random_configuration(rng))
             np.testing.assert_allclose(robot.task_error(goal, snapshot),
                                        robot.task_error(goal, q), atol=1e-12)
+
+
+def test_gravity_alone_is_the_gravity_of_the_dynamics() -> None:
+    """`Robot.gravity` (the monitor's every-cycle call) against `Robot.gravity_dynamics`.
+
+    And against statics: on the Panda at home, g(q) is the torque that holds the links
+    up, so joint 1 (a vertical axis) carries none and joint 2 (horizontal) a real one.
+    """
+    robot = robots.load("panda_inertial", tip_link="panda_link8")
+    rng = np.random.default_rng(RNG_SEED)
+    for q in [robot.home()] + [robot.random_configuration(rng) for _ in range(5)]:
+        np.testing.assert_allclose(robot.gravity(q), robot.gravity_dynamics(q)[0], atol=1e-12)
+    g = robot.gravity(robot.home())
+    assert abs(g[0]) < 1e-9 and abs(g[1]) > 1.0, g

@@ -305,6 +305,10 @@ class Robot:
         inertia = np.diag(pin.crba(self._model, self._data, q)).copy()
         return gravity, inertia
 
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """The gravity torques g(q) (N m) alone, as in `gravity_dynamics`, without the CRBA."""
+        return pin.computeGeneralizedGravity(self._model, self._data, self._check(q)).copy()
+
     def skeleton(self, q: np.ndarray) -> np.ndarray:
         """The chain as points (n + 1, 3; m, base frame): each joint's origin, then the tool."""
         pin.framesForwardKinematics(self._model, self._data, self._check(q))

@@ -81,7 +81,7 @@ def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[in
     at least `least` N m; the arm's URDF must have inertias (gravity torques). The
     `braked` joints (locked already) are left out: their brakes take any torque.
     """
-    external = effort - robot.gravity_dynamics(q)[0]
+    external = effort - robot.gravity(q)
     jacobian = robot.base_jacobian(q)[:3]
     external[list(braked)], jacobian[:, list(braked)] = 0.0, 0.0
     if not float(external @ external) >= least ** 2:
@@ -100,7 +100,7 @@ def driven(robot: Robot, q: np.ndarray, effort: np.ndarray, joint: int) -> bool:
     A drive that lost its torque gives none against the gravity torque g(q); one that
     gives at least `DRIVEN_SHARE` of it and 1 N m moves its joint itself.
     """
-    gravity = abs(float(robot.gravity_dynamics(q)[0][joint]))
+    gravity = abs(float(robot.gravity(q)[joint]))
     return abs(float(effort[joint])) >= max(DRIVEN_SHARE * gravity, 1.0)
 
 

@@ -107,7 +107,7 @@ class DriveWatch:
         robot = self._robot
         if not robot.has_inertias or not np.isfinite(self._least).any():
             return Drives(self.silent, np.zeros(robot.n, bool))
-        signed = robot.gravity_dynamics(q)[0]
+        signed = robot.gravity(q)
         self._pushed_at[np.abs(effort - signed) >= self._push] = now
         pushing = now - self._pushed_at <= PUSH_MEMORY
         gravity = np.abs(signed)
