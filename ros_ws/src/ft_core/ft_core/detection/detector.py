@@ -461,8 +461,8 @@ class LockDetector:
                 cfg.min_command), veto)
         # A stalled joint counts only while another is seen moving as commanded (it
         # cannot be one itself); a held one alone (a push).
-        witnessed = rules.vouching(measured, weakest, error, unlocked, cfg.min_command,
-                                   cfg.confidence, cfg.following_ratio).any()
+        witnessed = bool(rules.vouching(measured, weakest, error, unlocked, cfg.min_command,
+                                        cfg.confidence, cfg.following_ratio).any())
         supported = [h or (c and witnessed) for h, c in zip(
             held_long.tolist(), candidate_of, strict=True)]
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
