@@ -424,8 +424,7 @@ class LockDetector:
                 strict=True):
             evidence.observable, evidence.following = observes, follows
             evidence.measured, evidence.commanded, evidence.standard_error = v, c, s
-            evidence.at_limit, evidence.candidate = at_limit, candidate
-            evidence.deficit = behind
+            evidence.at_limit, evidence.candidate, evidence.deficit = at_limit, candidate, behind
             evidence.held_since = (now if evidence.held_since is None else
                                    evidence.held_since) if is_held else None
         n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
@@ -459,12 +458,10 @@ class LockDetector:
             lambda j: 0.0 if drives is not None and drives.silent[j] else rules.swing_wait(
                 measured_of[j], error_of[j], plausible, settle, cfg.confidence,
                 cfg.min_command), veto)
-        # A stalled joint counts only while another is seen moving as commanded (it
-        # cannot be one itself); a held one alone (a push).
+        # A stalled joint counts while another is seen moving as commanded; a held one alone.
         witnessed = bool(rules.vouching(measured, weakest, error, unlocked, cfg.min_command,
                                         cfg.confidence, cfg.following_ratio).any())
-        supported = [h or (c and witnessed) for h, c in zip(
-            held_long.tolist(), candidate_of, strict=True)]
+        supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)
         contact = contact or pushed
