@@ -300,9 +300,8 @@ class Robot:
         From the URDF's inertias, gravity along the root's -z (Pinocchio's
         computeGeneralizedGravity and CRBA).
         """
-        q = self._check(q)
-        gravity = pin.computeGeneralizedGravity(self._model, self._data, q).copy()
-        inertia = np.diag(pin.crba(self._model, self._data, q)).copy()
+        gravity = self.gravity(q)
+        inertia = np.diag(pin.crba(self._model, self._data, self._check(q))).copy()
         return gravity, inertia
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
