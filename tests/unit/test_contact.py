@@ -11,7 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots
-from ft_core.detection.contact import MIN_TORQUE, driven, explained_by_contact, in_contact
+from ft_core.detection.contact import (AFTER_CONTACT, MIN_TORQUE, PUSH_ANGLE, ContactWatch,
+                                       driven, explained_by_contact, in_contact)
+from ft_core.detection.evidence import JointEvidence
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_sim.closed_loop import DRIVERS, WALL, ClosedLoop, wall_across
@@ -37,6 +39,30 @@ def test_a_force_on_the_tool_explains_the_torques_a_lock_does_not() -> None:
     gravity = PANDA.gravity(Q)
     assert in_contact(PANDA, Q, gravity + pushed, [1]).startswith("['panda_joint2'] stalled")
     assert in_contact(PANDA, Q, gravity, [1]) is None  # free, at rest: nothing external
+
+
+def test_a_contact_begins_only_where_the_command_drives_the_tool_into_the_force() -> None:
+    J = PANDA.base_jacobian(Q)[:3]
+    down = np.array([0.0, 0.0, -1.0])
+    pushed = J.T @ (40.0 * down)  # the tool presses down with 40 N
+    into = np.linalg.pinv(J) @ (0.1 * down)  # joint velocities sending the tool down
+    assert explained_by_contact(pushed, J, [1], into)[0]
+    tilted = np.cos(PUSH_ANGLE + 0.1) * down + np.sin(PUSH_ANGLE + 0.1) * np.array([1, 0, 0])
+    for away in (-into, np.linalg.pinv(J) @ (0.1 * tilted)):  # a stopping link's reaction
+        contact, by_force, by_locks = explained_by_contact(pushed, J, [1], away)
+        assert not contact and by_force == pytest.approx(1.0) and by_locks < by_force
+    # Once a contact has begun, the command may turn (a stalled task backs off): it lasts
+    # while the force does, and the command's direction is asked again only after
+    # AFTER_CONTACT s without one.
+    watch, effort = ContactWatch(PANDA), PANDA.gravity(Q) + pushed
+
+    def sent(qd: np.ndarray) -> list[JointEvidence]:
+        return [JointEvidence(commanded=v) for v in qd]
+
+    assert watch.explains(PANDA, Q, effort, [1], 0.0, sent(-into)) is None
+    assert watch.explains(PANDA, Q, effort, [1], 0.1, sent(into)) is not None
+    assert watch.explains(PANDA, Q, effort, [1], 0.2, sent(-into)) is not None
+    assert watch.explains(PANDA, Q, effort, [1], 0.2 + AFTER_CONTACT, sent(-into)) is None
 
 
 def _push(driver: str, seed: int) -> ClosedLoop:
@@ -96,3 +122,22 @@ def test_an_intermittent_jam_is_locked_and_stays_locked_when_it_lets_go(driver: 
     assert _declared(loop) == {"panda_joint3": "locked"}
     assert loop.declared, "the jam was not named"
     assert all(names == ["panda_joint3"] for _, names in loop.declared)  # never released
+
+
+def test_two_links_stopped_by_locks_at_once_are_no_contact() -> None:
+    """Panda joints 2 and 5 lock together behind the slow driver: their drives' pushes and
+    the stopping links' reactions fit a force at the tool (95 % of the external torques),
+    but the command never drove the tool into it, so both are named and no contact is
+    reported."""
+    loop = ClosedLoop("position", DRIVERS["slow"], seed=1)
+    loop.run(4.0)
+    loop.run(1.5, stop=lambda: min(abs(loop.plant.qd[1]), abs(loop.sent[1])) > 0.1)
+    loop.plant.lock(1)
+    loop.plant.lock(4)
+    contacts = []
+    for _ in range(round(1.0 / loop.dt)):
+        loop.run(loop.dt)
+        if loop.monitor.contact is not None:
+            contacts.append(loop.monitor.contact)
+    assert _declared(loop) == {"panda_joint2": "locked", "panda_joint5": "locked"}
+    assert contacts == []

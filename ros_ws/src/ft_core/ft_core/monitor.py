@@ -57,7 +57,7 @@ from ft_core.detection import (
     LockDetector,
     compile_ahead,
 )
-from ft_core.detection.contact import ContactWatch, driven, in_contact
+from ft_core.detection.contact import ContactWatch, driven
 from ft_core.detection.drives import DriveWatch
 from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
 from ft_core.input_checks import all_finite
@@ -295,7 +295,7 @@ class Monitor:
         if effort is not None:
             self.board.effort(now, effort)
             if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now,
-                                                              list(self.detector.locked)):
+                                                              self.detector.joints):
                 self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
         drives = None if effort is None else self._drives.update(now, q, effort)
@@ -365,8 +365,8 @@ class Monitor:
         """Why stalled `joints` are in contact, not failed, or None (`detection.contact`)."""
         if self.effort is None or self.q is None or self._drives.silent[joints].any():
             return None  # a silent drive pushes against nothing (`detection.drives`)
-        return in_contact(self.robot, self.q, self.effort, joints,
-                          braked=list(self.detector.locked))
+        return self._touch.explains(self.robot, self.q, self.effort, joints,
+                                    self.detector.latest_time, self.detector.joints)
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.

@@ -15,9 +15,15 @@ tau_ext: the best force at the tool, R_f = |tau_ext - J^T f|^2 / |tau_ext|^2 ove
 (least squares, the tool point's linear rows of J), and the stalled joints alone, R_l =
 the share of |tau_ext|^2 outside them. It is contact when the force explains the
 torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R_f),
-and they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m). A lock
-while the tool pushes leaves its own joint's torque unexplained by a tool force, and is
-named when that is most of it. Without efforts or inertias nothing is vetoed.
+they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m), and the
+command drives the tool into the force: an obstacle pushes back only on a tool sent into
+it, so the commanded tool velocity J qd_c must lie within `PUSH_ANGLE` of f. This tells
+a contact from the reaction of links stopped by locks: a stopping link's inertial torques
+are also J^T of a force (the link's deceleration times its mass), and a locked pair of
+joints can put its drives' pushes in the range of J^T, but neither has anything to do
+with where the command sends the tool. A lock while the tool pushes leaves its own
+joint's torque unexplained by a tool force, and is named when that is most of it.
+Without efforts or inertias nothing is vetoed.
 
 The efforts also tell a joint that moved again after its lock with its drive's torque (a
 jam that let go, its servo catching up: `driven`) from one whose drive lost its torque
@@ -31,12 +37,18 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ft_core.detection.evidence import JointEvidence
 from ft_core.robots import Robot
 
 #: Least share of the external torques a tool force must explain for contact.
 CONTACT_SHARE = 0.8
 #: N m, the smallest external torque (norm over the joints) that says anything.
 MIN_TORQUE = 5.0
+#: rad, the largest angle between the commanded tool velocity and the force the tool
+#: exerts, for contact: a tool pushed into an obstacle is commanded into it (on the physics
+#: plant's walls, within 52 degrees; the stops of two locked joints' links read as a force
+#: 90 degrees and more from the command).
+PUSH_ANGLE = math.radians(75.0)
 #: s between two looks at whether the tool is in contact (`ContactWatch`).
 CONTACT_PERIOD = 0.02
 #: s after a contact during which the joints' motion still says nothing of their drives
@@ -51,14 +63,16 @@ WATCH_SHARE = 0.15
 DRIVEN_SHARE = 0.3
 
 
-def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
-                         stalled: list[int]) -> tuple[bool, float, float]:
+def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: list[int],
+                         commanded: np.ndarray | None = None) -> tuple[bool, float, float]:
     """Whether a force on the tool explains the external torques better than locks do.
 
     Args:
         external: (n,) tau_ext, the efforts less the gravity torques (N m).
         jacobian: (3, n) the tool point's linear Jacobian (m/rad).
         stalled: the joints about to be declared locked or degraded.
+        commanded: (n,) the joint velocities commanded (rad/s): the force must lie within
+            `PUSH_ANGLE` of the tool velocity they command. None: not asked.
 
     Returns:
         (contact, share the force explains 1 - R_f, share the stalled joints explain 1 - R_l).
@@ -70,23 +84,31 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray,
     residual = external - jacobian.T @ force
     by_force = 1.0 - float(residual @ residual) / total
     by_locks = float(external[stalled] @ external[stalled]) / total
-    return by_force >= CONTACT_SHARE and by_force > by_locks, by_force, by_locks
+    contact = by_force >= CONTACT_SHARE and by_force > by_locks
+    if contact and commanded is not None:
+        sent = jacobian @ commanded
+        contact = float(sent @ force) >= math.cos(PUSH_ANGLE) * float(
+            np.linalg.norm(sent) * np.linalg.norm(force)) > 0.0
+    return contact, by_force, by_locks
 
 
 def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
-               least: float = MIN_TORQUE, braked: Sequence[int] = ()) -> str | None:
+               least: float = MIN_TORQUE, braked: Sequence[int] = (),
+               commanded: np.ndarray | None = None) -> str | None:
     """Why the `stalled` joints are held by a force on the tool, not failed; None if not.
 
     At the configuration `q` (rad) with the drives' `effort` (N m), an external torque of
     at least `least` N m; the arm's URDF must have inertias (gravity torques). The
     `braked` joints (locked already) are left out: their brakes take any torque.
+    `commanded`: the joint velocities commanded (rad/s), as `explained_by_contact` takes
+    them.
     """
     external = effort - robot.gravity(q)
     jacobian = robot.base_jacobian(q)[:3]
     external[list(braked)], jacobian[:, list(braked)] = 0.0, 0.0
     if not float(external @ external) >= least ** 2:
         return None
-    contact, by_force, by_locks = explained_by_contact(external, jacobian, stalled)
+    contact, by_force, by_locks = explained_by_contact(external, jacobian, stalled, commanded)
     if not contact:
         return None
     names = [robot.joint_names[j] for j in stalled]
@@ -105,10 +127,13 @@ def driven(robot: Robot, q: np.ndarray, effort: np.ndarray, joint: int) -> bool:
 
 
 class ContactWatch:
-    """Whether the tool is in contact, or was within `AFTER_CONTACT` s.
+    """Whether the tool is in contact (`explains`), or was within `AFTER_CONTACT` s (`lately`).
 
-    Looked at every `CONTACT_PERIOD` s: the joints' shares of their commands then say
-    nothing of their drives (`ft_core.detection.follow`).
+    A contact begins where the command drives the tool into the force (`PUSH_ANGLE`).
+    Within `AFTER_CONTACT` s of a look that found one, the command's direction is not
+    asked: a controller whose task stalls at a wall changes its command and backs off
+    while its servos push on from the position they were sent to, and once the tool is
+    free the arm's rush to its goal loads the drives as a force at the tool would.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -116,14 +141,38 @@ class ContactWatch:
         #: N m: `WATCH_SHARE` of the effort limits (no watch without finite limits)
         self.least = (WATCH_SHARE * float(np.linalg.norm(limits)) if np.isfinite(limits).all()
                       else math.inf)
-        self._looked = -math.inf  # s, when contact was last looked at
-        self._touched = -math.inf  # s, when the tool was last seen in contact
+        self._looked = -math.inf  # s, when `lately` last looked
+        self._touched = -math.inf  # s, when `lately` last found the tool in contact
+        self._pressed = -math.inf  # s, when any look last found the tool in contact
+
+    def explains(self, robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
+                 now: float, joints: Sequence[JointEvidence],
+                 least: float = MIN_TORQUE) -> str | None:
+        """`in_contact` at `now` (s), the command's direction asked only where no contact
+        was found lately.
+
+        `joints`: every joint's evidence at the last update, for the velocities commanded
+        (`JointEvidence.commanded`) and the joints locked (braked).
+        """
+        braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
+        commanded = None if now - self._pressed < AFTER_CONTACT else np.array(
+            [e.commanded for e in joints])
+        reason = in_contact(robot, q, effort, stalled, least, braked, commanded)
+        if reason is not None:
+            self._pressed = now
+        return reason
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
-               braked: Sequence[int] = ()) -> bool:
-        """Whether the tool is or was lately in contact at `now` (s), by `in_contact`."""
+               joints: Sequence[JointEvidence]) -> bool:
+        """Whether the tool is or was lately in contact at `now` (s), looked at every
+        `CONTACT_PERIOD` s with no joint stalled and `least` N m (`joints` as `explains`
+        takes them).
+
+        The joints' shares of their commands then say nothing of their drives
+        (`ft_core.detection.follow`).
+        """
         if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
-            if in_contact(robot, q, effort, [], self.least, braked) is not None:
+            if self.explains(robot, q, effort, [], now, joints, self.least) is not None:
                 self._touched = now
         return now - self._touched < AFTER_CONTACT
