@@ -13,7 +13,9 @@ per driver (the least-share column then holds how far, m, the wall held the tool
 its goal).
 
 Per run: the state the monitor first declared the faulty joint in and when (s after the
-fault), its smallest share of the command after the fault (`follows`), every other
+fault; for a free swing also after its velocity first departed from the command in force
+at the plant, which for a joint gravity does not turn comes only once the command
+changes), its smallest share of the command after the fault (`follows`), every other
 joint declared (a healthy joint declared: as bad as a missed failure), the goals after
 the fault the tool came within 1 cm of, and how many of them the arm could still reach
 with its failed joints held where they ended (`ft_core.recovery.reachable`). Healthy
@@ -97,6 +99,10 @@ class Run:
     #: s from its share first falling below one half to its first declaration (a fault
     #: that leaves a joint following shows only once it slows)
     slowed_delay: float = math.nan
+    #: s from the faulty joint's velocity first differing by `MOVING` from the command in
+    #: force at the plant to its first declaration (a joint gravity does not turn coasts
+    #: on as commanded when it loses its torque, and shows only once the command changes)
+    shown_delay: float = math.nan
     others: list[str] = field(default_factory=list)  #: healthy joints declared
     goals: int = 0
     reached: int = 0
@@ -139,12 +145,15 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     shares, second_at, goals = [], math.inf if kind != "second" else start + severity, {}
     commanded_at = math.inf  # when the second locked joint was first commanded
     slowed_at = math.inf  # when the faulty joint's share first fell below SLOWED
+    shown_at = math.inf  # when the faulty joint's velocity first departed from its command
     where: dict[int, np.ndarray] = {}  # each goal's position (m)
     for _ in range(round(AFTER / loop.dt)):
         if loop.t >= second_at and second not in loop.plant.locked:
             loop.plant.lock(second)
             second_at = loop.t
         loop.run(loop.dt)
+        if abs(loop.plant.path.in_force(loop.plant.t)[joint] - loop.plant.qd[joint]) >= MOVING:
+            shown_at = min(shown_at, loop.t)
         if loop.t >= second_at and abs(loop.sent[second]) >= MOVING:
             commanded_at = min(commanded_at, loop.t)
         if result.named == "healthy" and board.states[joint] != Health.HEALTHY:
@@ -166,6 +175,8 @@ def _run(loop: ClosedLoop, kind: str, severity: float, label: str, driver: str,
     result.least_share = min(shares, default=math.nan)
     if math.isfinite(slowed_at):
         result.slowed_delay = max(start + result.delay - slowed_at, 0.0)
+    if math.isfinite(shown_at):
+        result.shown_delay = max(start + result.delay - shown_at, 0.0)
     counted = sorted(goals)[:GOALS_AFTER]
     result.goals, result.reached = len(counted), sum(goals[g] < REACHED for g in counted)
     q, failed = loop.plant.q, sorted({*loop.plant.locked, *loop.plant.swinging})
@@ -243,7 +254,10 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
             continue
         right = [r for r in rows if _named_right(r)]
         delays = [1e3 * (r.second_delay if r.kind == "second" else r.delay) for r in right]
-        commanded = [1e3 * r.second_commanded_delay for r in right if r.kind == "second"]
+        since, what = (([1e3 * r.second_commanded_delay for r in right], "its first command")
+                       if rows[0].kind == "second" else
+                       ([1e3 * r.shown_delay for r in right], "when it showed")
+                       if rows[0].kind == "free_swing" else ([], ""))
         named: dict[str, int] = {}
         for r in rows:
             named[r.named] = named.get(r.named, 0) + 1
@@ -259,8 +273,8 @@ def table(runs: list[Run], healthy: list[dict]) -> list[str]:
             f"| {label} | {len(rows)} | {len(right)} | "
             + ", ".join(f"{k} {v}" for k, v in sorted(named.items())) + " | "
             f"{_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f}"
-            + (f" ({_percentile(commanded, 50):.0f} / {_percentile(commanded, 99):.0f} from "
-               "its first command)" if commanded else "") + " | "
+            + (f" ({_percentile(since, 50):.0f} / {_percentile(since, 99):.0f} from "
+               f"{what})" if since else "") + " | "
             f"{np.median(shares) if shares else math.nan:.2f} | "
             f"{sum(r.named != 'healthy' for r in slowed)} of {len(slowed)}"
             + (f", at most {max(late):.0f} ms after it slowed" if late else "") + " | "

@@ -191,6 +191,7 @@ def test_fault_grid_benchmark_names_a_lock_and_holds_a_contact(tmp_path: Path) -
     lock = faults.run_one("lock", float("nan"), "lock", "fast", 3)
     assert (lock.named, lock.others) == ("locked", [])
     assert 0 < lock.delay < 1.0 and lock.goals == 4 and lock.reachable >= lock.reached
+    assert 0 <= lock.shown_delay <= lock.delay  # a locked joint departs from its command at once
     contact = faults.contact_run("fast", 0)
     assert contact.others == [] and contact.least_share > 0.05  # held off its goal
     assert contact.reached == 1  # and reached once the wall was gone

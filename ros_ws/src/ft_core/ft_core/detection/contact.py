@@ -17,7 +17,8 @@ the share of |tau_ext|^2 outside them. It is contact when the force explains the
 torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R_f),
 they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m), and the
 command drives the tool into the force: an obstacle pushes back only on a tool sent into
-it, so the commanded tool velocity J qd_c must lie within `PUSH_ANGLE` of f. This tells
+it, so where no contact was found lately (`ContactWatch`) the commanded tool velocity
+J qd_c must lie within `PUSH_ANGLE` of f. This tells
 a contact from the reaction of links stopped by locks: a stopping link's inertial torques
 are also J^T of a force (the link's deceleration times its mass), and a locked pair of
 joints can put its drives' pushes in the range of J^T, but neither has anything to do
@@ -149,12 +150,18 @@ class ContactWatch:
                  now: float, joints: Sequence[JointEvidence],
                  least: float = MIN_TORQUE) -> str | None:
         """`in_contact` at `now` (s), the command's direction asked only where no contact
-        was found lately.
+        was found lately, and not for joints moving on their own.
 
         `joints`: every joint's evidence at the last update, for the velocities commanded
-        (`JointEvidence.commanded`) and the joints locked (braked).
+        (`JointEvidence.commanded`), the joints locked (braked) and those moving on their
+        own (`swing_since`). A joint that moves on its own while the drives' torques are a
+        force at the tool is pushed, by an obstacle or by the arm's own links as they stop
+        or start (their inertial reaction is J^T of a force too), whatever the command:
+        not a free swing. Such a look begins no contact.
         """
         braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
+        if stalled and all(joints[j].swing_since is not None for j in stalled):
+            return in_contact(robot, q, effort, stalled, least, braked)
         commanded = None if now - self._pressed < AFTER_CONTACT else np.array(
             [e.commanded for e in joints])
         reason = in_contact(robot, q, effort, stalled, least, braked, commanded)
