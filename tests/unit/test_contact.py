@@ -11,8 +11,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots
-from ft_core.detection.contact import (AFTER_CONTACT, MIN_TORQUE, PUSH_ANGLE, ContactWatch,
-                                       driven, explained_by_contact, in_contact)
+from ft_core.detection.contact import (
+    AFTER_CONTACT,
+    MIN_TORQUE,
+    PUSH_ANGLE,
+    ContactWatch,
+    driven,
+    explained_by_contact,
+    in_contact,
+)
 from ft_core.detection.evidence import JointEvidence
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
@@ -125,10 +132,11 @@ def test_an_intermittent_jam_is_locked_and_stays_locked_when_it_lets_go(driver: 
 
 
 def test_two_links_stopped_by_locks_at_once_are_no_contact() -> None:
-    """Panda joints 2 and 5 lock together behind the slow driver: their drives' pushes and
-    the stopping links' reactions fit a force at the tool (95 % of the external torques),
-    but the command never drove the tool into it, so both are named and no contact is
-    reported."""
+    """Panda joints 2 and 5 locked together behind the slow driver: both named, no contact.
+
+    Their drives' pushes and the stopping links' reactions fit a force at the tool (95 %
+    of the external torques), but the command never drove the tool into it.
+    """
     loop = ClosedLoop("position", DRIVERS["slow"], seed=1)
     loop.run(4.0)
     loop.run(1.5, stop=lambda: min(abs(loop.plant.qd[1]), abs(loop.sent[1])) > 0.1)

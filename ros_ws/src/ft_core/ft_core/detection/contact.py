@@ -149,12 +149,12 @@ class ContactWatch:
     def explains(self, robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
                  now: float, joints: Sequence[JointEvidence],
                  least: float = MIN_TORQUE) -> str | None:
-        """`in_contact` at `now` (s), the command's direction asked only where no contact
-        was found lately, and not for joints moving on their own.
+        """`in_contact` at `now` (s), the command's direction asked only as a contact begins.
 
-        `joints`: every joint's evidence at the last update, for the velocities commanded
-        (`JointEvidence.commanded`), the joints locked (braked) and those moving on their
-        own (`swing_since`). A joint that moves on its own while the drives' torques are a
+        It is asked where no contact was found lately, and not for joints moving on their
+        own. `joints`: every joint's evidence at the last update, for the velocities
+        commanded (`JointEvidence.commanded`), the joints locked (braked) and those moving
+        on their own (`swing_since`). A joint that moves on its own while the drives' torques are a
         force at the tool is pushed, by an obstacle or by the arm's own links as they stop
         or start (their inertial reaction is J^T of a force too), whatever the command:
         not a free swing. Such a look begins no contact.
@@ -171,12 +171,11 @@ class ContactWatch:
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
                joints: Sequence[JointEvidence]) -> bool:
-        """Whether the tool is or was lately in contact at `now` (s), looked at every
-        `CONTACT_PERIOD` s with no joint stalled and `least` N m (`joints` as `explains`
-        takes them).
+        """Whether the tool is or was lately in contact at `now` (s).
 
-        The joints' shares of their commands then say nothing of their drives
-        (`ft_core.detection.follow`).
+        Looked at every `CONTACT_PERIOD` s, with no joint stalled and `least` N m (`joints`
+        as `explains` takes them). The joints' shares of their commands then say nothing
+        of their drives (`ft_core.detection.follow`).
         """
         if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
