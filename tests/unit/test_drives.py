@@ -14,11 +14,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots, swing
-from ft_core.detection import drives, rules
-from ft_core.detection.drives import DriveWatch
+from ft_core.detection import DetectorConfig, drives, rules
+from ft_core.detection.drives import Drives, DriveWatch
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
-from ft_sim.closed_loop import DRIVERS, ClosedLoop
+from ft_core.monitor import Monitor, MonitorConfig
+from ft_core.physics import PhysicsPlant
+from ft_sim.closed_loop import DRIVERS, NOISE, ClosedLoop
 
 pytestmark = pytest.mark.unit
 
@@ -143,3 +145,86 @@ def test_a_lock_the_velocity_test_misses_is_named_by_its_drives_push(driver: str
         assert set(loop.monitor.locked) == named  # and no healthy joint after them
     finally:
         loop.close()
+
+
+def test_a_drive_that_works_against_its_joints_motion_does_not_let_it_go() -> None:
+    """Joint 0 dragged (its servo pulls back), 1 without torque falling, 2 a fall held short."""
+    none = np.zeros(3, bool)
+    gravity = np.array([10.0, 10.0, 10.0])  # N m, |g(q)|
+    velocity = np.array([0.1, 0.1, -0.1])  # rad/s
+    external = np.array([-0.5, 10.0, -0.5])  # N m, tau - g(q): -g for the free joint
+    assert Drives(none, none, external, gravity).let_go(velocity).tolist() == \
+        [False, True, False]
+    assert Drives(none, none).let_go(velocity).all()  # no efforts: the motion alone
+
+
+def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_own() -> None:
+    lower, upper = np.full(4, -1.0), np.full(4, 1.0)
+    latest = np.array([0.995, -0.995, 0.995, 0.5])  # rad: on the upper stop, the lower...
+    falling = np.array([1.0, 1.0, 1.0, 1.0])  # gravity turns every joint towards +
+    silent = np.array([True, True, False, True])
+    still = np.zeros(4)  # rad/s, none moves
+    plausible = np.zeros((1, 4))
+    everyone = np.ones(4, bool)
+    own = rules.silent_and_on_its_own(silent, still, plausible, np.full(4, 1e-3), everyone,
+                                      everyone, falling, (latest, lower, upper), 0.05, 5.0,
+                                      0.01)
+    # Only joint 0: joint 1's stop is not the one gravity turns it into, joint 2's drive
+    # gives torque, joint 3 is nowhere near a stop.
+    assert own.tolist() == [True, False, False, False]
+
+
+def _onto_the_stop(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
+    """Panda joint 2 driven at 0.1 rad/s onto its upper stop, losing its torque at `fails_at` s.
+
+    Leaning out, so gravity turns it into that stop; joints 1, 5 and 7 move meanwhile.
+    Returns the monitor's events, the s from the loss to the first, and the monitor.
+    """
+    q = PANDA.home()
+    q[1] = PANDA.upper[1] - 0.2
+    assert swing.falling_directions(PANDA, q)[1] > 0  # gravity turns it into that stop
+    monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
+    plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
+    rng = np.random.default_rng(3)
+    command = np.zeros(PANDA.n)
+    command[[0, 1, 4, 6]] = [0.3, 0.1, 0.3, 0.3]
+    events: list[str] = []
+    first = np.inf
+    t = 0.0
+    for _ in range(round(3.0 / DT)):
+        if abs(t - fails_at) < DT / 2:
+            plant.inject(1, Fault(FaultKind.FREE_SWING, PANDA.joint_names[1]))
+        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
+                                 effort=plant.torque)
+        if change.events and not events:
+            first = t - fails_at
+        events += change.events
+        plant.command(t, monitor.command(command, t))
+        t += DT
+        plant.step(t)
+    monitor.close()
+    return events, first, monitor
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+@pytest.mark.parametrize("fails_at", [1.85, 1.93])  # s: 17-19 and 9-11 mrad short of it
+def test_a_free_swing_that_lands_on_its_stop_is_named_and_the_joints_it_drags_are_not(
+        driver: str, fails_at: float) -> None:
+    """Its fall reaches the stop before it counts as motion on its own, and shakes joint 4.
+
+    Joint 2 rests on the stop without torque: free-swinging. Joint 4's servo, dragged by
+    the fall, works against its motion: healthy (`Drives.let_go`).
+    """
+    events, first, monitor = _onto_the_stop(driver, fails_at)
+    assert events, "the swing was not named"
+    assert len(events) == 1, events
+    assert events[0].startswith("joint panda_joint2 free-swinging")
+    assert "its drive giving no torque" in events[0]
+    assert first <= 0.2
+    assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [1]
+
+
+def test_a_healthy_joint_pushed_into_its_stop_is_not_named() -> None:
+    events, _, monitor = _onto_the_stop("slow", np.inf)
+    assert monitor.detector.not_observing is None  # it judged the motion throughout
+    assert events == []

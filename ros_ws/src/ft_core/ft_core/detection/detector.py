@@ -150,8 +150,7 @@ class LockDetector:
     config: DetectorConfig = field(default_factory=DetectorConfig)
 
     def __post_init__(self) -> None:
-        self.lower = np.asarray(self.lower, dtype=float)
-        self.upper = np.asarray(self.upper, dtype=float)
+        self.lower, self.upper = np.asarray(self.lower, float), np.asarray(self.upper, float)
         self.n = self.lower.size
         self.reset()
 
@@ -179,8 +178,7 @@ class LockDetector:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
         old = self.config
         self.config = config
-        if config.grids()[0].tolist() != old.grids()[0].tolist() or (
-                config.grids()[1].tolist() != old.grids()[1].tolist()):
+        if [g.tolist() for g in config.grids()] != [g.tolist() for g in old.grids()]:
             locked = [(j, e.position, e.locked_at) for j, e in enumerate(self.joints)
                       if e.locked_at is not None]
             self.reset()
@@ -252,9 +250,10 @@ class LockDetector:
         `drives` (`drives.DriveWatch`, from the efforts): a joint whose drive is silent
         (no torque while gravity turns it) outside its plausible predictions, the way
         gravity turns it, moves on its own at once, with no allowance for a servo's
-        transient (it needs torque) and no wait for it to settle; a joint whose drive
-        pushes, still within `STILL_SPAN` over the window while a plausible model
-        commands it and another joint moves, is a lock candidate.
+        transient and no wait; one whose drive works against its motion does not
+        (`Drives.let_go`); one whose drive pushes, still within `STILL_SPAN` over the
+        window while a plausible model commands it and another joint moves, is a lock
+        candidate.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -390,17 +389,18 @@ class LockDetector:
             flags = rules.classify(*evidence_of, np.asarray(directions, dtype=float), True,
                                    *limits)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
+        on_its_own = on_its_own & (True if drives is None else drives.let_go(measured))
         if drives is not None and drives.silent.any():  # what the efforts say (`drives`)
             gravity = directions if directions is not None else falling() if falling else None
             if gravity is not None:
                 on_its_own = on_its_own | rules.silent_and_on_its_own(
                     drives.silent, measured, plausible, error, unlocked, undeclared,
-                    np.asarray(gravity, dtype=float), cfg.min_command, cfg.confidence)
+                    np.asarray(gravity, dtype=float), (latest, self.lower, self.upper),
+                    cfg.min_command, cfg.confidence, cfg.limit_margin)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():
-            # The best model alone: the plausible models' offsets differ by their lags
-            # times the change of command, which is no loss of position. (A joint once
-            # seen swinging moved on its own: stopping is its test.)
+            # The best model alone: the plausible models' offsets differ by their lags times
+            # the change of command, no loss of position. (A swung joint's test: stopping.)
             offsets = self._offsets
             past = offsets.between(now - self._horizon(), now - cfg.window)
             deficit, lost = rules.lost_position(

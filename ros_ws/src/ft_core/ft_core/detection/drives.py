@@ -69,14 +69,35 @@ STILL_SPAN = 0.008
 HELD_TIME = 0.03
 #: rad: nor within this of a position limit, whose stop may be what holds it.
 HELD_LIMIT_MARGIN = 0.05
+#: Share of a joint's gravity torque its drive's torque may err by, the gravity model's
+#: error: a joint moving on its own is free only with its drive short of holding it by
+#: more (`Drives.let_go`).
+DRAG_SHARE = 0.1
 
 
 @dataclass(frozen=True)
 class Drives:
-    """What the efforts said of every joint at one update ((n,) bool each)."""
+    """What the efforts said of every joint at one update ((n,) each)."""
 
-    silent: np.ndarray  #: no torque against gravity while the joint falls
-    pushing: np.ndarray  #: a push far beyond what moving the joint needs, lately
+    silent: np.ndarray  #: bool, no torque against gravity while the joint falls
+    pushing: np.ndarray  #: bool, a push far beyond what moving the joint needs, lately
+    #: N m, each drive's torque beyond its gravity torque, tau - g(q); None: unknown
+    external: np.ndarray | None = None
+    gravity: np.ndarray | None = None  #: N m, |g(q)|; None: unknown
+
+    def let_go(self, velocity: np.ndarray) -> np.ndarray:
+        """Whether each joint's drive lets it move at `velocity` (rad/s) (n,) bool.
+
+        A healthy servo moved by something else (the other links' reaction when one of
+        them stops or falls, a push on the tool) drives against the motion, back to its
+        reference: sign(v) (tau - g(q)) < 0. A drive without torque leaves tau - g = -g,
+        which a joint falling under gravity has the sign of: sign(v) (tau - g) = |g|. A
+        joint moving on its own is free only where sign(v) (tau - g) exceeds `DRAG_SHARE`
+        |g|, beyond the gravity model's error. True everywhere without efforts.
+        """
+        if self.external is None or self.gravity is None:
+            return np.ones(velocity.size, bool)
+        return np.sign(velocity) * self.external > DRAG_SHARE * self.gravity
 
 
 class DriveWatch:
@@ -125,4 +146,4 @@ class DriveWatch:
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
                                   & (fallen >= FALL))
-        return Drives(self.silent.copy(), pushing)
+        return Drives(self.silent.copy(), pushing, effort - signed, gravity)

@@ -116,16 +116,24 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float
 
 def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: np.ndarray,
                           error: np.ndarray, unlocked: np.ndarray, undeclared: np.ndarray,
-                          falling: np.ndarray, min_command: float,
-                          confidence: float) -> np.ndarray:
+                          falling: np.ndarray, stops: tuple[np.ndarray, np.ndarray, np.ndarray],
+                          min_command: float, confidence: float,
+                          limit_margin: float) -> np.ndarray:
     """`moves_on_its_own` for the joints whose drives are `silent` (no torque against gravity).
 
     Without the allowance for a servo's transient (`fastest` 0): a joint faster than its
     plausible predictions the way gravity turns it, its drive giving no torque, is not
-    overshooting, it is falling. Arguments as `classify`'s; returns (n,) bool.
+    overshooting, it is falling. A silent joint within `limit_margin` of the limit gravity
+    turns it into (`stops`: the latest positions, the lower and upper limits, rad) rests
+    on that stop without torque: it counts too, moving or not. A joint falls onto a stop
+    close by before its fall can count as motion (a Panda shoulder 20 mrad from its limit
+    reaches it in 0.1 s), and a healthy drive holding a joint there gives its gravity
+    torque. Arguments as `classify`'s; returns (n,) bool.
     """
-    own = np.zeros(measured.size, dtype=np.bool_)
-    for j in np.flatnonzero(silent):
+    latest, lower, upper = stops
+    own = ((falling > 0) & (latest >= upper - limit_margin)
+           | (falling < 0) & (latest <= lower + limit_margin)) & silent & unlocked & undeclared
+    for j in np.flatnonzero(silent & ~own):
         column = plausible[:, j]
         own[j] = moves_on_its_own(measured[j], error[j], column.min(), column.max(), 0.0,
                                   unlocked[j], undeclared[j], falling[j], True, min_command,
