@@ -17,9 +17,13 @@ process per core beside the nodes (`ft_sim.cpu_load.busy_cores`).
 Per fault: the state the monitor first declared the faulty joint in, and when (s from the
 injection's publication to the `ft/joint_health` message's arrival here: the delay a
 subscriber sees), and every other joint declared (a healthy joint declared; the second
-lock's joint excepted). Writes `<out>/faults_processes.md` and `.json` (`_loaded` with
-`--loaded`), the processes' logs under `<out>/faults_processes_logs/`. DDS domain
-`FT_BENCH_DOMAIN_FAULTS` (default 64).
+lock's joint excepted). A fault shows only once the joint moves other than commanded: a
+lock of a joint the controller is not moving, or a free swing of one that coasts as
+commanded, is there to see only later. So each delay is also given from when the fault
+showed: the joint's reported velocity first differing by `MOVING` from the command in
+force at the sim (this probe's last command sent `LATENCY` s before) after the injection.
+Writes `<out>/faults_processes.md` and `.json` (`_loaded` with `--loaded`), the processes'
+logs under `<out>/faults_processes_logs/`. DDS domain `FT_BENCH_DOMAIN_FAULTS` (default 64).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import argparse
 import math
 import os
 import time
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -45,7 +50,7 @@ from rclpy.context import Context
 from rclpy.experimental.events_executor import EventsExecutor
 from sensor_msgs.msg import JointState
 from soak_probe import STREAM, Probe
-from soak_processes import deployed
+from soak_processes import PLANTS, deployed
 from std_srvs.srv import Trigger
 
 JOINTS = [f"panda_joint{k}" for k in range(1, 8)]
@@ -57,8 +62,12 @@ KINDS = [("lock", math.nan), ("free_swing", math.nan), ("intermittent", 0.5),
 SECOND = 2.0
 #: s each fault is watched.
 WATCH = 8.0
-#: rad/s the faulty joint must be commanded and move at when it fails.
+#: rad/s the faulty joint must be commanded and move at when it fails; also how far its
+#: velocity must differ from the command in force for its fault to show.
 MOVING = 0.1
+#: s, the sim's command latency (`soak_processes.PLANTS`): a command is in force this long
+#: after it was sent.
+LATENCY = float(PLANTS["physics"]["sim"]["command_latency"])
 #: s the probe waits for the joint to move before it injects anyway.
 MOVE_TIMEOUT = 20.0
 #: The states that name a fault of each kind right (the rest: any but healthy).
@@ -76,6 +85,8 @@ class Outcome:
     named: str = "healthy"  #: the faulty joint's first declared state
     delay: float = math.nan  #: s from the injection to that message
     second_delay: float = math.nan  #: s from the second lock to its joint's declaration
+    shown_delay: float = math.nan  #: s from when the fault showed to that message
+    second_shown_delay: float = math.nan  #: the same for the second lock
     others: list[str] = field(default_factory=list)  #: healthy joints declared
 
 
@@ -95,6 +106,9 @@ class FaultProbe(Probe):
         self.q = np.zeros(7)
         self.qd = np.zeros(7)
         self.sent = np.zeros(7)
+        self._sent_since: deque[tuple[float, np.ndarray]] = deque(maxlen=1000)
+        #: joint -> when its fault showed (monotonic s; inf: not yet), for the faulty joints
+        self.shown: dict[int, float] = {}
 
     def _on_health(self, msg: DiagnosticArray) -> None:
         arrival = time.monotonic()
@@ -108,11 +122,19 @@ class FaultProbe(Probe):
         if all(name in index for name in JOINTS) and len(msg.velocity) == len(msg.name):
             self.q = np.array([msg.position[index[name]] for name in JOINTS])
             self.qd = np.array([msg.velocity[index[name]] for name in JOINTS])
+            now = time.monotonic()
+            in_force = next((sent for at, sent in reversed(self._sent_since)
+                             if at <= now - LATENCY), None)
+            for joint, shown in self.shown.items():
+                if (in_force is not None and math.isinf(shown)
+                        and abs(in_force[joint] - self.qd[joint]) >= MOVING):
+                    self.shown[joint] = now
 
     def _on_sent(self, msg: JointState) -> None:
         index = {name: k for k, name in enumerate(msg.name)}
         if all(name in index for name in JOINTS) and len(msg.velocity) == len(msg.name):
             self.sent = np.array([msg.velocity[index[name]] for name in JOINTS])
+            self._sent_since.append((time.monotonic(), self.sent))
 
     def tick(self, send_goals: bool = True) -> None:
         """Send the next goal when due (no resets: the run does them)."""
@@ -121,9 +143,10 @@ class FaultProbe(Probe):
             self._send_goal()
             self._next_goal = now + self.goal_period
 
-    def inject(self, fault: Fault) -> float:
-        """Publish `fault`; the monotonic time of publication."""
+    def inject(self, fault: Fault, joint: int) -> float:
+        """Publish `fault` of `joint`; the monotonic time of publication."""
         self._inject.publish(fault_messages.message([fault]))
+        self.shown[joint] = math.inf
         return time.monotonic()
 
     def reset(self, executor: EventsExecutor) -> None:
@@ -131,7 +154,7 @@ class FaultProbe(Probe):
         for client in (self._sim_reset, self._reset):
             future = client.call_async(Trigger.Request())
             spin(self, executor, 5.0, future.done)
-        self.states = {}
+        self.states, self.shown = {}, {}
 
 
 def spin(probe: FaultProbe, executor: EventsExecutor, seconds: float,
@@ -168,20 +191,23 @@ def run_fault(probe: FaultProbe, executor: EventsExecutor, kind: str, value: flo
     spin(probe, executor, 30.0, lambda: probe.observing == "yes")
     outcome.moving = spin(probe, executor, MOVE_TIMEOUT, lambda: min(
         abs(probe.sent[joint]), abs(probe.qd[joint])) >= MOVING)
-    injected = probe.inject(_fault(kind, value, joint, probe))
+    injected = probe.inject(_fault(kind, value, joint, probe), joint)
     second, second_at = (joint + 3) % 6, math.inf
     end = injected + WATCH
     while time.monotonic() < end:
         if kind == "second" and math.isinf(second_at) and \
                 time.monotonic() - injected >= SECOND:
-            second_at = probe.inject(Fault(FaultKind.LOCK, JOINTS[second]))
+            second_at = probe.inject(Fault(FaultKind.LOCK, JOINTS[second]), second)
         spin(probe, executor, 0.02)
     name = JOINTS[joint]
     if name in probe.states:
         state, arrival = probe.states[name]
         outcome.named, outcome.delay = str(state), arrival - injected
+        outcome.shown_delay = max(arrival - probe.shown[joint], 0.0)
     if kind == "second" and JOINTS[second] in probe.states:
-        outcome.second_delay = probe.states[JOINTS[second]][1] - second_at
+        arrival = probe.states[JOINTS[second]][1]
+        outcome.second_delay = arrival - second_at
+        outcome.second_shown_delay = max(arrival - probe.shown.get(second, math.inf), 0.0)
     faulty = {name} | ({JOINTS[second]} if kind == "second" else set())
     outcome.others = sorted(set(probe.states) - faulty)
     probe.reset(executor)
@@ -199,18 +225,23 @@ def _percentile(values: list[float], q: float) -> float:
 def table(outcomes: list[Outcome]) -> list[str]:
     """The markdown table, by kind."""
     lines = ["| fault | runs | named right | named as | delay p50 / p99 (ms) | "
-             "healthy joints declared |", "|---|---|---|---|---|---|"]
+             "from when it showed, p50 / p99 (ms) | healthy joints declared |",
+             "|---|---|---|---|---|---|---|"]
     for kind in dict.fromkeys(k for k, _ in KINDS):
         rows = [o for o in outcomes if o.kind == kind]
         right = [o for o in rows if o.named in {str(s) for s in RIGHT.get(kind, {
             Health.DEGRADED, Health.LOCKED, Health.FREE_SWINGING})}]
         delays = [1e3 * (o.second_delay if kind == "second" else o.delay) for o in right]
+        shown = [1e3 * (o.second_shown_delay if kind == "second" else o.shown_delay)
+                 for o in right]
+        shown = [d for d in shown if math.isfinite(d)]
         named: dict[str, int] = {}
         for o in rows:
             named[o.named] = named.get(o.named, 0) + 1
         lines.append(f"| {kind} | {len(rows)} | {len(right)} | "
                      + ", ".join(f"{k} {v}" for k, v in sorted(named.items()))
                      + f" | {_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f} | "
+                     f"{_percentile(shown, 50):.0f} / {_percentile(shown, 99):.0f} | "
                      f"{sum(bool(o.others) for o in rows)} |")
     return lines
 

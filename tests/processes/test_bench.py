@@ -215,5 +215,8 @@ def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
     assert [(o["kind"], o["joint"]) for o in outcomes] == [("lock", 0), ("lock", 1)]
     assert all(o["named"] == "locked" and 0 < o["delay"] < 2.0 and o["others"] == []
                for o in outcomes), outcomes
+    # Each lock showed once its joint, commanded, stood still: no later than it was named.
+    assert all(o["shown_delay"] is not None and 0 <= o["shown_delay"] <= o["delay"]
+               for o in outcomes), outcomes
     table = (tmp_path / "faults_processes.md").read_text()
     assert "| lock | 2 | 2 | locked 2 |" in table
