@@ -131,9 +131,12 @@ def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: n
     torque. Arguments as `classify`'s; returns (n,) bool.
     """
     latest, lower, upper = stops
-    own = ((falling > 0) & (latest >= upper - limit_margin)
-           | (falling < 0) & (latest <= lower + limit_margin)) & silent & unlocked & undeclared
-    for j in np.flatnonzero(silent & ~own):
+    own = np.zeros(measured.size, dtype=np.bool_)
+    for j in np.flatnonzero(silent):
+        if unlocked[j] and undeclared[j] and is_pushing(falling[j], latest[j], lower[j],
+                                                        upper[j], limit_margin):
+            own[j] = True  # resting on the stop gravity turns it into
+            continue
         column = plausible[:, j]
         own[j] = moves_on_its_own(measured[j], error[j], column.min(), column.max(), 0.0,
                                   unlocked[j], undeclared[j], falling[j], True, min_command,
