@@ -143,21 +143,43 @@ def test_a_lock_loses_position_a_servo_catching_up_does_not() -> None:
     """Offsets are measured minus predicted positions; the command is positive."""
     weakest, sigma = np.array([0.2]), np.array([0.001])
     deficit, lost = rules.lost_position(np.array([-0.01]), np.array([[-0.002], [0.0]]),
-                                        weakest, sigma, Z)
+                                        weakest, sigma, Z, np.zeros((2, 1)))
     assert deficit == pytest.approx([0.008]) and lost.tolist() == [True]
     # Ahead of its command earlier, then back to where it stood once: nothing lost.
     deficit, lost = rules.lost_position(np.array([-0.001]), np.array([[0.005], [-0.001]]),
-                                        weakest, sigma, Z)
+                                        weakest, sigma, Z, np.zeros((2, 1)))
     assert deficit == pytest.approx([0.0]) and lost.tolist() == [False]
     # The same along a negative command.
     deficit, lost = rules.lost_position(np.array([0.01]), np.array([[0.0]]), -weakest,
-                                        sigma, Z)
+                                        sigma, Z, np.zeros((1, 1)))
     assert deficit == pytest.approx([0.01]) and lost.tolist() == [True]
+
+
+def test_an_offset_the_models_latency_error_moves_is_no_lost_position() -> None:
+    """A model 10 ms late: the joint runs 13 mrad ahead of it at 1.3 rad/s, 1 at 0.1.
+
+    After the deceleration (1.2 rad/s) the offset fell by 12 mrad, all of it what a
+    10 ms latency error times the change of command moves it (the `shift` of the window
+    at 1.3 rad/s), none against the window already at 0.1 rad/s; a lock there loses
+    more.
+    """
+    weakest, sigma = np.array([0.1]), np.array([0.0005])
+    past = np.array([[0.013], [0.001]])  # (windows, joints): at 1.3, then at 0.1 rad/s
+    shift = np.array([[0.012], [0.0]])  # rad: 0.01 s x the change of command since each
+    deficit, lost = rules.lost_position(np.array([0.001]), past, weakest, sigma, Z, shift)
+    assert deficit == pytest.approx([0.0]) and lost.tolist() == [False]
+    # Without the shift the fall reads as lost.
+    deficit, lost = rules.lost_position(np.array([0.001]), past[:1], weakest, sigma, Z,
+                                        np.zeros((1, 1)))
+    assert deficit == pytest.approx([0.012]) and lost.tolist() == [True]
+    # A lock after the deceleration loses beyond it: 5 mrad more.
+    deficit, lost = rules.lost_position(np.array([-0.004]), past, weakest, sigma, Z, shift)
+    assert deficit == pytest.approx([0.005]) and lost.tolist() == [True]
 
 
 def test_with_no_earlier_window_the_deficit_is_infinite() -> None:
     deficit, lost = rules.lost_position(np.zeros(2), np.zeros((0, 2)), np.full(2, 0.2),
-                                        np.full(2, 0.001), Z)
+                                        np.full(2, 0.001), Z, np.zeros((0, 2)))
     assert np.isinf(deficit).all() and lost.all()
 
 

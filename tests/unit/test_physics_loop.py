@@ -18,8 +18,15 @@ distribution over a grid of plants.
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
-from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, ClosedLoop
+from ft_core import robots
+from ft_core.detection import DetectorConfig
+from ft_core.monitor import Monitor, MonitorConfig
+from ft_core.physics import PhysicsPlant
+from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, NOISE, ClosedLoop
 
 #: s of healthy goals before the lock (the monitor identifies the plant meanwhile).
 HEALTHY = 4.0
@@ -53,3 +60,55 @@ def test_a_lock_on_a_physics_plant_is_named_within_a_second(task: str, joint: in
     assert names == [name], f"{names} declared instead of {name}"
     assert when - locked_at <= 1.0
     assert loop.monitor.swinging == []
+
+
+def _decelerating(joint: int, fast: float, lock_at: float | None = None) -> tuple[list, float]:
+    """The monitor's declarations while `joint` runs at `fast` rad/s, then at 0.1.
+
+    Behind the slow driver (50 ms latency, a 50 ms critically damped servo): joints 1
+    and 2 move at 0.3 and 0.6 rad/s throughout; `joint` moves at 0.3 rad/s from rest,
+    at `fast` from 0.8 s, and at 0.1 from 1.5 s (the monitor's smoother decelerates it at
+    the Panda's acceleration limit), towards the middle of its range. `lock_at` (s):
+    its brake engages then. Returns [(t, line)] and when the brake engaged.
+    """
+    robot = robots.load("panda_inertial", tip_link="panda_link8")
+    q = robot.home()
+    monitor = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
+    plant = PhysicsPlant(robot, q.copy(), DRIVERS["slow"])
+    rng = np.random.default_rng(3)
+    along = 1.0 if q[joint] < 0.5 * (robot.lower[joint] + robot.upper[joint]) else -1.0
+    events, t, dt = [], 0.0, 0.004
+    while t < 3.0:
+        if lock_at is not None and abs(t - lock_at) < dt / 2:
+            plant.lock(joint)
+        command = np.zeros(robot.n)
+        command[[0, 1]] = [0.3, 0.6]
+        command[joint] = along * (0.3 if t < 0.8 else fast if t < 1.5 else 0.1)
+        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, robot.n), t,
+                                 effort=plant.torque)
+        events += [(t, line) for line in change.events]
+        plant.command(t, monitor.command(command, t))
+        t += dt
+        plant.step(t)
+    monitor.close()
+    return events, math.nan if lock_at is None else lock_at
+
+
+@pytest.mark.parametrize(("joint", "fast"), [(3, 1.5), (5, 1.5), (5, 2.0)])
+def test_a_healthy_joint_decelerating_hard_is_not_declared(joint: int, fast: float) -> None:
+    """After the drop to 0.1 rad/s the servo runs short of it for 0.2-0.3 s, even backwards.
+
+    Its position first ran ahead of the detector's model (latency 10 ms longer than the
+    plant's) by that error times the speed; back at 0.1 rad/s it reads as lost unless the
+    model's latency error times the change of command is allowed for.
+    """
+    events, _ = _decelerating(joint, fast)
+    assert events == []
+
+
+def test_a_lock_after_a_hard_deceleration_is_named() -> None:
+    events, locked_at = _decelerating(5, 1.5, lock_at=1.8)
+    assert events, "the lock was not named"
+    when, line = events[0]
+    assert line.startswith("joint panda_joint6 locked")
+    assert 0.0 < when - locked_at <= 0.25  # a lock named within 250 ms

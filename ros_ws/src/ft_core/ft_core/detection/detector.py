@@ -27,6 +27,7 @@ from ft_core.detection.evidence import (
 from ft_core.detection.follow import MEMORY, FollowMeter
 from ft_core.detection.identification import (
     LATENCY_GRID,
+    LATENCY_STEP,
     RESPONSE_TIME_GRID,
     PlantEstimate,
     PlantIdentification,
@@ -233,7 +234,8 @@ class LockDetector:
             self._seen_following = 0.0
         # Floats and contiguous arrays: the types `compile_ahead` compiled for.
         self.history.append(float(time), np.ascontiguousarray(velocity, dtype=float),
-                            time - 2 * self.config.window - self._longest_latency)
+                            time - max(2 * self.config.window, self._horizon())
+                            - self._longest_latency)
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
                 falling: Callable[[], np.ndarray | None] | None = None,
@@ -401,11 +403,17 @@ class LockDetector:
         if (candidates & undeclared).any():
             # The best model alone: the plausible models' offsets differ by their lags times
             # the change of command, no loss of position. (A swung joint's test: stopping.)
+            # Its latency is known to within a step of the grid: a change of command dv
+            # since an earlier window (at its middle, lagged) moves its offset by up to
+            # that step times dv.
             offsets = self._offsets
-            past = offsets.between(now - self._horizon(), now - cfg.window)
+            ends, past = offsets.between(now - self._horizon(), now - cfg.window)
+            lag = plant.model_latency[best] + cfg.window / 2
+            commands = self.history.at(np.append(ends, now) - lag)
             deficit, lost = rules.lost_position(
                 offsets.values[offsets.end - 1, best], past[:, best], weakest,
-                rules.mean_difference_error(error, times), cfg.confidence)
+                rules.mean_difference_error(error, times), cfg.confidence,
+                LATENCY_STEP * np.abs(commands[:-1] - commands[-1]))
             candidates = candidates & (lost | ~undeclared)
         held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
             drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)

@@ -13,8 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: s between two candidate latencies: the identified latency's resolution.
+LATENCY_STEP = 0.01
 #: Candidate latencies (s) and response times (s) of the identified plant model.
-LATENCY_GRID = np.round(np.arange(0.0, 0.1501, 0.01), 3)
+LATENCY_GRID = np.round(np.arange(0.0, 0.1501, LATENCY_STEP), 3)
 RESPONSE_TIME_GRID = np.array([0.0, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15])
 #: Shortest time (s) between two identification updates (each scores every model).
 IDENTIFY_PERIOD = 0.01

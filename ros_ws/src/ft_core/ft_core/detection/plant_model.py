@@ -107,3 +107,14 @@ class CommandHistory(_Buffers):
                                   self.rate, (self.start, self.end), time, velocity,
                                   forget_before)
         self.end += 1
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """The commands in force at `times` (s), (len(times), n) (rad/s).
+
+        Before the oldest entry kept: that entry's command (zeros before any command).
+        """
+        start, end = self.start, self.end
+        if end == start:
+            return np.zeros((len(times), self.n))
+        index = np.searchsorted(self.times[start:end], times, side="right") - 1
+        return self.values[start + np.maximum(index, 0)]

@@ -240,16 +240,21 @@ def mean_difference_error(slope_error: Values, times: np.ndarray) -> Values:
 
 
 def lost_position(current: np.ndarray, past: np.ndarray, weakest: np.ndarray,
-                  sigma: np.ndarray, confidence: float) -> tuple[np.ndarray, np.ndarray]:
+                  sigma: np.ndarray, confidence: float,
+                  shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far (rad) each joint fell behind the model, and whether that is a lost position.
 
     A lock loses position from its first instant; a servo that integrates its command
     into a position reference and pauses after it ran ahead, until the reference catches
     up, stalls by velocity without losing any. The deficit is the window's mean offset
     (measured minus predicted position, one model) `current` (n,) against the
-    most-behind of the earlier windows' offsets `past` (k, n), counted along the weakest
-    prediction `weakest` (n,); +inf with no earlier window. Lost: deficit >
-    `confidence` `sigma`, the standard error of a difference of two window means (n,).
+    most-behind of the earlier windows' offsets `past` (k, n), counted along the
+    weakest prediction `weakest` (n,), less `shift` (k, n; rad), how far the model's
+    offset may have moved since each earlier window with no position lost: a model
+    whose latency is off by dL leaves an offset of dL times the velocity, which a
+    change of command dv moves by dL dv (a Panda wrist decelerating from 1.3 to 0.08
+    rad/s under a model 10 ms late: 12 mrad). +inf with no earlier window. Lost: deficit
+    > `confidence` `sigma`, the standard error of a difference of two window means (n,).
     The papers define a lock as a joint held in place (Lewis & Maciejewski 1997, sec. I;
     Maciejewski et al., sec. 2.2); this rule asks that its stillness cost the position
     its command asked for.
@@ -258,7 +263,7 @@ def lost_position(current: np.ndarray, past: np.ndarray, weakest: np.ndarray,
         deficit = np.full(current.size, math.inf)
     else:
         direction = -np.sign(weakest)  # behind: measured short of predicted, along c
-        deficit = direction * current - (direction * past).max(axis=0)
+        deficit = (direction * current - direction * past - shift).min(axis=0)
     return deficit, deficit > confidence * sigma
 
 

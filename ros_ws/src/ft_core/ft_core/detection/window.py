@@ -220,9 +220,9 @@ class Offsets(_Buffers):
         self.means = np.zeros((capacity, n))
         self.start = self.end = 0
 
-    def between(self, start: float, end: float) -> np.ndarray:
-        """The kept offsets of windows ending in [start, end], (k, models, n)."""
+    def between(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The kept windows ending in [start, end]: their end times (k,), offsets (k, models, n)."""
         times = self.times[self.start:self.end]
-        first = int(np.searchsorted(times, start, side="left"))
-        last = int(np.searchsorted(times, end, side="right"))
-        return self.values[self.start + first:self.start + last]
+        first = self.start + int(np.searchsorted(times, start, side="left"))
+        last = self.start + int(np.searchsorted(times, end, side="right"))
+        return self.times[first:last], self.values[first:last]
