@@ -10,15 +10,16 @@ One concept per module:
     evidence: each joint's evidence, and when it becomes a declaration (persistence, the
         settling time of a disturbed arm).
     follow: the share of its command each joint follows, and degraded joints.
+    config: `DetectorConfig`, the detector's parameters.
     detector: `LockDetector`, which applies them to streams of commands and measurements.
 """
 
+from ft_core.detection.config import DetectorConfig
 from ft_core.detection.detector import (
     DECISION_PERIOD,
     SLOW_SPAN,
     Confirmation,
     Decision,
-    DetectorConfig,
     JointEvidence,
     LockDetector,
     Update,
