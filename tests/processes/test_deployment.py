@@ -418,9 +418,9 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
         g.spin(2.0, goal_period=1.5)
         observing(g)
         g.send_goal(0)
-        g.spin(4.0)
+        g.wait(lambda: np.linalg.norm(_tool(g, arm) - np.array(GOALS[0])) < 0.01, 10.0,
+               "the tool at the first goal")
         start, goal = _tool(g, arm), np.array(GOALS[1])
-        assert np.linalg.norm(start - np.array(GOALS[0])) < 0.01, start
         g.place_obstacle(wall_across(start, goal), WALL)
         g.spin(0.5)
         g.send_goal(1)
