@@ -228,3 +228,70 @@ def test_a_healthy_joint_pushed_into_its_stop_is_not_named() -> None:
     events, _, monitor = _onto_the_stop("slow", np.inf)
     assert monitor.detector.not_observing is None  # it judged the motion throughout
     assert events == []
+
+
+#: Joints 2 and 5 reversing at 8 rad/s^2, where their coupling loads joint 1 (a deployed
+#: run's configuration, joints 3 and 6 locked).
+REVERSING_Q = np.array([-1.6, 0.55, 1.89, -1.9, -0.14, 0.85, 0.78])
+REVERSING = np.array([0.0, -8.0, 0.0, 0.0, -8.0, 0.0, 0.0])
+
+
+def _moved(brake: float, lag: float, free: bool = False) -> np.ndarray:
+    """`Drives.moved_by_others` for joint 1 at 0.03 rad/s, `lag` rad/s behind its command.
+
+    Its drive gives what the motion needs plus `brake` times the coupling torque (a
+    brake's share); `free`: its drive gives no torque beyond gravity, and the others swing
+    it (its own acceleration is the coupling's).
+    """
+    velocity, acceleration = np.zeros(PANDA.n), REVERSING.copy()
+    velocity[0] = 0.03
+    inertia, nonlinear = PANDA.dynamics(REVERSING_Q, velocity)
+    gravity = PANDA.gravity(REVERSING_Q)
+    coupling = inertia[0] @ REVERSING
+    if free:
+        acceleration[0] = -coupling / inertia[0, 0]
+    effort = inertia @ acceleration + nonlinear
+    if free:
+        effort[0] = gravity[0]
+    effort[0] += brake * coupling
+    commanded = velocity.copy()
+    commanded[0] += lag * np.sign(coupling)
+    return Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool), effort - gravity,
+                  np.abs(gravity), PANDA, REVERSING_Q, effort).moved_by_others(
+                      velocity, acceleration, commanded, 0.05)
+
+
+def test_a_joint_whose_drive_gives_what_its_motion_needs_is_moved_by_the_others() -> None:
+    """Its lag is the way the coupling torque drives it, and the residual is none of it."""
+    inertia, _ = PANDA.dynamics(REVERSING_Q, np.zeros(PANDA.n))
+    assert abs(inertia[0] @ REVERSING) >= drives.COUPLING_SHARE * PANDA.effort_limits[0]
+    assert _moved(0.0, 0.06).tolist() == [True] + [False] * 6
+    assert _moved(0.4, 0.06)[0]  # a residual within the model's error
+
+
+def test_a_brake_or_a_lag_the_coupling_does_not_explain_is_not_moved_by_the_others() -> None:
+    """A brake leaves a residual of the coupling's size: not the coupling's doing.
+
+    Nor is a lag against the coupling's push, a lag within the least one (commands that
+    reverse), or the motion of a drive that gives no torque (the others swing a free
+    joint, with no residual); without efforts nothing is known.
+    """
+    assert not _moved(1.0, 0.06)[0]
+    assert not _moved(-1.0, 0.06)[0]
+    assert not _moved(0.0, -0.06)[0]
+    assert not _moved(0.0, 0.04)[0]
+    assert not _moved(0.0, 0.06, free=True)[0]
+    blind = Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool))
+    assert not blind.moved_by_others(np.zeros(PANDA.n), REVERSING, np.ones(PANDA.n),
+                                     0.05).any()
+
+
+def test_accelerations_are_the_velocities_change_over_their_span() -> None:
+    accelerations = drives.Accelerations()
+    span = drives.ACCELERATION_SPAN
+    answers = [accelerations.update(k * DT, np.array([2.0 * k * DT, -1.0]))
+               for k in range(20)]
+    first = next(k for k, a in enumerate(answers) if a is not None)
+    assert (first - 1) * DT < span <= first * DT + 1e-12  # none before the span is covered
+    for a in answers[first:]:
+        np.testing.assert_allclose(a, [2.0, 0.0], atol=1e-9)

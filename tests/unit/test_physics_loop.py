@@ -19,6 +19,7 @@ distribution over a grid of plants.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -62,6 +63,33 @@ def test_a_lock_on_a_physics_plant_is_named_within_a_second(task: str, joint: in
     assert loop.monitor.swinging == []
 
 
+def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: float,
+               seed: int = 3, lock: tuple[int, float] | None = None) -> tuple[list, list]:
+    """The monitor between fixed commands and the physics plant behind the slow driver.
+
+    From `q` (rad), the plant is sent `command_at(t)` (rad/s) through the monitor every
+    4 ms until `until` (s); `lock` (joint, s): that joint's brake engages then. Returns
+    the declarations [(t, line)] and the plant's velocities [(t, qd)].
+    """
+    robot = robots.load("panda_inertial", tip_link="panda_link8")
+    monitor = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
+    plant = PhysicsPlant(robot, q.copy(), DRIVERS["slow"])
+    rng = np.random.default_rng(seed)
+    events, velocities, t, dt = [], [], 0.0, 0.004
+    while t < until:
+        if lock is not None and abs(t - lock[1]) < dt / 2:
+            plant.lock(lock[0])
+        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, robot.n), t,
+                                 effort=plant.torque)
+        events += [(t, line) for line in change.events]
+        plant.command(t, monitor.command(command_at(t), t))
+        t += dt
+        plant.step(t)
+        velocities.append((t, plant.qd.copy()))
+    monitor.close()
+    return events, velocities
+
+
 def _decelerating(joint: int, fast: float, lock_at: float | None = None) -> tuple[list, float]:
     """The monitor's declarations while `joint` runs at `fast` rad/s, then at 0.1.
 
@@ -71,26 +99,18 @@ def _decelerating(joint: int, fast: float, lock_at: float | None = None) -> tupl
     the Panda's acceleration limit), towards the middle of its range. `lock_at` (s):
     its brake engages then. Returns [(t, line)] and when the brake engaged.
     """
-    robot = robots.load("panda_inertial", tip_link="panda_link8")
-    q = robot.home()
-    monitor = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
-    plant = PhysicsPlant(robot, q.copy(), DRIVERS["slow"])
-    rng = np.random.default_rng(3)
-    along = 1.0 if q[joint] < 0.5 * (robot.lower[joint] + robot.upper[joint]) else -1.0
-    events, t, dt = [], 0.0, 0.004
-    while t < 3.0:
-        if lock_at is not None and abs(t - lock_at) < dt / 2:
-            plant.lock(joint)
-        command = np.zeros(robot.n)
+    panda = robots.load("panda_inertial", tip_link="panda_link8")
+    q = panda.home()
+    along = 1.0 if q[joint] < 0.5 * (panda.lower[joint] + panda.upper[joint]) else -1.0
+
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(panda.n)
         command[[0, 1]] = [0.3, 0.6]
         command[joint] = along * (0.3 if t < 0.8 else fast if t < 1.5 else 0.1)
-        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, robot.n), t,
-                                 effort=plant.torque)
-        events += [(t, line) for line in change.events]
-        plant.command(t, monitor.command(command, t))
-        t += dt
-        plant.step(t)
-    monitor.close()
+        return command
+
+    events, _ = _open_loop(q, command_at, 3.0,
+                           lock=None if lock_at is None else (joint, lock_at))
     return events, math.nan if lock_at is None else lock_at
 
 
@@ -112,3 +132,43 @@ def test_a_lock_after_a_hard_deceleration_is_named() -> None:
     when, line = events[0]
     assert line.startswith("joint panda_joint6 locked")
     assert 0.0 < when - locked_at <= 0.25  # a lock named within 250 ms
+
+
+def _reversing(seed: int, lock_at: float | None = None) -> tuple[list, float]:
+    """The monitor's declarations while joints 2 and 5 reverse hard and joint 1 crawls.
+
+    Behind the slow driver, from a deployed run's configuration: joint 1 at 0.15 rad/s,
+    joint 4 at 0.3, joints 2 and 5 at 1.5 and 2.0 rad/s until 1 s, then as fast the other
+    way (the monitor's smoother reverses them at the Panda's acceleration limits). Their
+    coupling loads joint 1, whose servo gives the torque late: it falls under a third of
+    its command for about 0.2 s. `lock_at` (s): joint 1's brake engages then. Returns
+    [(t, line)] and the least velocity of joint 1 after the reversal (rad/s).
+    """
+
+    def command_at(t: float) -> np.ndarray:
+        fast = 1.0 if t < 1.0 else -1.0
+        return np.array([0.15, 1.5 * fast, 0.0, 0.3, 2.0 * fast, 0.0, 0.0])
+
+    events, velocities = _open_loop(np.array([-1.75, -0.6, 1.89, -2.3, -1.6, 0.85, 0.78]),
+                                    command_at, 2.0, seed,
+                                    None if lock_at is None else (0, lock_at))
+    return events, min(qd[0] for t, qd in velocities if 1.0 < t < 1.5)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_healthy_joint_slowed_by_the_others_reversing_is_not_declared(seed: int) -> None:
+    """The coupling stall of joint 1 (`drives.Drives.moved_by_others`): no lock."""
+    events, slowest = _reversing(seed)
+    assert slowest < 0.05  # the stall happened
+    assert events == []
+
+
+@pytest.mark.parametrize("lock_at", [1.05, 1.1, 1.2])
+def test_a_lock_while_the_others_reverse_is_named(lock_at: float) -> None:
+    """A brake on joint 1 during the reversal leaves a residual: named within 250 ms."""
+    events, _ = _reversing(3, lock_at)
+    assert events, "the lock was not named"
+    assert len(events) == 1, events
+    when, line = events[0]
+    assert line.startswith("joint panda_joint1 locked")
+    assert 0.0 < when - lock_at <= 0.25

@@ -377,3 +377,21 @@ def test_gravity_alone_is_the_gravity_of_the_dynamics() -> None:
         np.testing.assert_allclose(robot.gravity(q), robot.gravity_dynamics(q)[0], atol=1e-12)
     g = robot.gravity(robot.home())
     assert abs(g[0]) < 1e-9 and abs(g[1]) > 1.0, g
+
+
+def test_the_dynamics_are_pinocchios_inverse_dynamics() -> None:
+    """M(q) qdd + C(q, qd) qd + g(q) is RNEA's torque; M is symmetric, its diagonal CRBA's."""
+    robot = robots.load("panda_inertial", tip_link="panda_link8")
+    rng = np.random.default_rng(RNG_SEED)
+    model = pin.buildModelFromXML(robot.urdf)  # the fingers too, held at 0 here
+    data, extra = model.createData(), np.zeros(model.nq - robot.n)
+    for _ in range(5):
+        q = robot.random_configuration(rng)
+        qd, qdd = rng.uniform(-1.0, 1.0, robot.n), rng.uniform(-5.0, 5.0, robot.n)
+        inertia, nonlinear = robot.dynamics(q, qd)
+        np.testing.assert_allclose(inertia, inertia.T, atol=1e-12)
+        np.testing.assert_allclose(np.diag(inertia), robot.gravity_dynamics(q)[1], atol=1e-12)
+        torque = pin.rnea(model, data, np.append(q, extra), np.append(qd, extra),
+                          np.append(qdd, extra))[:robot.n]
+        assert np.abs(torque).max() > 1.0  # the check has something to check
+        np.testing.assert_allclose(inertia @ qdd + nonlinear, torque, atol=1e-9)

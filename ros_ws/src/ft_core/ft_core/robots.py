@@ -304,6 +304,18 @@ class Robot:
         inertia = np.diag(pin.crba(self._model, self._data, self._check(q))).copy()
         return gravity, inertia
 
+    def dynamics(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """M(q) (n, n; kg m^2) and C(q, qd) qd + g(q) ((n,); N m): tau = M qdd + C qd + g.
+
+        From the URDF's inertias (Pinocchio's CRBA, its upper triangle mirrored, and
+        nonLinearEffects).
+        """
+        model, data = self._model, self._data
+        q = self._check(q)
+        upper = pin.crba(model, data, q)
+        inertia = np.triu(upper) + np.triu(upper, 1).T
+        return inertia, pin.nonLinearEffects(model, data, q, np.asarray(qd, float)).copy()
+
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """The gravity torques g(q) (N m) alone, as in `gravity_dynamics`, without the CRBA."""
         return pin.computeGeneralizedGravity(self._model, self._data, self._check(q)).copy()

@@ -17,7 +17,13 @@ import numpy as np
 
 from ft_core.detection import rules
 from ft_core.detection.config import DetectorConfig
-from ft_core.detection.drives import HELD_LIMIT_MARGIN, HELD_TIME, STILL_SPAN, Drives
+from ft_core.detection.drives import (
+    HELD_LIMIT_MARGIN,
+    HELD_TIME,
+    STILL_SPAN,
+    Accelerations,
+    Drives,
+)
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
@@ -117,6 +123,7 @@ class LockDetector:
         self.joints = [JointEvidence() for _ in range(self.n)]
         self.follow = FollowMeter(self.n)
         self._declared_at = -math.inf  # when a joint was last declared locked or swinging
+        self._accelerations = Accelerations()  # of the window slopes
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -362,6 +369,11 @@ class LockDetector:
             drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
             & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
             cfg.min_command, STILL_SPAN)  # a push the joint does not follow
+        acceleration = self._accelerations.update(now, measured)
+        if drives is not None and acceleration is not None and (candidates | held).any():
+            # Stalled or held by the other links' accelerations, not by a brake.
+            moved = drives.moved_by_others(measured, acceleration, weakest, cfg.min_command)
+            candidates, held = candidates & ~moved, held & ~moved
         since = np.array([math.nan if e.held_since is None else e.held_since for e in joints])
         held_long = held & (now - np.fmin(since, now) >= HELD_TIME)
         candidates = candidates | held_long

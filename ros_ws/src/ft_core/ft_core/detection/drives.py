@@ -33,11 +33,29 @@ takes a pushing joint that stays still while commanded, another joint moving, as
 candidate even where the commands change too fast for its velocity test
 (`LockDetector.measure`); the contact test still holds back a push a force on the tool
 explains (a wall loads every joint, a brake its own).
+
+A healthy joint can also stall, or stand still against its drive's push, because the
+other links accelerate: decelerating hard, they load it through the joint-space inertia's
+off-diagonal terms, c_j = sum_{k != j} M_jk(q) qdd_k, and its servo, a slow driver
+behind it, gives that torque late. A brake is an external torque on its own joint; a
+stall by the coupling is none: the drive's torque is what the measured motion needs,
+tau = M(q) qdd + C(q, qd) qd + g(q) (inverse dynamics: the residual is the external joint
+torque that actuator-fault observers estimate, De Luca & Mattone 2003).
+`Drives.moved_by_others` names a joint *moved by the others* where that residual
+tau - M qdd - C qd - g is under `COUPLED_SHARE` of c_j, c_j is at least `COUPLING_SHARE`
+of its effort limit, c_j drives the joint the way it lags behind its command (by at
+least `detection.min_command`), and its drive gives most of c_j (a drive without torque,
+which the others swing, gives none). Scaled
+by c_j, the test needs no threshold per drive (a shoulder's brake and a wrist's differ
+tenfold). The accelerations are the window slopes' change over `ACCELERATION_SPAN`. A
+joint that lost its torque has no residual either (its fall is what the dynamics say), so
+the test only holds back locks.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +87,13 @@ STILL_SPAN = 0.008
 HELD_TIME = 0.03
 #: rad: nor within this of a position limit, whose stop may be what holds it.
 HELD_LIMIT_MARGIN = 0.05
+#: A joint moved by the others leaves a residual under this share of their coupling torque.
+COUPLED_SHARE = 0.5
+#: Least coupling torque, as a share of the joint's effort limit, that says anything
+#: (below it, the accelerations' noise).
+COUPLING_SHARE = 0.02
+#: s over which the window slopes' change gives the accelerations.
+ACCELERATION_SPAN = 0.02
 #: Share of a joint's gravity torque its drive's torque may err by, the gravity model's
 #: error: a joint moving on its own is free only with its drive short of holding it by
 #: more (`Drives.let_go`).
@@ -84,6 +109,35 @@ class Drives:
     #: N m, each drive's torque beyond its gravity torque, tau - g(q); None: unknown
     external: np.ndarray | None = None
     gravity: np.ndarray | None = None  #: N m, |g(q)|; None: unknown
+    robot: Robot | None = None  #: its inertias; None: unknown
+    q: np.ndarray | None = None  #: rad, where the efforts were
+    effort: np.ndarray | None = None  #: N m, the drives' torques tau
+
+    def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
+                        commanded: np.ndarray, least_lag: float) -> np.ndarray:
+        """Whether each joint is held back by the other links' accelerations (n,) bool.
+
+        `velocity` (rad/s) and `acceleration` (rad/s^2) as measured, `commanded` the
+        velocity it was to follow (rad/s). The coupling torque c = M qdd - diag(M) qdd
+        is at least `COUPLING_SHARE` of the effort limit; the joint lags behind its
+        command by `least_lag` rad/s or more, the way c drives it; its drive gives at
+        least 1 - `COUPLED_SHARE` of c beyond gravity (a healthy servo resisting the
+        coupling; a drive without torque gives none); and the residual
+        tau - M qdd - C qd - g is under `COUPLED_SHARE` of c (the module). A joint whose
+        lag is within `least_lag`, as when its commands reverse, has nothing for the
+        coupling to explain. False everywhere without efforts.
+        """
+        if self.robot is None or self.q is None or self.effort is None or self.external is None:
+            return np.zeros(velocity.size, bool)
+        inertia, nonlinear = self.robot.dynamics(self.q, velocity)
+        needed = inertia @ acceleration
+        coupling = needed - np.diag(inertia) * acceleration
+        residual = self.effort - nonlinear - needed
+        lag = commanded - velocity
+        least = COUPLING_SHARE * np.asarray(self.robot.effort_limits, float)
+        return ((np.abs(coupling) >= least) & (np.abs(lag) >= least_lag) & (coupling * lag > 0)
+                & (self.external * coupling >= (1 - COUPLED_SHARE) * coupling ** 2)
+                & (np.abs(residual) < COUPLED_SHARE * np.abs(coupling)))
 
     def let_go(self, velocity: np.ndarray) -> np.ndarray:
         """Whether each joint's drive lets it move at `velocity` (rad/s) (n,) bool.
@@ -98,6 +152,27 @@ class Drives:
         if self.external is None or self.gravity is None:
             return np.ones(velocity.size, bool)
         return np.sign(velocity) * self.external > DRAG_SHARE * self.gravity
+
+
+class Accelerations:
+    """The joints' accelerations from their velocities' change over `ACCELERATION_SPAN`."""
+
+    def __init__(self) -> None:
+        self._history: deque[tuple[float, np.ndarray]] = deque()
+
+    def update(self, now: float, velocity: np.ndarray) -> np.ndarray | None:
+        """Add `velocity` (rad/s) at `now` (s); the acceleration (rad/s^2) since then.
+
+        From the newest velocity at least `ACCELERATION_SPAN` older; None without one.
+        """
+        history, old = self._history, now - ACCELERATION_SPAN
+        while len(history) > 1 and history[1][0] <= old:
+            history.popleft()
+        then, before = history[0] if history else (math.inf, velocity)
+        history.append((now, velocity.copy()))
+        if then > old:
+            return None
+        return (velocity - before) / (now - then)
 
 
 class DriveWatch:
@@ -146,4 +221,4 @@ class DriveWatch:
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
                                   & (fallen >= FALL))
-        return Drives(self.silent.copy(), pushing, effort - signed, gravity)
+        return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort)
