@@ -45,11 +45,10 @@ torque that actuator-fault observers estimate, De Luca & Mattone 2003).
 tau - M qdd - C qd - g is under `COUPLED_SHARE` of c_j, c_j is at least `COUPLING_SHARE`
 of its effort limit, c_j drives the joint the way it lags behind its command (by at
 least `detection.min_command`), and its drive gives most of c_j (a drive without torque,
-which the others swing, gives none). Scaled
-by c_j, the test needs no threshold per drive (a shoulder's brake and a wrist's differ
-tenfold). The accelerations are the window slopes' change over `ACCELERATION_SPAN`. A
-joint that lost its torque has no residual either (its fall is what the dynamics say), so
-the test only holds back locks.
+which the others swing, gives none). Scaled by c_j, the test needs no threshold per
+drive (a shoulder's brake and a wrist's differ tenfold). The accelerations are the
+window slopes' change over `ACCELERATION_SPAN`. A joint that lost its torque has no
+residual either (its fall is what the dynamics say), so the test only holds back locks.
 """
 
 from __future__ import annotations
