@@ -48,6 +48,23 @@ def test_a_force_on_the_tool_explains_the_torques_a_lock_does_not() -> None:
     assert in_contact(PANDA, Q, gravity, [1]) is None  # free, at rest: nothing external
 
 
+def test_a_joint_falling_under_its_weak_drive_is_no_force_on_the_tool() -> None:
+    """The shoulder falling with tau = M qdd + C qd + g exactly: its torque short of g(q).
+
+    Read statically (tau - g) the shortfall is a force at the tool; the inverse dynamics'
+    residual leaves nothing, and a real force on the tool is still one.
+    """
+    velocity, acceleration = np.zeros(7), np.zeros(7)
+    velocity[1], acceleration[1] = 1.5, 8.0  # rad/s, rad/s^2: the shoulder falls forward
+    inertia, nonlinear = PANDA.dynamics(Q, velocity)
+    falling = inertia @ acceleration + nonlinear
+    assert in_contact(PANDA, Q, falling, [1]) is not None  # the static reading: contact
+    assert in_contact(PANDA, Q, falling, [1], motion=(velocity, acceleration)) is None
+    pushed = PANDA.base_jacobian(Q)[:3].T @ np.array([0.0, 0.0, -40.0])
+    assert in_contact(PANDA, Q, falling + pushed, [1],
+                      motion=(velocity, acceleration)) is not None
+
+
 def test_a_contact_begins_only_where_the_command_drives_the_tool_into_the_force() -> None:
     J = PANDA.base_jacobian(Q)[:3]
     down = np.array([0.0, 0.0, -1.0])

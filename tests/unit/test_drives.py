@@ -92,6 +92,38 @@ def test_a_free_swing_is_named_within_200_ms_and_braked_by_the_driver(driver: st
     loop.close()
 
 
+def test_a_shoulder_left_a_quarter_of_its_torque_is_named_free_swinging_as_it_falls() -> None:
+    """Panda joint 2 at authority 0.25 behind the fast driver sags, then falls to its stop.
+
+    Its drive's shortfall against gravity reads, statically, as a force on the tool (the
+    contact veto); the arm's own motion explains it (`contact.in_contact`'s residual), so
+    the fall is named free-swinging and braked long before the stop's impact, and no
+    other joint is declared.
+    """
+    loop = ClosedLoop("position", DRIVERS["fast"], seed=1)
+    fastest = 0.0  # rad/s, the shoulder's fastest fall before it was named
+    try:
+        loop.run(4.0)
+        loop.run(4.5, stop=lambda: min(abs(loop.plant.qd[1]), abs(loop.sent[1])) > 0.1)
+        loop.plant.inject(1, Fault(FaultKind.AUTHORITY, "panda_joint2", severity=0.25))
+        loop.goal_period = 3.0
+        for _ in range(round(6.0 / loop.dt)):
+            loop.run(loop.dt)
+            if loop.declared:
+                break
+            fastest = max(fastest, abs(loop.plant.qd[1]))
+        assert loop.declared, "the fall was not named"
+        assert loop.declared[0][1] == ["panda_joint2"]
+        assert loop.monitor.board.states[1] == Health.FREE_SWINGING
+        assert 1.0 < fastest < 2.0  # it fell (the swing rules' threshold), not to its stop
+        loop.run(3.0)
+        assert [j for j, s in enumerate(loop.monitor.board.states) if s != Health.HEALTHY] \
+            == [1]
+        assert loop.plant.held == {1}
+    finally:
+        loop.close()
+
+
 def test_a_healthy_drive_silent_while_its_command_accelerates_downhill_is_not_named() -> None:
     """After joint 4's lock, the remap swings joint 5 downhill about as fast as gravity."""
     loop = ClosedLoop("position", DRIVERS["slow"], seed=3)

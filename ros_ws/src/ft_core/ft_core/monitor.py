@@ -367,7 +367,8 @@ class Monitor:
         if self.effort is None or self.q is None or self._drives.silent[joints].any():
             return None  # a silent drive pushes against nothing (`detection.drives`)
         return self._touch.explains(self.robot, self.q, self.effort, joints,
-                                    self.detector.latest_time, self.detector.joints)
+                                    self.detector.latest_time, self.detector.joints,
+                                    acceleration=self.detector.acceleration)
 
     def unseen(self, now: float, after: float = UNSEEN_AFTER) -> list[str]:
         """Unlocked joints not observable for `after` s or more at `now` (s): their names.

@@ -26,6 +26,14 @@ with where the command sends the tool. A lock while the tool pushes leaves its o
 joint's torque unexplained by a tool force, and is named when that is most of it.
 Without efforts or inertias nothing is vetoed.
 
+For joints about to be declared free-swinging the arm is not at rest, and tau - g(q)
+holds the torques of its own motion too: a joint falling under a drive short of its
+gravity torque (lost authority) leaves tau - g = M qdd + C qd, the shape of a force
+at the tool (the shoulder's shortfall, chiefly). There the external torques are the
+inverse dynamics' residual tau - M(q) qdd - C qd - g(q) (the external-torque reading of
+De Luca & Mattone's actuator-fault residuals), with the detector's window accelerations:
+a weak drive's fall leaves none, a push on the tool leaves J^T f.
+
 The efforts also tell a joint that moved again after its lock with its drive's torque (a
 jam that let go, its servo catching up: `driven`) from one whose drive lost its torque
 (a free swing).
@@ -95,16 +103,23 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: li
 
 def in_contact(robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
                least: float = MIN_TORQUE, braked: Sequence[int] = (),
-               commanded: np.ndarray | None = None) -> str | None:
+               commanded: np.ndarray | None = None,
+               motion: tuple[np.ndarray, np.ndarray] | None = None) -> str | None:
     """Why the `stalled` joints are held by a force on the tool, not failed; None if not.
 
     At the configuration `q` (rad) with the drives' `effort` (N m), an external torque of
     at least `least` N m; the arm's URDF must have inertias (gravity torques). The
     `braked` joints (locked already) are left out: their brakes take any torque.
     `commanded`: the joint velocities commanded (rad/s), as `explained_by_contact` takes
-    them.
+    them. The external torques are tau - g(q), or, given the arm's `motion` (velocities
+    rad/s, accelerations rad/s^2), the inverse dynamics' residual tau - M(q) qdd - C qd
+    - g(q): what no motion of the arm's own explains.
     """
-    external = effort - robot.gravity(q)
+    if motion is None:
+        external = effort - robot.gravity(q)
+    else:
+        inertia, nonlinear = robot.dynamics(q, motion[0])
+        external = effort - inertia @ motion[1] - nonlinear
     jacobian = robot.base_jacobian(q)[:3]
     external[list(braked)], jacobian[:, list(braked)] = 0.0, 0.0
     if not float(external @ external) >= least ** 2:
@@ -147,8 +162,8 @@ class ContactWatch:
         self._pressed = -math.inf  # s, when any look last found the tool in contact
 
     def explains(self, robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
-                 now: float, joints: Sequence[JointEvidence],
-                 least: float = MIN_TORQUE) -> str | None:
+                 now: float, joints: Sequence[JointEvidence], least: float = MIN_TORQUE,
+                 acceleration: np.ndarray | None = None) -> str | None:
         """`in_contact` at `now` (s), the command's direction asked only as a contact begins.
 
         It is asked where no contact was found lately, and not for joints moving on their
@@ -157,11 +172,15 @@ class ContactWatch:
         on their own (`swing_since`). A joint that moves on its own while the drives' torques are a
         force at the tool is pushed, by an obstacle or by the arm's own links as they stop
         or start (their inertial reaction is J^T of a force too), whatever the command:
-        not a free swing. Such a look begins no contact.
+        not a free swing. Such a look begins no contact; given the joints' `acceleration`
+        (rad/s^2, velocities from `JointEvidence.measured`) it reads the residual of the
+        arm's motion (`in_contact`'s `motion`).
         """
         braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
         if stalled and all(joints[j].swing_since is not None for j in stalled):
-            return in_contact(robot, q, effort, stalled, least, braked)
+            motion = None if acceleration is None else (
+                np.array([e.measured for e in joints]), acceleration)
+            return in_contact(robot, q, effort, stalled, least, braked, motion=motion)
         commanded = None if now - self._pressed < AFTER_CONTACT else np.array(
             [e.commanded for e in joints])
         reason = in_contact(robot, q, effort, stalled, least, braked, commanded)

@@ -124,6 +124,9 @@ class LockDetector:
         self.follow = FollowMeter(self.n)
         self._declared_at = -math.inf  # when a joint was last declared locked or swinging
         self._accelerations = Accelerations()  # of the window slopes
+        #: rad/s^2, the joints' accelerations at the last update (the window slopes'
+        #: change over `drives.ACCELERATION_SPAN`); None: not yet known
+        self.acceleration: np.ndarray | None = None
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -369,7 +372,7 @@ class LockDetector:
             drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
             & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
             cfg.min_command, STILL_SPAN)  # a push the joint does not follow
-        acceleration = self._accelerations.update(now, measured)
+        self.acceleration = acceleration = self._accelerations.update(now, measured)
         if drives is not None and acceleration is not None and (candidates | held).any():
             # Stalled or held by the other links' accelerations, not by a brake.
             moved = drives.moved_by_others(measured, acceleration, weakest, cfg.min_command)
