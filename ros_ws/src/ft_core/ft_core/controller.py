@@ -54,7 +54,6 @@ from ft_core.health import JointHealth
 from ft_core.input_checks import all_finite
 from ft_core.observability import Excursions, ObservabilityConfig
 from ft_core.recovery import Recovery, RecoveryConfig
-from ft_core.reference import CommandedConfiguration
 from ft_core.robots import Kinematics, Robot
 from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
@@ -164,7 +163,6 @@ class Controller:
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
         self.smoother = self._smoother(self.config)
-        self._commanded = CommandedConfiguration()  # where the kfm ascent is taken
         self.start_phase = StartPhase(self._submit_start, _START.gain, _START.timeout)
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
@@ -334,9 +332,9 @@ class Controller:
 
         Locked and pinned joints get 0 at once. `qd` itself without a smoother.
         """
-        qd = qd if self.smoother is None else self.smoother.step(qd, now, self.pinned)
-        self._commanded.sent(qd)
-        return qd
+        if self.smoother is None:
+            return qd
+        return self.smoother.step(qd, now, self.pinned)
 
     def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
         """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
@@ -357,10 +355,9 @@ class Controller:
         pinned = self.pinned
         locked = list(pinned)
         try:
-            kinematics = robot.kinematics(q)  # the measured configuration's pass
+            kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
             xd, idle, task_error = self._task_velocity(kinematics, now)
-            result = self.engine.step(kinematics, xd, locked, robot.kinematics(
-                self._commanded.update(q, now)) if self.engine.ascends else None)
+            result = self.engine.step(kinematics, xd, locked)
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})
