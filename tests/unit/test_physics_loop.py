@@ -64,12 +64,14 @@ def test_a_lock_on_a_physics_plant_is_named_within_a_second(task: str, joint: in
 
 
 def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: float,
-               seed: int = 3, lock: tuple[int, float] | None = None) -> tuple[list, list]:
+               seed: int = 3, lock: tuple[int, float] | None = None,
+               silent: set[int] | None = None) -> tuple[list, list]:
     """The monitor between fixed commands and the physics plant behind the slow driver.
 
     From `q` (rad), the plant is sent `command_at(t)` (rad/s) through the monitor every
     4 ms until `until` (s); `lock` (joint, s): that joint's brake engages then. Returns
-    the declarations [(t, line)] and the plant's velocities [(t, qd)].
+    the declarations [(t, line)] and the plant's velocities [(t, qd)]; `silent` collects
+    the joints whose drives the monitor found silent (`detection.drives`).
     """
     robot = robots.load("panda_inertial", tip_link="panda_link8")
     monitor = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
@@ -82,6 +84,8 @@ def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: 
         change = monitor.observe(plant.q + rng.normal(0.0, NOISE, robot.n), t,
                                  effort=plant.torque)
         events += [(t, line) for line in change.events]
+        if silent is not None:
+            silent.update(np.flatnonzero(monitor._drives.silent).tolist())
         plant.command(t, monitor.command(command_at(t), t))
         t += dt
         plant.step(t)
@@ -172,3 +176,67 @@ def test_a_lock_while_the_others_reverse_is_named(lock_at: float) -> None:
     when, line = events[0]
     assert line.startswith("joint panda_joint1 locked")
     assert 0.0 < when - lock_at <= 0.25
+
+
+def _alternating(joint: int, lock_at: float | None) -> list:
+    """The declarations while `joint` is commanded 0.3 rad/s each way every 0.2 s.
+
+    Joints 1 and 6 move steadily (witnesses); `lock_at` (s): `joint`'s brake engages then.
+    """
+    panda = robots.load("panda_inertial", tip_link="panda_link8")
+
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(panda.n)
+        command[[0, 5]] = [0.2, 0.3]
+        command[joint] = 0.3 if int(t / 0.2) % 2 == 0 else -0.3
+        return command
+
+    return _open_loop(panda.home(), command_at, 2.5 if lock_at is None else lock_at + 1.0,
+                      lock=None if lock_at is None else (joint, lock_at))[0]
+
+
+@pytest.mark.parametrize("joint", [1, 3])
+def test_a_healthy_joint_under_commands_reversing_within_the_lags_is_not_declared(
+        joint: int) -> None:
+    assert _alternating(joint, None) == []
+
+
+@pytest.mark.parametrize(("joint", "lock_at"), [(1, 1.0), (3, 1.1), (3, 1.25)])
+def test_a_lock_under_commands_reversing_within_the_lags_is_named_by_its_push(
+        joint: int, lock_at: float) -> None:
+    """The brake's push names it within 250 ms, held still while commanded.
+
+    No plausible prediction agrees on a direction, so the velocity test cannot judge.
+    """
+    panda = robots.load("panda_inertial", tip_link="panda_link8")
+    events = _alternating(joint, lock_at)
+    assert events, "the lock was not named"
+    when, line = events[0]
+    assert line.startswith(f"joint {panda.joint_names[joint]} locked")
+    assert "held still while commanded" in line
+    assert 0.0 < when - lock_at <= 0.25
+    assert len(events) == 1, events
+
+
+def test_a_healthy_drive_silent_while_its_command_accelerates_downhill_is_not_named() -> None:
+    """Joint 2 commanded downhill at gravity's own acceleration g/M (2.6 rad/s^2 at home).
+
+    Its drive then gives about no torque, which `detection.drives` calls silent; the
+    joint follows its command all the while, so it is not named.
+    """
+    panda = robots.load("panda_inertial", tip_link="panda_link8")
+    q = panda.home()
+    inertia, _ = panda.dynamics(q, np.zeros(panda.n))
+    falls = np.sign(-panda.gravity(q)[1])  # gravity turns the shoulder this way
+    rate = abs(panda.gravity(q)[1]) / inertia[1, 1]  # rad/s^2
+
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(panda.n)
+        command[0] = 0.2
+        command[1] = falls * rate * min(max(t - 0.6, 0.0), 0.3, max(1.2 - t, 0.0))
+        return command
+
+    silent: set[int] = set()
+    events, _ = _open_loop(q, command_at, 2.0, silent=silent)
+    assert 1 in silent, "joint 2's drive was never silent: the case is gone"
+    assert events == []
