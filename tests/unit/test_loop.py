@@ -20,6 +20,23 @@ def test_missed_cycles_and_compute_times(monkeypatch: pytest.MonkeyPatch) -> Non
     assert accounting.compute_ms(100) == pytest.approx(1.5)
 
 
+def test_the_loop_rate_is_measured_over_a_span_not_between_two_close_calls() -> None:
+    """A diagnostics timer catching up after a hold calls twice within milliseconds."""
+    accounting = loop.LoopAccounting(period=0.004)
+    assert accounting.rate(10.0) == 0.0  # the first call: nothing measured yet
+    for _ in range(125):
+        accounting.start()
+        accounting.end()
+    assert accounting.rate(10.5) == pytest.approx(250.0)  # 125 cycles in 0.5 s
+    assert accounting.rate(10.502) == pytest.approx(250.0)  # no cycle since: not a stop
+    for _ in range(50):
+        accounting.start()
+        accounting.end()
+    assert accounting.rate(10.5 + loop.RATE_SPAN) == pytest.approx(50 / loop.RATE_SPAN)
+    assert accounting.rate(11.5) == 0.0  # a whole second without a cycle: stopped
+    assert accounting.rate(5.0) == 0.0  # time went back: measured anew from there
+
+
 def test_a_late_cycle_within_its_period_is_not_missed(monkeypatch: pytest.MonkeyPatch) -> None:
     """Jitter is not a miss: rcl's timer keeps its schedule unless a whole period passes."""
     starts = [0.000, 0.0065, 0.008, 0.0125, 0.016, 0.0285, 0.0321]  # late 2.5 ms, then on time,

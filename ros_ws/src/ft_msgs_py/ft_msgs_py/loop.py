@@ -21,6 +21,10 @@ if TYPE_CHECKING:
     from ft_msgs_py.node import SuiteNode
 
 
+#: s, the shortest span `LoopAccounting.rate` measures over.
+RATE_SPAN = 0.25
+
+
 class LoopAccounting:
     """Call `start()` at the top of every cycle and `end()` at its bottom.
 
@@ -64,14 +68,19 @@ class LoopAccounting:
         return float(np.percentile(samples, percentile) * 1e3) if samples.size else 0.0
 
     def rate(self, now: float) -> float:
-        """Cycles per second between the previous call and this one at `now` (s).
+        """Cycles per second since the rate was last measured, at `now` (s).
 
-        0 at the first call; unchanged when `now` has not advanced.
+        Measured over `RATE_SPAN` s at least: a call sooner returns the last figure and
+        leaves the span running (a diagnostics timer that catches up after the process was
+        held would otherwise count the few milliseconds between two of its calls, without
+        a cycle, as a stopped loop). 0 at the first call; time going back starts anew.
         """
-        if self._rate_window is not None and now > self._rate_window[1]:
+        if self._rate_window is None or now < self._rate_window[1]:
+            self._rate_window = (self.cycles, now)
+        elif now - self._rate_window[1] >= RATE_SPAN:
             cycles, since = self._rate_window
             self._rate = (self.cycles - cycles) / (now - since)
-        self._rate_window = (self.cycles, now)
+            self._rate_window = (self.cycles, now)
         return self._rate
 
     def samples(self) -> np.ndarray:
