@@ -151,7 +151,8 @@ def core_values(loaded: Loaded | None, now: float) -> dict[str, object]:
         "recovery": "off" if core is None else core.recovery_note,
         "joint_health": "none" if core is None else core.adaptation.note,
         "start_configuration": "idle" if core is None else core.start_phase.note,
-        "suspected_lock": (loaded and loaded.suspected_lock) or "none"}
+        "suspected_lock": (loaded and loaded.suspected_lock) or "none",
+        "kfm_ascent_at": "none" if core is None else core.commanded.note}
     last = None if core is None else core.last
     if last is not None:
         values.update(kfm=last.kfm, task_scale=last.task_scale, status=last.status)

@@ -40,26 +40,26 @@ import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
 
 from ft_core import limits, recovery, start_configuration, workers
 from ft_core.adaptation import INFEASIBLE, Adaptation
-from ft_core.command_limits import LimitsConfig
+from ft_core.controller_config import ControllerConfig
 from ft_core.critical_limits import CriticalPointLimits
 from ft_core.engine import CycleResult, EngineConfig, ResolutionEngine
 from ft_core.health import JointHealth
 from ft_core.input_checks import all_finite
-from ft_core.observability import Excursions, ObservabilityConfig
+from ft_core.observability import Excursions
 from ft_core.recovery import Recovery, RecoveryConfig
+from ft_core.reference import CommandedConfiguration
 from ft_core.robots import Kinematics, Robot
 from ft_core.smoothing import Smoother
 from ft_core.start_configuration import StartPhase
 from ft_core.targets import (
     PoseTarget,
-    PoseTracking,
     Target,
     TwistTarget,
     norm,
@@ -75,32 +75,6 @@ _START = RecoveryConfig()
 #: m and rad: a pose goal this close to a critical point is that point (its traced
 #: configurations seed the recovery's inverse kinematics).
 _SAME_POINT = 1e-6
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """What the cycle reads besides the engine's configuration.
-
-    Attributes:
-        state_timeout: s; an older joint state stops the arm (explicit zeros).
-        target_timeout: s; an older twist decays linearly to 0 over one more timeout.
-        idle_null_space_motion: with no target (or a pose goal reached), allow the
-            null-space terms to move the arm; otherwise hold still.
-        tracking: pose-goal tracking gains and caps.
-        observability: the excursions' settings; None: no excursions.
-        recovery: when and how to go round a stall after a lock (`ft_core.recovery`);
-            None: never.
-        limits: the acceleration and jerk limits every command is smoothed into
-            (`ft_core.smoothing`); None: raw commands (which a real driver refuses).
-    """
-
-    state_timeout: float = 0.1
-    target_timeout: float = 0.5
-    idle_null_space_motion: bool = False
-    tracking: PoseTracking = field(default_factory=PoseTracking)
-    observability: ObservabilityConfig | None = None
-    recovery: RecoveryConfig | None = field(default_factory=RecoveryConfig)
-    limits: LimitsConfig | None = field(default_factory=LimitsConfig)
 
 
 @dataclass
@@ -163,6 +137,8 @@ class Controller:
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
         self.smoother = self._smoother(self.config)
+        #: Where the kfm ascent is taken (`reference`).
+        self.commanded = CommandedConfiguration(robot.n)
         self.start_phase = StartPhase(self._submit_start, _START.gain, _START.timeout)
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
@@ -332,9 +308,16 @@ class Controller:
 
         Locked and pinned joints get 0 at once. `qd` itself without a smoother.
         """
-        if self.smoother is None:
-            return qd
-        return self.smoother.step(qd, now, self.pinned)
+        qd = qd if self.smoother is None else self.smoother.step(qd, now, self.pinned)
+        self.commanded.sent(now, qd)
+        return qd
+
+    def _ascent_at(self, q: np.ndarray, measured_at: float, now: float) -> Kinematics | None:
+        """Where the kfm gradient is taken (`reference`): None at q itself."""
+        ahead = self.commanded.update(q, measured_at, now, self.pinned)
+        if ahead is None or not self.engine.ascends or not all_finite(ahead):
+            return None
+        return self.robot.kinematics(ahead)
 
     def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
         """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
@@ -355,9 +338,10 @@ class Controller:
         pinned = self.pinned
         locked = list(pinned)
         try:
-            kinematics = robot.kinematics(q)  # the one kinematics pass of this cycle
+            kinematics = robot.kinematics(q)  # the measured configuration's pass
             xd, idle, task_error = self._task_velocity(kinematics, now)
-            result = self.engine.step(kinematics, xd, locked)
+            result = self.engine.step(kinematics, xd, locked, self._ascent_at(
+                q, now - state_age, now))
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})

@@ -13,7 +13,9 @@ characteristic length). The null-space preference z sums, by `resolution`:
 
 - `max_kfm` and `blend`: kfm_gain * grad K (Maciejewski et al. eq 8, soft-min remedy for
   ties, see `measures.kfm_gradient`), or the gradient of the failure-probability
-  weighted measure F_w (Xie 2019 eq 3.3) when probabilities are given;
+  weighted measure F_w (Xie 2019 eq 3.3) when probabilities are given; taken at the
+  cycle's configuration, or at `step`'s `ascent_at` (the controller's: where its
+  commands are taking the arm, `reference`);
 - `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (Zhao & Li eq 5; gain 1 is
   the exact minimum-jump solution);
 - always, when a box applies: limit_gain * `limits.avoidance` away from the edges
@@ -154,13 +156,14 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
 
 
 @njit(cache=True, error_model="numpy")
-def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
-           task_scale: np.ndarray, box: np.ndarray, gains: np.ndarray, use_kfm: bool,
-           use_jump: bool, probabilities: bool, bias: np.ndarray, limit_box: np.ndarray,
-           soft: bool) -> tuple:
+def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.ndarray,
+           q: np.ndarray, healthy: np.ndarray, task_scale: np.ndarray, box: np.ndarray,
+           gains: np.ndarray, use_kfm: bool, use_jump: bool, probabilities: bool,
+           bias: np.ndarray, limit_box: np.ndarray, soft: bool) -> tuple:
     """`ResolutionEngine.step` for m <= healthy joints, compiled in one call.
 
     J6 is the tool point's 6-row Jacobian in the base's axes (`Robot.base_jacobian`),
+    `ascent_J6` the one where the kfm gradient is taken (used only when `ascent_apart`),
     `box` the locked set's `BOX_ROWS`, `gains` `Gains` as an array, `bias` (healthy
     joints) is added to z, `limit_box` holds the robot's lower and upper limits and the
     soft box (rows, n). qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1]
@@ -174,8 +177,12 @@ def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
     m, nh, n = task_scale.size, healthy.size, q.size
     if use_kfm:
         J, dJ = robots.task_jacobians(J6, m)
+        ascent_J = J
+        if ascent_apart:
+            ascent_J, dJ = robots.task_jacobians(ascent_J6, m)
     else:
         J, dJ = J6[:m], np.zeros((0, 0, 0))
+        ascent_J = J
     Js = np.empty((m, nh))
     for a in range(m):
         for j in range(nh):
@@ -196,8 +203,15 @@ def _cycle(J6: np.ndarray, xd: np.ndarray, q: np.ndarray, healthy: np.ndarray,
                 for a in range(m):
                     for j in range(nh):
                         dJs[k, a, j] = task_scale[a] * dJ[healthy[k], a, healthy[j]]
-            ascent = weights if probabilities else measures.kfm_weights(sigmas, temperature)
-            z += kfm_gain * postfailure.weighted_sigma_gradient(Js, dJs, sigmas, vectors,
+            Ja, sigmas_a, vectors_a = Js, sigmas, vectors
+            if ascent_apart:
+                Ja = np.empty((m, nh))
+                for a in range(m):
+                    for j in range(nh):
+                        Ja[a, j] = task_scale[a] * ascent_J[a, healthy[j]]
+                sigmas_a, vectors_a = postfailure.analyse(Ja)[3:5]
+            ascent = weights if probabilities else measures.kfm_weights(sigmas_a, temperature)
+            z += kfm_gain * postfailure.weighted_sigma_gradient(Ja, dJs, sigmas_a, vectors_a,
                                                                 ascent)
     lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
     pinv = postfailure.damped_inverse(columns, L, V, sigma_min, threshold, max_damping)
@@ -295,6 +309,12 @@ class ResolutionEngine:
         self.step(home, np.zeros(robot.m))
         self.step(home, np.zeros(robot.m), range(min(robot.n, robot.n - robot.m + 1)))
 
+    @property
+    def ascends(self) -> bool:
+        """Whether the cycle may take a kfm gradient (`resolution` and `kfm_gain`)."""
+        return (self.config.resolution in (Resolution.MAX_KFM, Resolution.BLEND)
+                and self.config.kfm_gain > 0)
+
     def soft_limits_active(self, any_locked: bool) -> bool:
         """Whether the soft box applies (configured, and not released by a failure)."""
         return self._soft[0].size > 0 and not (
@@ -330,9 +350,7 @@ class ResolutionEngine:
                 box=np.array([lower[healthy], upper[healthy],
                               self.speeds[healthy],
                               measures.failure_weights(p, nh) if nh else np.zeros(0)]),
-                use_kfm=(next_failure
-                         and cfg.resolution in (Resolution.MAX_KFM, Resolution.BLEND)
-                         and cfg.kfm_gain > 0),
+                use_kfm=next_failure and self.ascends,
                 use_jump=(next_failure
                           and cfg.resolution in (Resolution.MIN_JUMP, Resolution.BLEND)),
                 zeros=np.zeros(nh))
@@ -382,11 +400,14 @@ class ResolutionEngine:
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
-    def step(self, kinematics: Kinematics, xd: np.ndarray,
-             locked: Iterable[int] = ()) -> CycleResult:
+    def step(self, kinematics: Kinematics, xd: np.ndarray, locked: Iterable[int] = (),
+             ascent_at: Kinematics | None = None) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
 
         `kinematics`: the cycle's snapshot at the configuration q (`Robot.kinematics`).
+        `ascent_at`: a snapshot where the kfm gradient is taken instead (the configuration
+        the commands are taking the arm to, `reference.CommandedConfiguration`); the task
+        and every other term stay at q.
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
@@ -409,7 +430,9 @@ class ResolutionEngine:
         if nh < m:
             return self._infeasible(q, xd, view)
         (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
-         margin) = _cycle(kinematics.base_jacobian, xd, q, index, robot.task_scale, view.box,
+         margin) = _cycle(kinematics.base_jacobian,
+                          (kinematics if ascent_at is None else ascent_at).base_jacobian,
+                          ascent_at is not None, xd, q, index, robot.task_scale, view.box,
                           self._gains, view.use_kfm, view.use_jump,
                           self._probabilities is not None, self._swing_descent(q, view),
                           self._limit_box, view.soft)

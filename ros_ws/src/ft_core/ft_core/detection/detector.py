@@ -411,9 +411,12 @@ class LockDetector:
                 evidence.candidate = False
             return Update()
         self.plant_fault = None
-        if self._seen_following < cfg.follow_time:
-            if n_following and not any(unheld):
+        if self._seen_following < cfg.follow_time and not any(unheld):
+            if held_long.any():  # a drive pushing a joint that stays: the plant is live
+                self._seen_following = cfg.follow_time
+            elif n_following:
                 self._seen_following += dt
+        if self._seen_following < cfg.follow_time:
             self.not_observing = "plant not yet seen following commands"
             self._clear_evidence()
             return Update()

@@ -118,3 +118,13 @@ class CommandHistory(_Buffers):
             return np.zeros((len(times), self.n))
         index = np.searchsorted(self.times[start:end], times, side="right") - 1
         return self.values[start + np.maximum(index, 0)]
+
+    def predicted(self, times: np.ndarray) -> np.ndarray:
+        """Every response time's predicted displacement at `times` (s), (times, T, n) (rad).
+
+        U(t) - T y_T(t) since the first command kept, the plant at rest before it; shift
+        the times by a latency for that latency's model.
+        """
+        return _predicted_positions(self.times, self.values, self.integrals, self.lagged,
+                                    self.start, self.end, self.rate, self.response_times,
+                                    np.ascontiguousarray(times, dtype=float))
