@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from ft_core import robots
+from ft_core.engine import EngineConfig, ResolutionEngine
 from ft_core.reference import MIN_EXCITATION, CommandedConfiguration
 from ft_sim.closed_loop import DRIVERS, ClosedLoop
 
@@ -112,3 +114,22 @@ def test_behind_the_slow_driver_the_null_space_does_not_vibrate() -> None:
     """
     assert _vibration("fast") < 0.15
     assert _vibration("slow") < 0.15
+
+
+def test_the_ascent_taken_elsewhere_changes_the_null_space_motion_only() -> None:
+    """`ResolutionEngine.step(..., ascent_at=)`: the task velocity stays.
+
+    The same snapshot as the cycle's gives the cycle taken at q itself.
+    """
+    robot = robots.load("panda", task_space="position")
+    engine = ResolutionEngine(robot, EngineConfig(resolution="max_kfm", kfm_gain=1.0))
+    q = robot.home()
+    xd = np.array([0.05, -0.02, 0.03])  # m/s
+    here = robot.kinematics(q)
+    at_q = engine.step(here, xd).qd
+    assert engine.step(here, xd, ascent_at=robot.kinematics(q)).qd == pytest.approx(at_q)
+    ahead = q + np.array([0.0, 0.1, 0.0, -0.1, 0.0, 0.1, 0.0])
+    moved = engine.step(here, xd, ascent_at=robot.kinematics(ahead)).qd
+    assert np.max(np.abs(moved - at_q)) > 1e-3  # the gradient there differs
+    jacobian = robot.base_jacobian(q)[:3]
+    assert jacobian @ moved == pytest.approx(jacobian @ at_q, abs=1e-9)
