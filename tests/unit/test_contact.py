@@ -75,18 +75,24 @@ def test_a_contact_begins_only_where_the_command_drives_the_tool_into_the_force(
     for away in (-into, np.linalg.pinv(J) @ (0.1 * tilted)):  # a stopping link's reaction
         contact, by_force, by_locks = explained_by_contact(pushed, J, [1], away)
         assert not contact and by_force == pytest.approx(1.0) and by_locks < by_force
-    # Once a contact has begun, the command may turn (a stalled task backs off): it lasts
-    # while the force does, and the command's direction is asked again only after
-    # AFTER_CONTACT s without one.
-    watch, effort = ContactWatch(PANDA), PANDA.gravity(Q) + pushed
+    # Once the watch has seen the tool pushed (`ContactWatch.lately`), the command may
+    # turn (a stalled task backs off): the contact lasts while the force does, and the
+    # command's direction is asked again only after AFTER_CONTACT s without one. A look
+    # at stalled joints alone begins no such while: a lock's push and the stopping links'
+    # reactions can read as a small force at the tool for a moment.
+    watch = ContactWatch(PANDA)
+    effort = PANDA.gravity(Q) + 2.0 * pushed  # 80 N: over the watch's least torque
+    assert np.linalg.norm(2.0 * pushed) >= watch.least
 
     def sent(qd: np.ndarray) -> list[JointEvidence]:
         return [JointEvidence(commanded=v) for v in qd]
 
     assert watch.explains(PANDA, Q, effort, [1], 0.0, sent(-into)) is None
     assert watch.explains(PANDA, Q, effort, [1], 0.1, sent(into)) is not None
-    assert watch.explains(PANDA, Q, effort, [1], 0.2, sent(-into)) is not None
-    assert watch.explains(PANDA, Q, effort, [1], 0.2 + AFTER_CONTACT, sent(-into)) is None
+    assert watch.explains(PANDA, Q, effort, [1], 0.2, sent(-into)) is None
+    assert watch.lately(PANDA, Q, effort, 0.3, sent(into))
+    assert watch.explains(PANDA, Q, effort, [1], 0.4, sent(-into)) is not None
+    assert watch.explains(PANDA, Q, effort, [1], 0.3 + AFTER_CONTACT, sent(-into)) is None
 
 
 def _push(driver: str, seed: int) -> ClosedLoop:

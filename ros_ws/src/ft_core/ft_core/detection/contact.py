@@ -146,10 +146,14 @@ class ContactWatch:
     """Whether the tool is in contact (`explains`), or was within `AFTER_CONTACT` s (`lately`).
 
     A contact begins where the command drives the tool into the force (`PUSH_ANGLE`).
-    Within `AFTER_CONTACT` s of a look that found one, the command's direction is not
-    asked: a controller whose task stalls at a wall changes its command and backs off
-    while its servos push on from the position they were sent to, and once the tool is
-    free the arm's rush to its goal loads the drives as a force at the tool would.
+    Within `AFTER_CONTACT` s of a look of `lately` that found one (the tool pushed with
+    `WATCH_SHARE` of the effort limits), the command's direction is not asked: a
+    controller whose task stalls at a wall changes its command and backs off while its
+    servos push on from the position they were sent to, and once the tool is free the
+    arm's rush to its goal loads the drives as a force at the tool would. A look at
+    stalled joints (`explains`) begins no such while: a lock's push and the stopping
+    links' reactions can read as a small force at the tool for a moment, and the
+    direction must go on telling them from a contact.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -159,15 +163,14 @@ class ContactWatch:
                       else math.inf)
         self._looked = -math.inf  # s, when `lately` last looked
         self._touched = -math.inf  # s, when `lately` last found the tool in contact
-        self._pressed = -math.inf  # s, when any look last found the tool in contact
 
     def explains(self, robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
                  now: float, joints: Sequence[JointEvidence], least: float = MIN_TORQUE,
                  acceleration: np.ndarray | None = None) -> str | None:
         """`in_contact` at `now` (s), the command's direction asked only as a contact begins.
 
-        It is asked where no contact was found lately, and not for joints moving on their
-        own. `joints`: every joint's evidence at the last update, for the velocities
+        It is asked unless `lately` found the tool in contact within `AFTER_CONTACT` s, and
+        not for joints moving on their own. `joints`: every joint's evidence at the last update, for the velocities
         commanded (`JointEvidence.commanded`), the joints locked (braked) and those moving
         on their own (`swing_since`). A joint that moves on its own while the drives' torques are a
         force at the tool is pushed, by an obstacle or by the arm's own links as they stop
@@ -181,12 +184,9 @@ class ContactWatch:
             motion = None if acceleration is None else (
                 np.array([e.measured for e in joints]), acceleration)
             return in_contact(robot, q, effort, stalled, least, braked, motion=motion)
-        commanded = None if now - self._pressed < AFTER_CONTACT else np.array(
+        commanded = None if now - self._touched < AFTER_CONTACT else np.array(
             [e.commanded for e in joints])
-        reason = in_contact(robot, q, effort, stalled, least, braked, commanded)
-        if reason is not None:
-            self._pressed = now
-        return reason
+        return in_contact(robot, q, effort, stalled, least, braked, commanded)
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
                joints: Sequence[JointEvidence]) -> bool:
