@@ -65,6 +65,38 @@ def test_a_joint_falling_under_its_weak_drive_is_no_force_on_the_tool() -> None:
                       motion=(velocity, acceleration)) is not None
 
 
+def test_a_lock_while_the_rest_of_the_arm_accelerates_is_no_force_on_the_tool() -> None:
+    """A wrist lock while the shoulder speeds up is no contact, read with the arm's motion.
+
+    The wrist (joint 6) is held by its brake, its drive pushing 2.4 N m, while the
+    shoulder speeds up at 3.2 rad/s^2 towards a new goal (a deployed lock on the physics
+    plant).
+
+    Read statically (tau - g), the arm's own acceleration and the push fit a force at
+    the tool by 98 %, within `PUSH_ANGLE` of the command; the inverse dynamics' residual
+    leaves the push alone, no contact.
+    """
+    q = np.array([-2.2, -1.69, 1.14, -2.12, 1.23, 0.78, 0.78])
+    velocity = np.array([0.31, 0.21, -0.36, -0.26, -0.18, 0.0, 0.0])
+    acceleration = np.array([3.2, 0.4, -2.8, -0.9, -0.6, 0.0, 0.0])
+    commanded = np.array([0.0, 0.04, -0.06, -0.02, 0.0, -0.1, 0.0])
+    inertia, nonlinear = PANDA.dynamics(q, velocity)
+    push = np.zeros(7)
+    push[5] = -2.4
+    effort = inertia @ acceleration + nonlinear + push
+    static = in_contact(PANDA, q, effort.copy(), [5], commanded=commanded)
+    assert static is not None and "explains 98%" in static
+    assert in_contact(PANDA, q, effort.copy(), [5], commanded=commanded,
+                      motion=(velocity, acceleration)) is None
+    # The monitor's look at the stalled wrist, given the detector's accelerations.
+    joints = [JointEvidence(measured=v, commanded=c) for v, c in zip(velocity, commanded,
+                                                                     strict=True)]
+    watch = ContactWatch(PANDA)
+    assert watch.explains(PANDA, q, effort.copy(), [5], 0.0, joints) is not None
+    assert watch.explains(PANDA, q, effort.copy(), [5], 0.0, joints,
+                          acceleration=acceleration) is None
+
+
 def test_a_contact_begins_only_where_the_command_drives_the_tool_into_the_force() -> None:
     J = PANDA.base_jacobian(Q)[:3]
     down = np.array([0.0, 0.0, -1.0])

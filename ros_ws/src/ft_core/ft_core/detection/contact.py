@@ -26,13 +26,15 @@ with where the command sends the tool. A lock while the tool pushes leaves its o
 joint's torque unexplained by a tool force, and is named when that is most of it.
 Without efforts or inertias nothing is vetoed.
 
-For joints about to be declared free-swinging the arm is not at rest, and tau - g(q)
-holds the torques of its own motion too: a joint falling under a drive short of its
-gravity torque (lost authority) leaves tau - g = M qdd + C qd, the shape of a force
-at the tool (the shoulder's shortfall, chiefly). There the external torques are the
-inverse dynamics' residual tau - M(q) qdd - C qd - g(q) (the external-torque reading of
-De Luca & Mattone's actuator-fault residuals), with the detector's window accelerations:
-a weak drive's fall leaves none, a push on the tool leaves J^T f.
+While the arm moves, tau - g(q) holds the torques of its own motion too: a joint
+falling under a drive short of its gravity torque (lost authority) leaves tau - g = M qdd
++ C qd, the shape of a force at the tool (the shoulder's shortfall, chiefly), and so
+does the rest of the arm slowing while one joint stops at a lock. Where the detector's
+window accelerations are known, the external torques are the inverse dynamics' residual
+tau - M(q) qdd - C qd - g(q) (the external-torque reading of De Luca & Mattone's
+actuator-fault residuals): a weak drive's fall and a slowing arm leave none, a push on
+the tool leaves J^T f, and an arm at rest against an obstacle reads tau - g(q) as before.
+Only the watch's look with no joint stalled (`ContactWatch.lately`) reads tau - g(q).
 
 The efforts also tell a joint that moved again after its lock with its drive's torque (a
 jam that let go, its servo catching up: `driven`) from one whose drive lost its torque
@@ -170,23 +172,25 @@ class ContactWatch:
         """`in_contact` at `now` (s), the command's direction asked only as a contact begins.
 
         It is asked unless `lately` found the tool in contact within `AFTER_CONTACT` s, and
-        not for joints moving on their own. `joints`: every joint's evidence at the last update, for the velocities
-        commanded (`JointEvidence.commanded`), the joints locked (braked) and those moving
-        on their own (`swing_since`). A joint that moves on its own while the drives' torques are a
-        force at the tool is pushed, by an obstacle or by the arm's own links as they stop
-        or start (their inertial reaction is J^T of a force too), whatever the command:
-        not a free swing. Such a look begins no contact; given the joints' `acceleration`
-        (rad/s^2, velocities from `JointEvidence.measured`) it reads the residual of the
-        arm's motion (`in_contact`'s `motion`).
+        not for joints moving on their own. `joints`: every joint's evidence at the last
+        update, for the velocities commanded (`JointEvidence.commanded`), the joints locked
+        (braked) and those moving on their own (`swing_since`). A joint that moves on its
+        own while the drives' torques are a force at the tool is pushed, by an obstacle or
+        by the arm's own links as they stop or start (their inertial reaction is J^T of a
+        force too), whatever the command: not a free swing. Given the joints'
+        `acceleration` (rad/s^2, velocities from `JointEvidence.measured`) every look
+        reads the residual of the arm's motion (`in_contact`'s `motion`): a lock that
+        stops one joint while the others speed up or slow loads the drives with the arm's
+        own inertia, which statically reads as a force at the tool.
         """
         braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
+        motion = None if acceleration is None else (
+            np.array([e.measured for e in joints]), acceleration)
         if stalled and all(joints[j].swing_since is not None for j in stalled):
-            motion = None if acceleration is None else (
-                np.array([e.measured for e in joints]), acceleration)
             return in_contact(robot, q, effort, stalled, least, braked, motion=motion)
         commanded = None if now - self._touched < AFTER_CONTACT else np.array(
             [e.commanded for e in joints])
-        return in_contact(robot, q, effort, stalled, least, braked, commanded)
+        return in_contact(robot, q, effort, stalled, least, braked, commanded, motion=motion)
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
                joints: Sequence[JointEvidence]) -> bool:
