@@ -33,7 +33,7 @@ does the rest of the arm slowing while one joint stops at a lock. Where the dete
 window accelerations are known, the external torques are the inverse dynamics' residual
 tau - M(q) qdd - C qd - g(q) (the external-torque reading of De Luca & Mattone's
 actuator-fault residuals): a weak drive's fall and a slowing arm leave none, a push on
-the tool leaves J^T f, and an arm at rest against an obstacle reads tau - g(q) as before.
+the tool leaves J^T f, and for an arm at rest against an obstacle it is tau - g(q).
 Only the watch's look with no joint stalled (`ContactWatch.lately`) reads tau - g(q).
 
 The efforts also tell a joint that moved again after its lock with its drive's torque (a
