@@ -84,16 +84,16 @@ def test_a_lock_while_the_rest_of_the_arm_accelerates_is_no_force_on_the_tool() 
     push = np.zeros(7)
     push[5] = -2.4
     effort = inertia @ acceleration + nonlinear + push
-    static = in_contact(PANDA, q, effort.copy(), [5], commanded=commanded)
+    static = in_contact(PANDA, q, effort, [5], commanded=commanded)
     assert static is not None and "explains 98%" in static
-    assert in_contact(PANDA, q, effort.copy(), [5], commanded=commanded,
+    assert in_contact(PANDA, q, effort, [5], commanded=commanded,
                       motion=(velocity, acceleration)) is None
     # The monitor's look at the stalled wrist, given the detector's accelerations.
     joints = [JointEvidence(measured=v, commanded=c) for v, c in zip(velocity, commanded,
                                                                      strict=True)]
     watch = ContactWatch(PANDA)
-    assert watch.explains(PANDA, q, effort.copy(), [5], 0.0, joints) is not None
-    assert watch.explains(PANDA, q, effort.copy(), [5], 0.0, joints,
+    assert watch.explains(PANDA, q, effort, [5], 0.0, joints) is not None
+    assert watch.explains(PANDA, q, effort, [5], 0.0, joints,
                           acceleration=acceleration) is None
 
 

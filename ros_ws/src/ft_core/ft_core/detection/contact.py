@@ -186,9 +186,8 @@ class ContactWatch:
         braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
         motion = None if acceleration is None else (
             np.array([e.measured for e in joints]), acceleration)
-        if stalled and all(joints[j].swing_since is not None for j in stalled):
-            return in_contact(robot, q, effort, stalled, least, braked, motion=motion)
-        commanded = None if now - self._touched < AFTER_CONTACT else np.array(
+        swinging = bool(stalled) and all(joints[j].swing_since is not None for j in stalled)
+        commanded = None if swinging or now - self._touched < AFTER_CONTACT else np.array(
             [e.commanded for e in joints])
         return in_contact(robot, q, effort, stalled, least, braked, commanded, motion=motion)
 
