@@ -440,13 +440,85 @@ def test_a_witness_seen_moving_below_the_stall_bar_vouches_for_the_plant() -> No
         update = detector.measure(t, values)
         if update.locked:
             events.append((t, list(update.locked)))
-        witness = detector.joints[4]
-        if t < 3.5 and detector.joints[6].candidate and not witness.observable:
-            witness_below_the_stall_bar |= (witness.commanded >= 0.05
-                                            and witness.measured >= 0.7 * witness.commanded)
+        # Joint 5 is the only joint moving: evidence under way means it vouched.
+        if t < 3.5 and detector.joints[6].evidence_since is not None:
+            witness_below_the_stall_bar |= not detector.joints[4].observable
     assert witness_below_the_stall_bar, "the witness always cleared the stall bar"
     assert events, "the lock was never found"
     assert events[0][1] == [6] and 3.0 < events[0][0] < 3.5, events
+
+
+def _turning(t: float) -> np.ndarray:
+    """Moving targets, then every joint but 6 at -0.3 rad/s, turning to +0.3 at 3 s."""
+    if t < 2.5:
+        return moving_targets(t)
+    command = np.full(7, -0.3 if t < 3.0 else 0.3)
+    command[5] = 0.2
+    return command
+
+
+def test_a_lock_as_the_others_turn_is_witnessed_by_the_lags_that_predict_the_turn() -> None:
+    """Joint 6 locks at 3 s as every other joint turns: found within 0.16 s.
+
+    For as long as the plausible lags disagree on where the turning joints are (their
+    weakest prediction 0), the arm moving as the shorter lags predict vouches for the
+    plant (`rules.vouching`); judged against the weakest prediction it did not, and the
+    lock waited for the lags to agree (0.19 s on this plant).
+    """
+    plant = PlantConfig(latency=0.03, response_time=0.02)
+    data = record(_turning, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    events, vouched_at_a_loss = [], False
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        update = detector.measure(t, values)
+        if update.locked:
+            events.append((t, list(update.locked)))
+        others = [e for j, e in enumerate(detector.joints) if j != 5]
+        if detector.joints[5].evidence_since is not None and not events:
+            vouched_at_a_loss |= all(e.commanded == 0.0 for e in others)
+    assert events, "the lock was never found"
+    assert events[0][1] == [5] and 3.0 < events[0][0] < 3.16, events
+    assert vouched_at_a_loss, "the lags never disagreed on every other joint"
+
+
+def _slowing(t: float) -> np.ndarray:
+    """Moving targets, then 0.3 rad/s, joint 6 at 0.25 rad/s slowing to 0.06 at 3.02 s."""
+    if t < 2.5:
+        return moving_targets(t)
+    command = np.full(7, 0.3)
+    command[5] = 0.25 if t < 3.02 else 0.06
+    return command
+
+
+@pytest.mark.parametrize(("latency", "response"), [(0.0, 0.0), (0.05, 0.05)])
+def test_a_lock_whose_command_slows_under_the_fresh_bar_is_still_found(
+        latency: float, response: float) -> None:
+    """Joint 6 locks at 3 s and is commanded 0.06 rad/s from 3.02 s: found within 0.2 s.
+
+    0.06 rad/s is under twice `confidence` standard errors, the bar for a stall to begin,
+    so the lock is found only because a stall under way stays observable down to one
+    (`rules.is_observable`); without that hysteresis it never is.
+    """
+    plant = PlantConfig(latency=latency, response_time=response)
+    data = record(_slowing, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT)
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    events, under_the_bar = [], False
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        update = detector.measure(t, values)
+        joint = detector.joints[5]
+        if update.locked:
+            events.append((t, list(update.locked)))
+            bar = 2 * DetectorConfig().confidence * joint.standard_error
+            under_the_bar = abs(joint.commanded) < bar
+    assert events, "the lock was never found"
+    assert events[0][1] == [5] and 3.0 < events[0][0] < 3.2, events
+    assert under_the_bar, "found while the command still cleared the fresh stall's bar"
 
 
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:

@@ -31,7 +31,18 @@ def test_the_weakest_prediction_is_the_smallest_when_all_agree_in_sign(
     (0.2, 0.03, True, False),  # |c| < 2 z s: the noise could hide it
     (0.2, 0.001, False, False)])  # a locked joint is not examined
 def test_observable(c: float, s: float, unlocked: bool, observable: bool) -> None:
-    assert rules.is_observable(c, s, unlocked, MIN, Z) is observable
+    assert rules.is_observable(c, s, unlocked, MIN, Z, False) is observable
+
+
+@pytest.mark.parametrize(("c", "s", "observable"), [
+    (0.2, 0.03, True),  # z s <= |c| < 2 z s: still observable once stalling
+    (-0.2, 0.03, True),
+    (0.2, 0.05, False),  # |c| < z s
+    (0.04, 0.0, False)])  # below min_command, stalling or not
+def test_a_joint_whose_stall_is_under_way_stays_observable_down_to_one_separation(
+        c: float, s: float, observable: bool) -> None:
+    assert rules.is_observable(c, s, True, MIN, Z, True) is observable
+    assert not rules.is_observable(c, s, False, MIN, Z, True)  # never a locked joint
 
 
 @pytest.mark.parametrize(("v", "c", "s", "observable", "stalled"), [
@@ -119,8 +130,8 @@ def test_classify_applies_the_rules_joint_by_joint() -> None:
     error = np.full(3, 0.001)
     weakest, observable, following, stalled, pushing, candidate, own = rules.classify(
         measured, plausible, error, np.zeros(3), np.full(3, -1.0), np.full(3, 1.0),
-        np.ones(3, dtype=bool), np.ones(3, dtype=bool), np.zeros(3), False,
-        MIN, Z, CFG.ratio, CFG.following_ratio, CFG.limit_margin)
+        np.ones(3, dtype=bool), np.ones(3, dtype=bool), np.zeros(3, dtype=bool), np.zeros(3),
+        False, MIN, Z, CFG.ratio, CFG.following_ratio, CFG.limit_margin)
     np.testing.assert_array_equal(weakest, [0.2, 0.2, 0.0])
     assert observable.tolist() == [True, True, False]
     assert following.tolist() == [False, True, False]
@@ -128,6 +139,26 @@ def test_classify_applies_the_rules_joint_by_joint() -> None:
     assert pushing.tolist() == [False, False, False]
     assert candidate.tolist() == [True, False, False]
     assert own.tolist() == [False, False, True]
+
+
+def test_a_witness_moves_as_some_plausible_model_commands_it() -> None:
+    """Right after a turn the lags disagree in sign (weakest 0): the arm still vouches.
+
+    Joint 0 moves as the shorter lag predicts, joint 1 against every model, joint 2 as
+    a model predicts but within the noise, joint 3 is locked, joint 4 is commanded under
+    `min_command` by every model.
+    """
+    plausible = np.array([[0.3, 0.3, 0.3, 0.3, 0.04],    # a short lag: the new command
+                          [-0.2, 0.2, -0.2, -0.2, 0.03]])  # a long one: the old command
+    measured = np.array([0.28, -0.3, 0.28, 0.28, 0.04])
+    error = np.array([0.01, 0.01, 0.1, 0.01, 0.001])
+    unlocked = np.array([True, True, True, False, True])
+    weakest = np.array([rules.weakest_prediction(lo, hi) for lo, hi
+                        in zip(plausible.min(axis=0), plausible.max(axis=0), strict=True)])
+    assert weakest[:4].tolist() == [0.0, 0.2, 0.0, 0.0]
+    vouching = rules.vouching(measured, plausible, error, unlocked, MIN, Z,
+                              CFG.following_ratio)
+    assert vouching.tolist() == [True, False, False, False, False]
 
 
 def test_the_error_of_a_difference_of_window_means() -> None:

@@ -333,9 +333,10 @@ class LockDetector:
         joints = self.joints
         unlocked = np.array([e.locked_at is None for e in joints])
         undeclared = np.array([e.swinging_at is None for e in joints])
+        stalling = np.array([e.evidence_since is not None for e in joints])
         latest = positions[-1]
         evidence_of = (measured, plausible, error, latest, self.lower, self.upper, unlocked,
-                       undeclared)
+                       undeclared, stalling)
         limits = (cfg.min_command, cfg.confidence, cfg.ratio, cfg.following_ratio,
                   cfg.limit_margin)
         flags = rules.classify(*evidence_of, np.zeros(self.n), False, *limits)
@@ -428,7 +429,7 @@ class LockDetector:
                 measured_of[j], error_of[j], plausible, settle, cfg.confidence,
                 cfg.min_command), veto)
         # A stalled joint counts while another is seen moving as commanded; a held one alone.
-        witnessed = bool(rules.vouching(measured, weakest, error, unlocked, cfg.min_command,
+        witnessed = bool(rules.vouching(measured, plausible, error, unlocked, cfg.min_command,
                                         cfg.confidence, cfg.following_ratio).any())
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,

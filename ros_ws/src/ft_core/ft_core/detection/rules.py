@@ -36,9 +36,17 @@ def weakest_prediction(low: float, high: float) -> float:
 
 @njit(cache=True, error_model="numpy")
 def is_observable(c: float, s: float, unlocked: bool, min_command: float,
-                  confidence: float) -> bool:
-    """Observable: not locked, |c| >= `min_command` and |c| >= 2 `confidence` s."""
-    return unlocked and abs(c) >= min_command and abs(c) >= 2 * confidence * s
+                  confidence: float, stalling: bool) -> bool:
+    """Observable: not locked, |c| >= `min_command` and |c| >= 2 `confidence` s.
+
+    A joint whose lock evidence is under way (`stalling`) stays observable down to
+    |c| >= `confidence` s: a hysteresis. Twice the separation lets a stall and a follow
+    be told apart from the start; once the joint is seen stalled, `is_stalled`'s own
+    separation (|v - c| > `confidence` s) still applies, and a lock whose arm slows to
+    its goal is not left unjudged for want of a margin it no longer needs.
+    """
+    bar = confidence * s if stalling else 2 * confidence * s
+    return unlocked and abs(c) >= min_command and abs(c) >= bar
 
 
 @njit(cache=True, error_model="numpy")
@@ -56,22 +64,27 @@ def is_following(v: float, c: float, observable: bool, following_ratio: float) -
     return observable and share >= following_ratio
 
 
-def vouching(measured: np.ndarray, weakest: np.ndarray, error: np.ndarray,
+def vouching(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
              unlocked: np.ndarray, min_command: float, confidence: float,
              following_ratio: float) -> np.ndarray:
     """Joints that show the plant executing commands: the witnesses a lock needs.
 
-    Moving as commanded beyond the noise: not locked, |c| >= `min_command`, v / c >=
-    `following_ratio` and |v| >= `confidence` s. A looser bar than `is_following`'s
-    (|c| >= 2 `confidence` s, which a stall's separation needs): a witness need only be
-    seen moving, and a joint made to move at a peak of 0.15 rad/s beside a locked one
-    (an observability excursion's witness, under 1e-3 rad of noise) clears this one
-    and not that one. A stopped plant moves no joint, so it has none. Returns (n,) bool.
+    Moving as some plausible model commands it, beyond the noise: not locked, and for
+    one of the models' predictions p (`plausible`, models x n, rad/s) |p| >=
+    `min_command` and v / p >= `following_ratio`, with |v| >= `confidence` s. A looser
+    bar than `is_following`'s, on two counts. Not the weakest prediction: right after
+    the commands turn, the plausible lags disagree on the sign of every joint that
+    turned (weakest 0), while the arm already moves as the shorter ones predict; a stall
+    is still judged against the weakest. And not |c| >= 2 `confidence` s, which a
+    stall's separation needs: a witness need only be seen moving, and a joint made to
+    move at a peak of 0.15 rad/s beside a locked one (an observability excursion's
+    witness, under 1e-3 rad of noise) clears this bar and not that one. A stopped plant
+    moves no joint, so it has none. Returns (n,) bool.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.where(weakest != 0.0, measured / weakest, 0.0)
-    return (unlocked & (np.abs(weakest) >= min_command) & (share >= following_ratio)
-            & (np.abs(measured) >= confidence * error))
+        share = np.where(plausible != 0.0, measured / plausible, 0.0)
+    follows = ((np.abs(plausible) >= min_command) & (share >= following_ratio)).any(axis=0)
+    return unlocked & follows & (np.abs(measured) >= confidence * error)
 
 
 @njit(cache=True, error_model="numpy")
@@ -178,7 +191,8 @@ def is_candidate(v: float, s: float, stalled: bool, pushing: bool, on_its_own: b
 @njit(cache=True, error_model="numpy")
 def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
              latest: np.ndarray, lower: np.ndarray, upper: np.ndarray, unlocked: np.ndarray,
-             undeclared: np.ndarray, falling: np.ndarray, gravity_known: bool,
+             undeclared: np.ndarray, stalling: np.ndarray, falling: np.ndarray,
+             gravity_known: bool,
              min_command: float, confidence: float,
              ratio: float, following_ratio: float, limit_margin: float,
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -194,6 +208,7 @@ def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
         upper: upper position limits (n,) (rad).
         unlocked: joints not declared locked (n,).
         undeclared: joints not declared free-swinging (n,).
+        stalling: joints whose lock evidence is under way (n,), see `is_observable`.
         falling: the direction gravity accelerates each joint (n,), read only when
             `gravity_known`.
         gravity_known: whether `falling` is known.
@@ -216,7 +231,8 @@ def classify(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
         low, high = plausible[:, j].min(), plausible[:, j].max()
         weakest[j] = weakest_prediction(low, high)
         c, v, s = weakest[j], measured[j], error[j]
-        observable[j] = is_observable(c, s, unlocked[j], min_command, confidence)
+        observable[j] = is_observable(c, s, unlocked[j], min_command, confidence,
+                                      stalling[j])
         stalled[j] = is_stalled(v, c, s, observable[j], ratio, confidence)
         pushing[j] = is_pushing(c, latest[j], lower[j], upper[j], limit_margin)
         following[j] = is_following(v, c, observable[j], following_ratio)
