@@ -21,7 +21,9 @@ lock's joint excepted). A fault shows only once the joint moves other than comma
 lock of a joint the controller is not moving, or a free swing of one that coasts as
 commanded, is there to see only later. So each delay is also given from when the fault
 showed: the joint's reported velocity first differing by `MOVING` from the command in
-force at the sim (this probe's last command sent `LATENCY` s before) after the injection.
+force at the sim (this probe's last command sent `LATENCY` s before) after the injection,
+that command taken as 0 within `LIMIT_MARGIN` of the limit it points into (a healthy joint
+stops there too: a lock at a limit shows once the command turns away from it).
 Writes `<out>/faults_processes.md` and `.json` (`_loaded` with `--loaded`), the processes'
 logs under `<out>/faults_processes_logs/`. DDS domain `FT_BENCH_DOMAIN_FAULTS` (default 64).
 """
@@ -40,6 +42,8 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine, report
+from ft_core import robots
+from ft_core.detection import DetectorConfig
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_msgs_py import faults as fault_messages
@@ -68,6 +72,10 @@ MOVING = 0.1
 #: s, the sim's command latency (`soak_processes.PLANTS`): a command is in force this long
 #: after it was sent.
 LATENCY = float(PLANTS["physics"]["sim"]["command_latency"])
+#: rad, the detector's `limit_margin`: this close to a limit, a joint commanded into it
+#: stops there, healthy or not.
+LIMIT_MARGIN = DetectorConfig().limit_margin
+PANDA = robots.load("panda")
 #: s the probe waits for the joint to move before it injects anyway.
 MOVE_TIMEOUT = 20.0
 #: The states that name a fault of each kind right (the rest: any but healthy).
@@ -125,9 +133,13 @@ class FaultProbe(Probe):
             now = time.monotonic()
             in_force = next((sent for at, sent in reversed(self._sent_since)
                              if at <= now - LATENCY), None)
+            if in_force is None:
+                return
+            stopped = (((in_force > 0) & (self.q >= PANDA.upper - LIMIT_MARGIN))
+                       | ((in_force < 0) & (self.q <= PANDA.lower + LIMIT_MARGIN)))
+            followable = np.where(stopped, 0.0, in_force)
             for joint, shown in self.shown.items():
-                if (in_force is not None and math.isinf(shown)
-                        and abs(in_force[joint] - self.qd[joint]) >= MOVING):
+                if math.isinf(shown) and abs(followable[joint] - self.qd[joint]) >= MOVING:
                     self.shown[joint] = now
 
     def _on_sent(self, msg: JointState) -> None:
