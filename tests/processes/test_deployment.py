@@ -293,10 +293,12 @@ print(sent / (time.monotonic() - start))
 def test_a_flood_of_declarations_leaves_the_monitor_answering(tmp_path: Path) -> None:
     """The monitor keeps serving under a flood of ft/declare_failure.
 
-    Every reset call answered, and at least 80 % of the commands forwarded. The flood
-    (10 000 messages a second from a Python process) takes most of a core by itself, so
-    no other graph runs meanwhile (tests/conftest.py): beside one, the test would measure
-    how two graphs share the other core, not how the monitor answers a flood.
+    Every reset call answered, and at least 60 % of the commands forwarded (a monitor the
+    flood blocked forwards none; alone on the machine it forwards all). The flood (10 000
+    messages a second from a Python process) takes most of a core by itself, so no other
+    graph runs meanwhile (tests/conftest.py): beside one, the test would measure how two
+    graphs share the other core, not how the monitor answers a flood. The other worker's
+    tests still share that core.
     """
     with graph(tmp_path, parameters(tmp_path, WATCHDOG_PLANT)) as g:
         observing(g)
@@ -316,7 +318,7 @@ def test_a_flood_of_declarations_leaves_the_monitor_answering(tmp_path: Path) ->
         finally:
             rate = float(flood.communicate(timeout=30)[0] or 0.0)
         assert answered == 8, f"{answered} of 8 reset calls answered under {rate:.0f} msg/s"
-        assert forwarded >= 0.8 * raw, (
+        assert forwarded >= 0.6 * raw, (
             f"{forwarded} commands forwarded of {raw} under {rate:.0f} msg/s")
 
 
