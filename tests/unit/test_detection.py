@@ -429,10 +429,27 @@ def test_a_witness_seen_moving_below_the_stall_bar_vouches_for_the_plant() -> No
     brings joint 7 back to where it stands: no position lost, nothing to find there.
     """
     plant = PlantConfig(latency=0.02, response_time=0.03)
-    data = record(_excursion, 4.5, plant, ((6,), 2.5), 1e-3, (), None, 0, DT)
+    seen = {"below the bar": False}
+
+    def look(detector: LockDetector, t: float, events: list) -> None:
+        # Joint 5 is the only joint moving: evidence under way means it vouched.
+        if t < 3.5 and detector.joints[6].evidence_since is not None:
+            seen["below the bar"] |= not detector.joints[4].observable
+
+    events = _replay_looking(record(_excursion, 4.5, plant, ((6,), 2.5), 1e-3, (), None, 0,
+                                    DT), look)
+    assert seen["below the bar"], "the witness always cleared the stall bar"
+    assert events, "the lock was never found"
+    assert events[0][1] == [6] and 3.0 < events[0][0] < 3.5, events
+
+
+def _replay_looking(data, look) -> list[tuple[float, list[int]]]:
+    """Replay `data` into a new detector: [(time, joints newly locked)].
+
+    `look(detector, t, events)` is called after every measurement (t in s).
+    """
     detector = LockDetector(PANDA.lower, PANDA.upper)
-    witness_below_the_stall_bar = False
-    events = []
+    events: list[tuple[float, list[int]]] = []
     for kind, t, values in data.events:
         if kind == "command":
             detector.command(t, values)
@@ -440,12 +457,8 @@ def test_a_witness_seen_moving_below_the_stall_bar_vouches_for_the_plant() -> No
         update = detector.measure(t, values)
         if update.locked:
             events.append((t, list(update.locked)))
-        # Joint 5 is the only joint moving: evidence under way means it vouched.
-        if t < 3.5 and detector.joints[6].evidence_since is not None:
-            witness_below_the_stall_bar |= not detector.joints[4].observable
-    assert witness_below_the_stall_bar, "the witness always cleared the stall bar"
-    assert events, "the lock was never found"
-    assert events[0][1] == [6] and 3.0 < events[0][0] < 3.5, events
+        look(detector, t, events)
+    return events
 
 
 def _turning(t: float) -> np.ndarray:
@@ -465,23 +478,19 @@ def test_a_lock_as_the_others_turn_is_witnessed_by_the_lags_that_predict_the_tur
     plant (`rules.vouching`); judged against the weakest prediction it did not, and the
     lock waited for the lags to agree (0.19 s on this plant).
     """
-    plant = PlantConfig(latency=0.03, response_time=0.02)
-    data = record(_turning, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT)
-    detector = LockDetector(PANDA.lower, PANDA.upper)
-    events, vouched_at_a_loss = [], False
-    for kind, t, values in data.events:
-        if kind == "command":
-            detector.command(t, values)
-            continue
-        update = detector.measure(t, values)
-        if update.locked:
-            events.append((t, list(update.locked)))
+    seen = {"vouched at a loss": False}
+
+    def look(detector: LockDetector, t: float, events: list) -> None:
         others = [e for j, e in enumerate(detector.joints) if j != 5]
         if detector.joints[5].evidence_since is not None and not events:
-            vouched_at_a_loss |= all(e.commanded == 0.0 for e in others)
+            seen["vouched at a loss"] |= all(e.commanded == 0.0 for e in others)
+
+    plant = PlantConfig(latency=0.03, response_time=0.02)
+    events = _replay_looking(record(_turning, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT),
+                             look)
     assert events, "the lock was never found"
     assert events[0][1] == [5] and 3.0 < events[0][0] < 3.16, events
-    assert vouched_at_a_loss, "the lags never disagreed on every other joint"
+    assert seen["vouched at a loss"], "the lags never disagreed on every other joint"
 
 
 def _slowing(t: float) -> np.ndarray:
@@ -502,23 +511,20 @@ def test_a_lock_whose_command_slows_under_the_fresh_bar_is_still_found(
     so the lock is found only because a stall under way stays observable down to one
     (`rules.is_observable`); without that hysteresis it never is.
     """
-    plant = PlantConfig(latency=latency, response_time=response)
-    data = record(_slowing, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT)
-    detector = LockDetector(PANDA.lower, PANDA.upper)
-    events, under_the_bar = [], False
-    for kind, t, values in data.events:
-        if kind == "command":
-            detector.command(t, values)
-            continue
-        update = detector.measure(t, values)
+    seen = {"under the bar": False}
+
+    def look(detector: LockDetector, t: float, events: list) -> None:
         joint = detector.joints[5]
-        if update.locked:
-            events.append((t, list(update.locked)))
+        if len(events) == 1 and events[0][0] == t:  # the update that found it
             bar = 2 * DetectorConfig().confidence * joint.standard_error
-            under_the_bar = abs(joint.commanded) < bar
+            seen["under the bar"] = abs(joint.commanded) < bar
+
+    plant = PlantConfig(latency=latency, response_time=response)
+    events = _replay_looking(record(_slowing, 3.6, plant, ((5,), 3.0), 1e-3, (), None, 0, DT),
+                             look)
     assert events, "the lock was never found"
     assert events[0][1] == [5] and 3.0 < events[0][0] < 3.2, events
-    assert under_the_bar, "found while the command still cleared the fresh stall's bar"
+    assert seen["under the bar"], "found while the command still cleared the fresh stall's bar"
 
 
 def test_no_decision_at_start_up_until_the_plant_follows() -> None:
