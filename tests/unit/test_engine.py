@@ -172,7 +172,7 @@ def test_soft_limits_hold_while_healthy_and_are_released_on_failure() -> None:
     statuses = set()
     for step in range(400):  # a circle wider than the box allows
         t = step * 0.01
-        xd = 0.4 * np.array([-math.sin(t * 2), math.cos(t * 2)])
+        xd = 0.6 * np.array([-math.sin(t * 2), math.cos(t * 2)])
         result = engine.step(robot.kinematics(q), xd)
         statuses.add(result.status)
         q = q + result.qd * config.dt
@@ -199,6 +199,37 @@ def test_avoidance_is_zero_away_from_the_edges_and_smooth() -> None:
     slope = (limits.avoidance(edge - h, lower, upper, 0.1) - limits.avoidance(edge, lower, upper,
                                                                               0.1)) / h
     assert abs(slope[0]) < 1e-3
+
+
+def test_a_preference_yields_to_the_nearest_edge_it_moves_a_joint_towards() -> None:
+    lower, upper = np.array([-1.0, -1.0]), np.array([1.0, 1.0])
+    q = np.array([0.95, -0.98])  # 50 and 20 mrad from an edge, within a 0.1 rad zone
+    assert limits.edge_yield(np.array([-0.1, 0.1]), q, lower, upper, 0.1) == 1.0  # away
+    assert limits.edge_yield(np.array([0.1, 0.1]), q, lower, upper, 0.1) == pytest.approx(0.25)
+    assert limits.edge_yield(np.array([0.1, -0.1]), q, lower, upper, 0.1) == pytest.approx(0.04)
+    assert limits.edge_yield(np.array([0.1, 0.0]), np.array([1.0, 0.0]), lower, upper,
+                             0.1) == 0.0  # on the edge, nothing of it is left
+    assert limits.edge_yield(np.array([0.1, 0.1]), np.zeros(2), lower, upper, 0.1) == 1.0
+
+
+def test_the_kfm_ascent_leaves_no_joint_on_its_edge() -> None:
+    """The Panda's kfm grows beyond joint 6's upper limit (3.7525 rad) from this pose.
+
+    Holding the goal (xd = 0) for 10 s, an ascent that outweighs the avoidance drives
+    joint 6 onto that limit; yielding at the edges, it stops where the avoidance balances
+    it, inside the avoidance's zone but clear of the edge.
+    """
+    robot = PANDA_POSITION
+    engine = ResolutionEngine(robot, EngineConfig())
+    q = np.array([-1.713, -1.73, 1.519, -1.913, 2.505, 3.70, 0.785])
+    start = engine.step(robot.kinematics(q), np.zeros(3)).kfm
+    for _ in range(2500):
+        result = engine.step(robot.kinematics(q), np.zeros(3))
+        q = q + result.qd * engine.config.dt
+    clearance = np.minimum(q - robot.lower, robot.upper - q)
+    assert clearance.min() > 0.03
+    assert clearance[5] < engine.config.limit_buffer  # the ascent still uses the zone
+    assert result.kfm > 0.99 * start
 
 
 def test_damped_pseudo_inverse_is_exact_away_from_singularities() -> None:

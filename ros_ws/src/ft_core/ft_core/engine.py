@@ -19,7 +19,9 @@ characteristic length). The null-space preference z sums, by `resolution`:
 - `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (Zhao & Li eq 5; gain 1 is
   the exact minimum-jump solution);
 - always, when a box applies: limit_gain * `limits.avoidance` away from the edges
-  of the effective box (soft limits intersected with the URDF limits);
+  of the effective box (soft limits intersected with the URDF limits), with every other
+  term scaled by `limits.edge_yield` first: near an edge a preference that moves a joint
+  towards it yields, so no preference holds a joint on an edge;
 - in every mode, when swing_gain > 0: -swing_gain * grad h, descent on the swing
   measure of free-swinging failures (`swing`, Maciejewski et al. eq 14 used in eq 3 as the
   paper proposes; zero for a URDF without inertias). About 0.6 ms a cycle on 7
@@ -166,7 +168,8 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
     `ascent_J6` the one where the kfm gradient is taken (used only when `ascent_apart`),
     `box` the locked set's `BOX_ROWS`, `gains` `Gains` as an array, `bias` (healthy
     joints) is added to z, `limit_box` holds the robot's lower and upper limits and the
-    soft box (rows, n). qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1]
+    soft box (rows, n). z = avoidance + `limits.edge_yield` x (bias, jump, kfm terms).
+    qd = J# x + alpha (I - J# J) z with the largest alpha in [0, 1]
     that keeps it within the velocity bounds (`limits.preference_scale`), else
     `limits.saturate_in_null_space`. Returns, over all n joints (locked: qd 0, sigma
     nan): (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump index,
@@ -190,7 +193,7 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
     x = task_scale * xd
     qh = q[healthy]
     L, V, columns, sigmas, vectors, sigma_min = postfailure.analyse(Js)
-    z = limit_gain * limits.avoidance(qh, lower, upper, buffer) + bias
+    z = bias.copy()
     reduced = np.zeros((0, 0))
     if nh > m:
         reduced = postfailure.downdated_velocities(columns, x, L, V, sigmas, threshold,
@@ -213,8 +216,10 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
             ascent = weights if probabilities else measures.kfm_weights(sigmas_a, temperature)
             z += kfm_gain * postfailure.weighted_sigma_gradient(Ja, dJs, sigmas_a, vectors_a,
                                                                 ascent)
-    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
     pinv = postfailure.damped_inverse(columns, L, V, sigma_min, threshold, max_damping)
+    z = (limit_gain * limits.avoidance(qh, lower, upper, buffer)
+         + limits.edge_yield(z - pinv @ (Js @ z), qh, lower, upper, buffer) * z)
+    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
     qd_h = task + null_motion

@@ -6,6 +6,8 @@
 - `avoidance`: a null-space preference pushing joints away from the edges of a box
   (the bounding-box soft limits of Lewis & Maciejewski 1997 sec. III, smooth functions): exactly 0
   more than `buffer` away from an edge, growing quadratically (C1) inside it.
+- `edge_yield`: how much of another null-space preference (kfm ascent, minimum jump) to
+  keep near the edges, so that none holds a joint on an edge against the avoidance.
 - `saturate_in_null_space`: Saturation in the Null Space (Flacco, De Luca and
   Khatib, ICRA 2012, Algorithm 1): joints that would break their bounds are held
   at the bound, the task is re-solved with the remaining joints, and only when
@@ -104,6 +106,33 @@ def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float
         if np.isfinite(upper[j]) and q[j] > upper[j] - b:
             push[j] -= ((q[j] - upper[j] + b) / b) ** 2
     return push
+
+
+@njit(cache=True, error_model="numpy")
+def edge_yield(motion: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+               buffer: float) -> float:
+    """How much of a null-space preference to keep near the edges of [lower, upper], in [0, 1].
+
+    `motion` is the preference's joint motion (rad/s). Of the joints it moves towards an
+    edge within `buffer` of it (b as in `avoidance`), the nearest sets the factor
+    (d / b)^2, d its distance to that edge; 1 when it moves none. The preference times
+    this, plus `avoidance`, never holds a joint on an edge: at the edge only the avoidance
+    is left, pushing it back.
+    """
+    keep = 1.0
+    for j in range(q.size):
+        width = upper[j] - lower[j]
+        b = min(buffer, width / 2) if np.isfinite(width) else buffer
+        if b <= 0:
+            continue
+        d = np.inf
+        if motion[j] < 0 and q[j] < lower[j] + b:
+            d = q[j] - lower[j]
+        elif motion[j] > 0 and q[j] > upper[j] - b:
+            d = upper[j] - q[j]
+        if d < np.inf:
+            keep = min(keep, min(max(d / b, 0.0), 1.0) ** 2)
+    return keep
 
 
 @njit(cache=True, error_model="numpy")
