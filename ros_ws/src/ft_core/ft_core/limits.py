@@ -85,6 +85,13 @@ def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
+def _zone(lower: float, upper: float, buffer: float) -> float:
+    """Width (rad) of the zone inside each edge of [lower, upper]: buffer, half the box at most."""
+    width = upper - lower
+    return min(buffer, width / 2) if np.isfinite(width) else buffer
+
+
+@njit(cache=True, error_model="numpy")
 def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float) -> np.ndarray:
     """Smooth push (dimensionless, <= 1 at an edge) away from the edges of [lower, upper].
 
@@ -97,8 +104,7 @@ def avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, buffer: float
     for j in range(q.size):
         if lower[j] + buffer < q[j] < upper[j] - buffer:
             continue
-        width = upper[j] - lower[j]
-        b = min(buffer, width / 2) if np.isfinite(width) else buffer
+        b = _zone(lower[j], upper[j], buffer)
         if b <= 0:
             continue
         if np.isfinite(lower[j]) and q[j] < lower[j] + b:
@@ -121,8 +127,7 @@ def edge_yield(motion: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.n
     """
     keep = 1.0
     for j in range(q.size):
-        width = upper[j] - lower[j]
-        b = min(buffer, width / 2) if np.isfinite(width) else buffer
+        b = _zone(lower[j], upper[j], buffer)
         if b <= 0:
             continue
         d = np.inf
