@@ -18,7 +18,6 @@ from ft_core.detection.config import DetectorConfig
 from ft_core.detection.detector import (
     DECISION_PERIOD,
     SLOW_SPAN,
-    SUSPECT_SPAN,
     Confirmation,
     Decision,
     JointEvidence,
@@ -53,7 +52,6 @@ __all__ = [
     "RESPONSE_STEPS",
     "RESPONSE_TIME_GRID",
     "SLOW_SPAN",
-    "SUSPECT_SPAN",
     "CommandHistory",
     "Confirmation",
     "Decision",
