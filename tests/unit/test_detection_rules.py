@@ -224,9 +224,16 @@ def test_a_fast_swing_need_not_wait_for_the_settling_time() -> None:
     assert rules.swing_wait(0.3, 0.02, plausible, 0.2, Z, MIN) == 0.2
 
 
-def _slow(moved, predicted, reached=(0.0, 0.0), latest: float = 0.0) -> bool:
-    return rules.slow_stall(np.array(moved), np.array(predicted), np.array(reached), latest,
-                            -1.0, 1.0, 0.001, CFG.ratio, Z, CFG.limit_margin)
+def _slow(moved, predicted, reached=(0.0, 0.0), latest: float = 0.0,
+          shift=(0.0, 0.0), least: float = 0.01) -> bool:
+    """`rules.slow_stall` for one joint in [-1, 1] rad, sigma 1 mrad."""
+    column = lambda values: np.array(values, dtype=float)[:, None]  # noqa: E731
+    stalled = rules.slow_stall(column(moved), column(predicted), column(reached),
+                               np.array([latest]), np.array([-1.0]), np.array([1.0]),
+                               np.array([0.001]), column(shift), least, CFG.ratio, Z,
+                               CFG.limit_margin)
+    assert stalled.shape == (1,)
+    return bool(stalled[0])
 
 
 def test_a_slow_stall_loses_motion_in_both_halves_of_the_span() -> None:
@@ -235,6 +242,23 @@ def test_a_slow_stall_loses_motion_in_both_halves_of_the_span() -> None:
     assert not _slow([0.02, 0.0], [0.02, 0.02])  # a servo holding its lead in one half
     assert not _slow([0.0, 0.0], [0.004, 0.004])  # within the noise
     assert not _slow([0.01, 0.01], [0.02, 0.02])  # moved half of it
+    assert not _slow([-0.01, -0.01], [0.02, 0.02])  # pushed back against it: not held
+
+
+def test_a_slow_stall_may_be_commanded_to_and_fro() -> None:
+    assert _slow([0.0, 0.0], [0.02, -0.01])  # still, commanded one way then the other
+    assert not _slow([0.02, -0.01], [0.02, -0.01])  # followed both ways
+    assert not _slow([0.0, -0.01], [0.02, -0.01])  # followed the second half
+
+
+def test_a_slow_stall_needs_a_least_commanded_motion() -> None:
+    assert _slow([0.0, 0.0], [0.006, 0.006])
+    assert not _slow([0.0, 0.0], [0.006, 0.006], least=0.015)  # 12 mrad in all, under 15
+
+
+def test_a_slow_stall_allows_for_the_models_latency_error() -> None:
+    assert _slow([0.0, 0.0], [0.008, 0.008])
+    assert not _slow([0.0, 0.0], [0.008, 0.008], shift=(0.004, 0.0))
 
 
 def test_a_slow_stall_near_a_limit_the_command_points_into_is_not_one() -> None:
@@ -242,6 +266,7 @@ def test_a_slow_stall_near_a_limit_the_command_points_into_is_not_one() -> None:
     assert not _slow([0.0, 0.0], [0.02, 0.02], reached=(0.0, 0.985))  # touched it earlier
     assert not _slow([0.0, 0.0], [-0.02, -0.02], latest=-0.985)
     assert _slow([0.0, 0.0], [-0.02, -0.02], latest=0.985)  # the other limit
+    assert not _slow([0.0, 0.0], [-0.02, 0.02], latest=0.985)  # one half points into it
 
 
 def _reason(now: float = 1.0, last_command: float = 0.99, resumed_at: float = 0.0,

@@ -63,6 +63,45 @@ def test_a_lock_on_a_physics_plant_is_named_within_a_second(task: str, joint: in
     assert loop.monitor.swinging == []
 
 
+def _slowing(loop: ClosedLoop, joint: int) -> bool:
+    """Run until `joint`'s command decays through (0.03, 0.12) rad/s; whether it did.
+
+    The arm slows into its goal: the joint is commanded ever less, and a lock from here
+    on is commanded too slowly for the window's test (docs/detection.md, "Slowly
+    commanded joints").
+    """
+    last = abs(loop.sent[joint])
+    for _ in range(round(2 * GOAL_PERIOD / loop.dt)):
+        loop.run(loop.dt)
+        now = abs(loop.sent[joint])
+        if 0.03 < now < 0.12 and now < last - 1e-4 and abs(loop.plant.qd[joint]) > 0.03:
+            return True
+        last = now
+    return False
+
+
+@pytest.mark.parametrize("joint", [0, 2, 3])
+def test_a_lock_as_the_arm_slows_into_its_goal_is_named_within_0_8_s(joint: int) -> None:
+    """A lock leaves the joint commanded slowly, to and fro; the slow span sees it held.
+
+    Behind the slow driver, with 1 mrad of noise, the commands are a few hundredths of a
+    rad/s. The window alone named these after 0.86 to 1.54 s, once the next goal moved
+    them.
+    """
+    loop = ClosedLoop("position", DRIVERS["slow"], seed=1)
+    loop.run(HEALTHY)
+    assert _slowing(loop, joint), f"joint {joint} never slows into a goal"
+    assert loop.declared == [], "declared in healthy motion"
+    locked_at = loop.t
+    loop.plant.lock(joint)
+    loop.run(2.0, stop=lambda: bool(loop.declared))
+    name = loop.robot.joint_names[joint]
+    assert loop.declared, f"{name} not found within 2 s"
+    when, names = loop.declared[0]
+    assert names == [name], f"{names} declared instead of {name}"
+    assert when - locked_at <= 0.8
+
+
 def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: float,
                seed: int = 3, lock: tuple[int, float] | None = None,
                silent: set[int] | None = None) -> tuple[list, list]:

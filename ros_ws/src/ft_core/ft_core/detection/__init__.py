@@ -18,6 +18,7 @@ from ft_core.detection.config import DetectorConfig
 from ft_core.detection.detector import (
     DECISION_PERIOD,
     SLOW_SPAN,
+    SUSPECT_SPAN,
     Confirmation,
     Decision,
     JointEvidence,
@@ -52,6 +53,7 @@ __all__ = [
     "RESPONSE_STEPS",
     "RESPONSE_TIME_GRID",
     "SLOW_SPAN",
+    "SUSPECT_SPAN",
     "CommandHistory",
     "Confirmation",
     "Decision",

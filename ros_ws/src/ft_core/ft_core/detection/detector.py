@@ -27,6 +27,7 @@ from ft_core.detection.drives import (
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
+    SlowStalls,
     Veto,
     declare_locks,
     declare_swings,
@@ -51,7 +52,12 @@ DECISION_PERIOD = 0.0025
 #: s over which a suspect from elsewhere, commanded too slowly for the window's test, is
 #: judged (`LockDetector.confirm`): the task-space channel's window, over which it
 #: suspected the joint.
-SLOW_SPAN = 0.5
+SUSPECT_SPAN = 0.5
+#: s over which the detector judges, on its own, the joints commanded too slowly for the
+#: window's test (`rules.slow_stall`): two halves longer than the window, so their means
+#: do not overlap, and short enough that a lock as the arm slows into its goal is named
+#: before the next goal (docs/detection.md, "Slowly commanded joints").
+SLOW_SPAN = 0.2
 
 
 @dataclass(frozen=True)
@@ -239,7 +245,7 @@ class LockDetector:
             samples.times, samples.positions, samples.predicted, samples.predicted_sum,
             samples.timed_sum, (samples.start, samples.end), samples.base,
             time - self.config.window, offsets.times, offsets.values, offsets.means,
-            (offsets.start, offsets.end), time - max(self._horizon(), SLOW_SPAN))
+            (offsets.start, offsets.end), time - max(self._horizon(), SUSPECT_SPAN))
         samples.end += 1
         offsets.end += 1
 
@@ -251,55 +257,78 @@ class LockDetector:
         comes exactly where no such witness exists: a joint the task-space channel
         suspects is often the only one commanded); the noise tests, the joint-limit rule
         and the plant-fault rule all apply. Or, for a joint commanded too slowly for the
-        window's test, when it lost its motion over the last `SLOW_SPAN` s
+        window's test, when it lost its motion over the last `SUSPECT_SPAN` s
         (`rules.slow_stall`).
         """
         evidence = self.joints[joint]
         if evidence.locked_at is not None:
             return Confirmation(Decision.KNOWN, replace(evidence))
         if not evidence.candidate:
-            slow = self._slow_stall(joint)
-            if slow is None:
+            slow = None if (self.not_observing is not None or self.plant_fault is not None
+                            ) else self._slow_stalls(
+                np.array([e.standard_error for e in self.joints]), SUSPECT_SPAN)
+            if slow is None or not slow.stalled[joint]:
                 return Confirmation(Decision.REFUSED, replace(evidence))
-            evidence = slow
+            evidence = replace(evidence, candidate=True, **slow.of(joint))
         self.lock(joint, position, time)
         return Confirmation(Decision.LOCKED,
                             replace(evidence, locked_at=time, position=position))
 
-    def _slow_stall(self, j: int) -> JointEvidence | None:
-        """Joint j's evidence over the last `SLOW_SPAN` s if it lost its motion there.
+    def _slow_stalls(self, error: np.ndarray, span: float = SLOW_SPAN) -> SlowStalls | None:
+        """Every joint's motion over the last `span` s, and which of them lost it.
 
-        Over each half of the span (window means `SLOW_SPAN` / 2 apart) the best model
+        Over each half of the span (window means `span` / 2 apart) the best model
         predicts a displacement d = (change of the window-mean position) - (change of
-        its offset); `rules.slow_stall` judges them. Only with decisions allowed and
-        commands flowing for the whole span. The evidence's velocities are the span's
-        (rad/s), its deficit the position lost (rad). None: not stalled.
+        its offset); `rules.slow_stall` judges them, allowing for a model latency off by
+        a step of the grid (`LATENCY_STEP` times the change of command over the half,
+        each taken at its mark lagged by the model's latency). None: no judgement, with
+        commands (re)started within the span and its settling time or fewer offsets kept
+        than the span. `error`: the slopes' standard errors (rad/s, (n,)).
         """
         cfg, offsets = self.config, self._offsets
         now = self.latest_time
-        if (self.not_observing is not None or self.plant_fault is not None
-                or self._resumed_at + self._settling_time() > now - SLOW_SPAN
-                or offsets.times[offsets.start] > now - SLOW_SPAN + self.config.window):
+        if (self._resumed_at + self._settling_time() > now - span
+                or offsets.times[offsets.start] > now - span + self.config.window):
             return None
         times = offsets.times[offsets.start:offsets.end]
         marks = offsets.start + np.searchsorted(
-            times, [now - SLOW_SPAN, now - SLOW_SPAN / 2, now], side="left")
+            times, [now - span, now - span / 2, now], side="left")
         marks[-1] = offsets.end - 1
         best = self._plant.best
-        moved = np.diff(offsets.means[marks, j])
-        predicted = moved - np.diff(offsets.values[marks, best, j])
-        evidence = self.joints[j]
-        sigma = rules.mean_difference_error(evidence.standard_error, self._samples.window()[0])
-        if not rules.slow_stall(
-                moved, predicted, offsets.means[marks[0]:marks[-1] + 1, j],
-                float(self._samples.positions[self._samples.end - 1, j]),
-                self.lower[j], self.upper[j], sigma, cfg.ratio, cfg.confidence,
-                cfg.limit_margin):
-            return None
-        total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
-        span = float(offsets.times[marks[-1]] - offsets.times[marks[0]])
-        return replace(evidence, measured=float(moved.sum()) / span, commanded=total / span,
-                       deficit=abs(total) - along * float(moved.sum()), candidate=True)
+        moved = np.diff(offsets.means[marks], axis=0)
+        predicted = moved - np.diff(offsets.values[marks, best], axis=0)
+        lag = self._plant.model_latency[best] + cfg.window / 2
+        shift = LATENCY_STEP * np.abs(np.diff(self.history.at(offsets.times[marks] - lag),
+                                              axis=0))
+        sigma = rules.mean_difference_error(error, self._samples.window()[0])
+        stalled = rules.slow_stall(
+            moved, predicted, offsets.means[marks[0]:marks[-1] + 1],
+            self._samples.positions[self._samples.end - 1], self.lower, self.upper, sigma,
+            shift, cfg.min_command * cfg.window, cfg.ratio, cfg.confidence, cfg.limit_margin)
+        half = float(offsets.times[marks[-1]] - offsets.times[marks[1]])
+        along = np.sign(predicted)
+        return SlowStalls(stalled, moved[-1] / half, predicted[-1] / half,
+                          (np.abs(predicted) - along * moved).sum(axis=0))
+
+    def _lost_position(self, now: float, along: np.ndarray, error: np.ndarray,
+                       times: np.ndarray, since: float) -> tuple[np.ndarray, np.ndarray]:
+        """`rules.lost_position` against the windows that ended `since` s ago or earlier.
+
+        The best model alone: the plausible models' offsets differ by their lags times
+        the change of command, no loss of position. Its latency is known to within a
+        step of the grid: a change of command dv since an earlier window (at its middle,
+        lagged) moves its offset by up to that step times dv. `along` (n,): the
+        prediction the deficit is counted along (rad/s); `error` the slopes' standard
+        errors (rad/s), `times` the window's (s).
+        """
+        cfg, offsets, best = self.config, self._offsets, self._plant.best
+        ends, past = offsets.between(now - self._horizon(), now - since)
+        lag = self._plant.model_latency[best] + cfg.window / 2
+        commands = self.history.at(np.append(ends, now) - lag)
+        return rules.lost_position(
+            offsets.values[offsets.end - 1, best], past[:, best], along,
+            rules.mean_difference_error(error, times), cfg.confidence,
+            LATENCY_STEP * np.abs(commands[:-1] - commands[-1]))
 
     # -------------------------------------------------------------- decisions
     def _settling_time(self) -> float:
@@ -354,21 +383,20 @@ class LockDetector:
                     np.asarray(gravity, dtype=float), (latest, self.lower, self.upper),
                     cfg.min_command, cfg.confidence, cfg.limit_margin)
         deficit = np.zeros(self.n)
-        if (candidates & undeclared).any():
-            # The best model alone: the plausible models' offsets differ by their lags times
-            # the change of command, no loss of position. (A swung joint's test: stopping.)
-            # Its latency is known to within a step of the grid: a change of command dv
-            # since an earlier window (at its middle, lagged) moves its offset by up to
-            # that step times dv.
-            offsets = self._offsets
-            ends, past = offsets.between(now - self._horizon(), now - cfg.window)
-            lag = plant.model_latency[best] + cfg.window / 2
-            commands = self.history.at(np.append(ends, now) - lag)
-            deficit, lost = rules.lost_position(
-                offsets.values[offsets.end - 1, best], past[:, best], weakest,
-                rules.mean_difference_error(error, times), cfg.confidence,
-                LATENCY_STEP * np.abs(commands[:-1] - commands[-1]))
+        if (candidates & undeclared).any():  # (a swung joint's test: stopping)
+            deficit, lost = self._lost_position(now, weakest, error, times, cfg.window)
             candidates = candidates & (lost | ~undeclared)
+        # Commanded too slowly for the window: judged over the slow span, and behind
+        # where it stood before the span's second half (a servo that ran ahead and pauses
+        # until its reference catches up is not).
+        slow = unlocked & undeclared & ~observable & ~on_its_own & ~candidates
+        stalls = self._slow_stalls(error) if slow.any() else None
+        if stalls is not None and (slow & stalls.stalled).any():
+            behind, lost = self._lost_position(now, stalls.commanded, error, times,
+                                               SLOW_SPAN / 2)
+            slow = slow & stalls.stalled & lost
+            deficit = np.where(slow, behind, deficit)
+            candidates = candidates | slow
         held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
             drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
             & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
@@ -394,6 +422,10 @@ class LockDetector:
             evidence.at_limit, evidence.candidate, evidence.deficit = at_limit, candidate, behind
             evidence.held_since = (now if evidence.held_since is None else
                                    evidence.held_since) if is_held else None
+        if stalls is not None:  # a slow stall's velocities are its span's
+            for j in np.flatnonzero(slow & stalls.stalled & candidates):
+                joints[j].measured = float(stalls.measured[j])
+                joints[j].commanded = float(stalls.commanded[j])
         n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
         if n_stalled == 0 and n_own == 0 and identify:
             plant.identify(now, measured, slopes, error, unlocked & ~pushing,

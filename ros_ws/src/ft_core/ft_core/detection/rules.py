@@ -301,33 +301,43 @@ def swing_wait(measured: float, error: float, plausible: np.ndarray, settling: f
 
 
 def slow_stall(moved: np.ndarray, predicted: np.ndarray, reached: np.ndarray,
-               latest: float, lower: float, upper: float, sigma: float, ratio: float,
-               confidence: float, limit_margin: float) -> bool:
-    """Whether a slowly commanded joint lost its motion over a span of two halves.
+               latest: np.ndarray, lower: np.ndarray, upper: np.ndarray, sigma: np.ndarray,
+               shift: np.ndarray, least: float, ratio: float, confidence: float,
+               limit_margin: float) -> np.ndarray:
+    """Which slowly commanded joints lost their motion over a span of two halves.
 
-    `moved` (2,) is how far the joint's window-mean position moved over each half
-    (rad), `predicted` (2,) what the model predicted there, `reached` the window means
-    over the span and `latest` the newest position (rad), `sigma` the standard error of
-    a difference of two window means (rad). Stalled when, in both halves, |predicted| >=
-    `confidence` `sigma` and the joint moved less than `ratio` of it (along the span's
-    prediction), the whole span's |predicted| is at least twice that, and the joint
-    came within 2 `limit_margin` of no limit the prediction points into. Both halves:
-    a servo that ran ahead and then waits for its reference lost nothing over the half
-    that holds its lead; a lock loses steadily. At the equilibrium of Maciejewski et al.
-    Theorem 1 an undetected lock leaves the arm short of its goal with the null space
-    commanding the locked joint at a few hundredths of a rad/s, below what the window
-    can judge through the noise.
+    Per joint: `moved` (2, n) is how far its window-mean position moved over each half
+    (rad), `predicted` (2, n) what the model predicted there, `reached` (k, n) the window
+    means over the span and `latest` (n,) the newest positions (rad), `sigma` (n,) the
+    standard error of a difference of two window means (rad), `shift` (2, n) how far the
+    model's latency error can move its prediction over each half with no motion lost
+    (rad; `lost_position`'s allowance). Stalled when, in each half, |predicted| >=
+    `confidence` `sigma` + `shift` and the joint moved less than `ratio` of it either
+    way, and the joint came within 2 `limit_margin` of no limit a half's prediction
+    points into, and the halves' |predicted| add up to at least `least` (rad: the
+    motion the window's own test needs, `min_command` times the window, so that a joint
+    whose measurements hardly scatter is not judged on a command too small to move a
+    sticky drive). Either way: a lock holds its joint in place (Maciejewski et al., sec.
+    2.2), while a joint the others' motion pushes back against its slow command (behind
+    a slow servo, after a lock elsewhere or as a wall lets the tool go) moves. The
+    halves may point either way: a locked joint the controller commands to and fro,
+    slowly, moves in neither. Both halves: a servo that ran ahead and then waits
+    for its reference lost nothing over the half that holds its lead; a lock loses
+    steadily. At the equilibrium of Maciejewski et al. Theorem 1 an undetected lock
+    leaves the arm short of its goal with the null space commanding the locked joint at a
+    few hundredths of a rad/s, below what the window can judge through the noise; a
+    joint locked as the arm slows into its goal is commanded as slowly. Returns (n,) bool.
     """
-    total, along = float(predicted.sum()), math.copysign(1.0, float(predicted.sum()))
     # A limit that stopped the commanded part of a to-and-fro motion takes it out of the
     # measured motion: pushing at any time of the span counts. Window means come within
     # `limit_margin` of where the joint touched the limit at most 2 x `limit_margin` away.
-    pushing = ((total > 0 and max(latest, float(reached.max())) >= upper - 2 * limit_margin)
-               or (total < 0 and min(latest, float(reached.min()))
-                   <= lower + 2 * limit_margin))
-    lost = (along * predicted >= confidence * sigma) & (
-        along * moved < ratio * along * predicted)
-    return not (pushing or not lost.all() or abs(total) < 2 * confidence * sigma)
+    top = np.maximum(latest, reached.max(axis=0, initial=-np.inf))
+    bottom = np.minimum(latest, reached.min(axis=0, initial=np.inf))
+    pushing = (((predicted > 0).any(axis=0) & (top >= upper - 2 * limit_margin))
+               | ((predicted < 0).any(axis=0) & (bottom <= lower + 2 * limit_margin)))
+    size = np.abs(predicted)
+    lost = (size >= confidence * sigma + shift) & (np.abs(moved) < ratio * size)
+    return lost.all(axis=0) & (size.sum(axis=0) >= least) & ~pushing
 
 
 def not_observing(now: float, last_command: float, resumed_at: float, settling: float,
