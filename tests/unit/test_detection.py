@@ -362,31 +362,25 @@ def _suspect_at_the_end(lock: tuple[tuple[int, ...], float] | None,
                         plant: PlantConfig | None = None):
     data = record(_then_joint_2_alone, 3.0, plant, lock)
     detector = LockDetector(PANDA.lower, PANDA.upper)
-    assert replay(data, detector) == []  # no other joint moves: no witness, no declaration
-    assert not detector.joints[1].observable  # too slow for the window's test
+    assert replay(data, detector) == []  # the window's test alone declares nothing
+    assert not detector.joints[1].observable and not detector.joints[1].candidate
     return detector, detector.confirm(1, -0.3, 3.0)
 
 
 @pytest.mark.parametrize("plant", [None, PlantConfig(latency=0.05, response_time=0.05)])
 def test_a_slowly_commanded_suspect_that_lost_its_motion_is_confirmed(plant) -> None:
-    """Joint 2 locked at 2 s while commanded 0.02 rad/s: confirmed.
-
-    The detector's own slow span has made it a candidate (about 4 mrad lost in 0.2 s),
-    which it does not declare alone, without a witness.
-    """
+    """Joint 2 locked at 2 s while commanded 0.02 rad/s: confirmed over the last 0.5 s."""
     detector, answer = _suspect_at_the_end(((1,), 2.0), plant)
     assert answer.decision == "locked"
     evidence = answer.evidence
-    assert evidence.candidate
     assert 0.015 < evidence.commanded < 0.025 and abs(evidence.measured) < 0.005
-    assert 0.002 < evidence.deficit < 0.006
+    assert 0.005 < evidence.deficit < 0.015  # about 10 mrad lost in 0.5 s
     assert detector.locked == {1: -0.3}
 
 
 def test_a_slowly_commanded_healthy_suspect_is_refused() -> None:
-    detector, answer = _suspect_at_the_end(None, PlantConfig(latency=0.05, response_time=0.05))
+    _, answer = _suspect_at_the_end(None, PlantConfig(latency=0.05, response_time=0.05))
     assert answer.decision == "refused"
-    assert not detector.joints[1].candidate
 
 
 def test_a_servo_catching_up_is_refused_as_a_suspect_too() -> None:

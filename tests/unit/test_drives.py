@@ -302,6 +302,39 @@ def test_a_brake_or_a_lag_the_coupling_does_not_explain_is_not_moved_by_the_othe
                                      0.05).any()
 
 
+def _braking(residual: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """`Drives.braking` at `REVERSING_Q`, the others reversing, with `residual` (N m) left."""
+    velocity = np.full(PANDA.n, 0.01)
+    inertia, nonlinear = PANDA.dynamics(REVERSING_Q, velocity)
+    effort = inertia @ REVERSING + nonlinear + residual
+    gravity = PANDA.gravity(REVERSING_Q)
+    return Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool), effort - gravity,
+                  np.abs(gravity), PANDA, REVERSING_Q, effort).braking(
+                      velocity, REVERSING, along)
+
+
+def test_a_brake_holding_a_slowly_commanded_joint_leaves_a_residual_against_it() -> None:
+    """At least 2 % of the effort limit (and 1 N m), against the command's direction.
+
+    A shoulder (87 N m) held with 3 N m against a command of -0.03 rad/s is braked; one
+    held by 1.2 N m, what the dynamics' errors leave a healthy joint, is not, nor one
+    whose residual points the other way; a wrist (12 N m) needs 1 N m, not 0.24. The
+    coupling torque of the reversing links is in the dynamics: no residual of its own.
+    """
+    along = np.full(PANDA.n, -0.03)
+    limits = np.asarray(PANDA.effort_limits, float)
+    least = np.maximum(drives.BRAKE_SHARE * limits, drives.BRAKE_TORQUE)
+    assert least[0] == pytest.approx(1.74) and least[5] == 1.0
+    assert not _braking(np.zeros(PANDA.n), along).any()
+    assert _braking(np.full(PANDA.n, -3.0), along).all()
+    assert not _braking(np.full(PANDA.n, 3.0), along).any()
+    assert not _braking(np.full(PANDA.n, -1.2), along)[:4].any()
+    assert _braking(np.full(PANDA.n, -1.2), along)[4:].all()  # the wrists' 1 N m
+    assert not _braking(np.full(PANDA.n, -0.5), along).any()
+    blind = Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool))
+    assert not blind.braking(np.zeros(PANDA.n), REVERSING, along).any()
+
+
 def test_accelerations_are_the_velocities_change_over_their_span() -> None:
     accelerations = drives.Accelerations()
     span = drives.ACCELERATION_SPAN

@@ -386,22 +386,25 @@ class LockDetector:
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
             deficit, lost = self._lost_position(now, weakest, error, times, cfg.window)
             candidates = candidates & (lost | ~undeclared)
-        # Commanded too slowly for the window: judged over the slow span, and behind
-        # where it stood before the span's second half (a servo that ran ahead and pauses
-        # until its reference catches up is not).
+        # Commanded too slowly for the window: judged over the slow span, behind where
+        # it stood before the span's second half (a servo that ran ahead and pauses until
+        # its reference catches up is not), and held there by a torque the dynamics do
+        # not explain (`Drives.braking`; without efforts, not judged).
+        self.acceleration = acceleration = self._accelerations.update(now, measured)
         slow = unlocked & undeclared & ~observable & ~on_its_own & ~candidates
-        stalls = self._slow_stalls(error) if slow.any() else None
-        if stalls is not None and (slow & stalls.stalled).any():
+        stalls = self._slow_stalls(error) if slow.any() and drives is not None else None
+        if (stalls is not None and drives is not None and acceleration is not None
+                and (slow & stalls.stalled).any()):
             behind, lost = self._lost_position(now, stalls.commanded, error, times,
                                                SLOW_SPAN / 2)
-            slow = slow & stalls.stalled & lost
+            slow = slow & stalls.stalled & lost & drives.braking(measured, acceleration,
+                                                                 stalls.commanded)
             deficit = np.where(slow, behind, deficit)
             candidates = candidates | slow
         held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
             drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
             & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
             cfg.min_command, STILL_SPAN)  # a push the joint does not follow
-        self.acceleration = acceleration = self._accelerations.update(now, measured)
         if drives is not None and acceleration is not None and (candidates | held).any():
             # Stalled or held by the other links' accelerations, not by a brake.
             moved = drives.moved_by_others(measured, acceleration, weakest, cfg.min_command)

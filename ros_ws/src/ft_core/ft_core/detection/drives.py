@@ -91,6 +91,12 @@ COUPLED_SHARE = 0.5
 #: Least coupling torque, as a share of the joint's effort limit, that says anything
 #: (below it, the accelerations' noise).
 COUPLING_SHARE = 0.02
+#: Least residual torque, as a share of the joint's effort limit, of a brake holding a
+#: slowly commanded joint (`Drives.braking`): twice the largest a healthy joint held a
+#: few mrad back left in the deployed series, a fifth of what a brake took there.
+BRAKE_SHARE = 0.02
+#: N m, and at least this (a wrist's model errors are a large share of its small limit).
+BRAKE_TORQUE = 1.0
 #: s over which the window slopes' change gives the accelerations.
 ACCELERATION_SPAN = 0.02
 #: Share of a joint's gravity torque its drive's torque may err by, the gravity model's
@@ -137,6 +143,26 @@ class Drives:
         return ((np.abs(coupling) >= least) & (np.abs(lag) >= least_lag) & (coupling * lag > 0)
                 & (self.external * coupling >= (1 - COUPLED_SHARE) * coupling ** 2)
                 & (np.abs(residual) < COUPLED_SHARE * np.abs(coupling)))
+
+    def braking(self, velocity: np.ndarray, acceleration: np.ndarray,
+                along: np.ndarray) -> np.ndarray:
+        """Whether something outside each drive holds its joint against `along` (n,) bool.
+
+        The residual tau - M qdd - C qd - g (De Luca & Mattone 2003: the external joint
+        torque) at `velocity` (rad/s) and `acceleration` (rad/s^2) as measured, taken
+        against the direction of `along` (the commanded velocity, rad/s), is at least
+        `BRAKE_SHARE` of the effort limit and `BRAKE_TORQUE`: a brake or a jam takes the
+        push of a servo whose reference runs on, which grows while the joint stays, where
+        a healthy joint a few mrad behind a slow command is held by torques the dynamics
+        explain. False everywhere without efforts.
+        """
+        if self.robot is None or self.q is None or self.effort is None:
+            return np.zeros(velocity.size, bool)
+        inertia, nonlinear = self.robot.dynamics(self.q, velocity)
+        residual = self.effort - nonlinear - inertia @ acceleration
+        least = np.maximum(BRAKE_SHARE * np.asarray(self.robot.effort_limits, float),
+                           BRAKE_TORQUE)
+        return np.sign(along) * residual >= least
 
     def let_go(self, velocity: np.ndarray) -> np.ndarray:
         """Whether each joint's drive lets it move at `velocity` (rad/s) (n,) bool.
