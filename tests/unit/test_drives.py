@@ -313,13 +313,14 @@ def _braking(residual: np.ndarray, along: np.ndarray) -> np.ndarray:
                       velocity, REVERSING, along)
 
 
-def test_a_brake_holding_a_slowly_commanded_joint_leaves_a_residual_against_it() -> None:
-    """At least 2 % of the effort limit (and 1 N m), against the command's direction.
+def test_a_brake_holding_a_slowly_commanded_joint_leaves_its_drives_push() -> None:
+    """A residual of 2 % of the effort limit (and 1 N m) along the command: braking.
 
-    A shoulder (87 N m) held with 3 N m against a command of -0.03 rad/s is braked; one
-    held by 1.2 N m, what the dynamics' errors leave a healthy joint, is not, nor one
-    whose residual points the other way; a wrist (12 N m) needs 1 N m, not 0.24. The
-    coupling torque of the reversing links is in the dynamics: no residual of its own.
+    A shoulder (87 N m) whose drive pushes 3 N m beyond its motion's needs along a
+    command of -0.03 rad/s is braked; one pushing 1.2 N m, what the dynamics' errors
+    leave a healthy joint, is not, nor one whose residual points the other way; a wrist
+    (12 N m) needs 1 N m, not 0.24. The coupling torque of the reversing links is in the
+    dynamics: no residual of its own.
     """
     along = np.full(PANDA.n, -0.03)
     limits = np.asarray(PANDA.effort_limits, float)

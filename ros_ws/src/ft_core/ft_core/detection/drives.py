@@ -49,6 +49,12 @@ which the others swing, gives none). Scaled by c_j, the test needs no threshold 
 drive (a shoulder's brake and a wrist's differ tenfold). The accelerations are the
 window slopes' change over `ACCELERATION_SPAN`. A joint that lost its torque has no
 residual either (its fall is what the dynamics say), so the test only holds back locks.
+
+The same residual, the other way: a joint commanded too slowly for the lock detector's
+window is judged over a longer span (`rules.slow_stall`), where a few mrad of lag tell
+nothing alone. `Drives.braking` asks that its drive push along the command beyond what
+the motion needs, by `BRAKE_SHARE` of the effort limit (and `BRAKE_TORQUE`): a brake
+takes its servo's push.
 """
 
 from __future__ import annotations
@@ -146,11 +152,11 @@ class Drives:
 
     def braking(self, velocity: np.ndarray, acceleration: np.ndarray,
                 along: np.ndarray) -> np.ndarray:
-        """Whether something outside each drive holds its joint against `along` (n,) bool.
+        """Whether each drive pushes its joint along `along` beyond its motion's needs (n,) bool.
 
-        The residual tau - M qdd - C qd - g (De Luca & Mattone 2003: the external joint
-        torque) at `velocity` (rad/s) and `acceleration` (rad/s^2) as measured, taken
-        against the direction of `along` (the commanded velocity, rad/s), is at least
+        The residual tau - M qdd - C qd - g (De Luca & Mattone 2003: minus the external
+        joint torque) at `velocity` (rad/s) and `acceleration` (rad/s^2) as measured,
+        taken along the direction of `along` (the commanded velocity, rad/s), is at least
         `BRAKE_SHARE` of the effort limit and `BRAKE_TORQUE`: a brake or a jam takes the
         push of a servo whose reference runs on, which grows while the joint stays, where
         a healthy joint a few mrad behind a slow command is held by torques the dynamics
