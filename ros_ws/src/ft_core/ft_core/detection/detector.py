@@ -269,7 +269,9 @@ class LockDetector:
                 np.array([e.standard_error for e in self.joints]), SUSPECT_SPAN)
             if slow is None or not slow.stalled[joint]:
                 return Confirmation(Decision.REFUSED, replace(evidence))
-            evidence = replace(evidence, candidate=True, **slow.of(joint))
+            evidence = replace(evidence, candidate=True, measured=float(slow.measured[joint]),
+                               commanded=float(slow.commanded[joint]),
+                               deficit=float(slow.deficit[joint]))
         self.lock(joint, position, time)
         return Confirmation(Decision.LOCKED,
                             replace(evidence, locked_at=time, position=position))
@@ -426,9 +428,9 @@ class LockDetector:
             evidence.held_since = (now if evidence.held_since is None else
                                    evidence.held_since) if is_held else None
         if stalls is not None:  # a slow stall's velocities are its span's
-            for j in np.flatnonzero(slow & stalls.stalled & candidates):
-                joints[j].measured = float(stalls.measured[j])
-                joints[j].commanded = float(stalls.commanded[j])
+            for k in np.flatnonzero(slow & stalls.stalled & candidates).tolist():
+                joints[k].measured = float(stalls.measured[k])
+                joints[k].commanded = float(stalls.commanded[k])
         n_stalled, n_following, n_own = sum(candidate_of), sum(following_of), sum(own_of)
         if n_stalled == 0 and n_own == 0 and identify:
             plant.identify(now, measured, slopes, error, unlocked & ~pushing,

@@ -71,11 +71,6 @@ class SlowStalls:
     commanded: np.ndarray
     deficit: np.ndarray
 
-    def of(self, j: int) -> dict[str, float]:
-        """Joint j's figures, as `JointEvidence` fields."""
-        return {"measured": float(self.measured[j]), "commanded": float(self.commanded[j]),
-                "deficit": float(self.deficit[j])}
-
 
 class Disturbance:
     """Whether evidence beginning at `now` (s) begins while the arm is disturbed.
