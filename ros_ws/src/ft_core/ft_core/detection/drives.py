@@ -140,10 +140,9 @@ class Drives:
         """
         if self.robot is None or self.q is None or self.effort is None or self.external is None:
             return np.zeros(velocity.size, bool)
-        inertia, nonlinear = self.robot.dynamics(self.q, velocity)
-        needed = inertia @ acceleration
-        coupling = needed - np.diag(inertia) * acceleration
-        residual = self.effort - nonlinear - needed
+        inertia, residual = self._residual(self.robot, self.q, self.effort, velocity,
+                                           acceleration)
+        coupling = inertia @ acceleration - np.diag(inertia) * acceleration
         lag = commanded - velocity
         least = COUPLING_SHARE * np.asarray(self.robot.effort_limits, float)
         return ((np.abs(coupling) >= least) & (np.abs(lag) >= least_lag) & (coupling * lag > 0)
@@ -164,11 +163,17 @@ class Drives:
         """
         if self.robot is None or self.q is None or self.effort is None:
             return np.zeros(velocity.size, bool)
-        inertia, nonlinear = self.robot.dynamics(self.q, velocity)
-        residual = self.effort - nonlinear - inertia @ acceleration
+        _, residual = self._residual(self.robot, self.q, self.effort, velocity, acceleration)
         least = np.maximum(BRAKE_SHARE * np.asarray(self.robot.effort_limits, float),
                            BRAKE_TORQUE)
         return np.sign(along) * residual >= least
+
+    @staticmethod
+    def _residual(robot: Robot, q: np.ndarray, effort: np.ndarray, velocity: np.ndarray,
+                  acceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """M(q) (kg m^2) and the residual tau - M qdd - C qd - g (N m) at q (rad)."""
+        inertia, nonlinear = robot.dynamics(q, velocity)
+        return inertia, effort - nonlinear - inertia @ acceleration
 
     def let_go(self, velocity: np.ndarray) -> np.ndarray:
         """Whether each joint's drive lets it move at `velocity` (rad/s) (n,) bool.
