@@ -11,6 +11,8 @@ that change sign faster than the plant's plausible lags: test_physics_loop.py to
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from ft_core import robots, swing
@@ -240,6 +242,65 @@ def test_a_free_swing_that_lands_on_its_stop_is_named_and_the_joints_it_drags_ar
     assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [1]
 
 
+def _coasting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
+    """Panda joint 1 at 0.3 rad/s loses its torque at `fails_at` s; at 1.8 s its command turns.
+
+    Joints 2, 5 and 7 move throughout (witnesses), all four commands vary by 0.15 rad/s
+    at 2 Hz for the first 1.2 s (the plant's lag identified), joint 1's ramps from 0.3 to
+    -0.3 rad/s at 2 rad/s^2 from 1.8 s on. Returns the monitor's events, the s from when
+    joint 1's velocity, after the loss, first differed by 0.1 rad/s from the command in
+    force at the plant to the first event, and the monitor.
+    """
+    monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
+    plant = PhysicsPlant(PANDA, Q, DRIVERS[driver])
+    rng = np.random.default_rng(5)
+    events: list[str] = []
+    shown = first = np.inf
+    t = 0.0
+    for _ in range(round(3.0 / DT)):
+        if abs(t - fails_at) < DT / 2:
+            plant.inject(0, Fault(FaultKind.FREE_SWING, PANDA.joint_names[0]))
+        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
+                                 effort=plant.torque)
+        if change.events and not events:
+            first = t
+        events += change.events
+        command = np.zeros(PANDA.n)
+        command[[0, 1, 4, 6]] = [float(np.clip(0.3 - 2.0 * (t - 1.8), -0.3, 0.3)), 0.1,
+                                 0.3, 0.3]
+        if t < 1.2:  # varied: the monitor identifies the plant's lag meanwhile
+            command[[0, 1, 4, 6]] += 0.15 * math.sin(4 * math.pi * t)
+        plant.command(t, monitor.command(command, t))
+        t += DT
+        plant.step(t)
+        if t >= fails_at and abs(plant.path.in_force(t)[0] - plant.qd[0]) >= 0.1:
+            shown = min(shown, t)
+    monitor.close()
+    return events, first - shown, monitor
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+def test_a_joint_gravity_does_not_turn_coasting_without_torque_is_named_as_it_departs(
+        driver: str) -> None:
+    """Its drive does not answer the departure from the turning command (`unanswered`).
+
+    About a vertical axis, joint 1 without torque coasts on at 0.3 rad/s as a healthy
+    joint at constant speed would; once its command turns it departs, its drive giving
+    nothing: free-swinging within 250 ms of the departure (the plausible lags' spread and
+    the noise first, then `UNANSWERED_TIME`), braked, no other joint named. The same
+    motion with the drive healthy: nothing.
+    """
+    events, after, monitor = _coasting(driver, 1.5)
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint1 free-swinging")
+    assert "its drive not answering" in events[0]
+    assert 0.0 <= after <= 0.25
+    assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [0]
+    events, _, monitor = _coasting(driver, np.inf)
+    assert monitor.detector.not_observing is None
+    assert events == []
+
+
 def test_a_healthy_joint_pushed_into_its_stop_is_not_named() -> None:
     events, _, monitor = _onto_the_stop("slow", np.inf)
     assert monitor.detector.not_observing is None  # it judged the motion throughout
@@ -334,6 +395,56 @@ def test_a_brake_holding_a_slowly_commanded_joint_leaves_its_drives_push() -> No
     assert not _braking(np.full(PANDA.n, -0.5), along).any()
     blind = Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool))
     assert not blind.braking(np.zeros(PANDA.n), REVERSING, along).any()
+
+
+def _unanswered(joint: int, external: float, departure: float,
+                response: float = 0.05) -> np.ndarray:
+    """`Drives.unanswered` at the home pose, `joint` departing, its drive giving `external`."""
+    gravity = PANDA.gravity(Q)
+    effort = gravity.copy()
+    effort[joint] += external
+    away = np.zeros(PANDA.n)
+    away[joint] = departure
+    return Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool), effort - gravity,
+                  np.abs(gravity), PANDA, Q, effort).unanswered(away, response)
+
+
+def test_a_drive_giving_nothing_for_its_joints_departure_leaves_it_unanswered() -> None:
+    """A servo answers a departure dv with about M_jj dv / T; a free drive gives none.
+
+    Panda joint 1 at home (a vertical axis: no gravity torque; M_11 = 0.53 kg m^2, as
+    Pinocchio's CRBA gives it), 0.2 rad/s beyond its predictions behind a 50 ms servo:
+    the answer is 2.1 N m. A drive giving nothing, or 0.1 N m, leaves it unanswered; one
+    giving 1 N m, half the answer, does not. A departure of 0.02 rad/s (0.21 N m, under
+    `ANSWER_TORQUE`) says nothing, nor a slower servo's (the answer scales as 1 / T), nor
+    a shoulder gravity loads (`silent` judges it), nor a driver without efforts.
+    """
+    inertia = PANDA.gravity_dynamics(Q)[1][0]
+    assert inertia == pytest.approx(0.53, abs=0.01)
+    assert inertia * 0.2 / 0.05 == pytest.approx(2.1, abs=0.05)
+    assert np.flatnonzero(_unanswered(0, 0.0, 0.2)).tolist() == [0]
+    assert _unanswered(0, -0.1, 0.2)[0]
+    assert not _unanswered(0, 1.0, 0.2).any()
+    assert not _unanswered(0, -1.0, 0.2).any()
+    assert not _unanswered(0, 0.0, 0.02).any()
+    assert not _unanswered(0, 0.0, 0.2, response=0.5).any()
+    assert abs(PANDA.gravity(Q)[1]) >= drives.GRAVITY_SHARE * PANDA.effort_limits[1]
+    assert not _unanswered(1, 0.0, 0.2).any()
+    blind = Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool))
+    assert not blind.unanswered(np.full(PANDA.n, 0.2), 0.05).any()
+
+
+def test_a_departure_is_how_far_a_velocity_lies_beyond_every_plausible_prediction() -> None:
+    """Outside [low, high], ahead or behind, by more than the noise, for the free joints."""
+    plausible = np.array([[0.2, -0.1, 0.0, 0.3, 0.3], [0.3, -0.2, 0.0, 0.3, 0.5]])
+    measured = np.array([0.5, 0.1, 0.04, 0.5, 0.1])
+    error = np.array([0.01, 0.01, 0.01, 0.1, 0.01])
+    free = np.full(5, True)
+    away = rules.departure(measured, plausible, error, free, 0.05, 5.0)
+    # 0.2 ahead of 0.3; 0.2 against the command; 0.04 within the noise; 0.2 within 5
+    # standard errors of 0.1; 0.2 behind 0.3.
+    assert away == pytest.approx([0.2, 0.2, 0.0, 0.0, 0.2])
+    assert rules.departure(measured, plausible, error, ~free, 0.05, 5.0).tolist() == [0] * 5
 
 
 def test_accelerations_are_the_velocities_change_over_their_span() -> None:

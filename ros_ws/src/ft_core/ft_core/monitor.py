@@ -321,7 +321,8 @@ class Monitor:
                 continue
             line = (f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
                     f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
-                    + (", its drive giving no torque" if self._drives.silent[j] else ""))
+                    + (", its drive giving no torque" if self._drives.silent[j] else
+                       ", its drive not answering" if self.detector.unanswered[j] else ""))
             change.events.append(line + ("; declaring it locked where it is (brake)" if brake
                                          else "; it stays locked" if stays else ""))
             board.declare(j, Health.FREE_SWINGING, now, line, braked=brake or stays)
@@ -364,8 +365,9 @@ class Monitor:
 
     def _contact(self, joints: list[int], _since: float) -> str | None:
         """Why stalled `joints` are in contact, not failed, or None (`detection.contact`)."""
-        if self.effort is None or self.q is None or self._drives.silent[joints].any():
-            return None  # a silent drive pushes against nothing (`detection.drives`)
+        if (self.effort is None or self.q is None or self._drives.silent[joints].any()
+                or self.detector.unanswered[joints].any()):
+            return None  # a drive without torque pushes against nothing (`detection.drives`)
         return self._touch.explains(self.robot, self.q, self.effort, joints,
                                     self.detector.latest_time, self.detector.joints,
                                     acceleration=self.detector.acceleration)

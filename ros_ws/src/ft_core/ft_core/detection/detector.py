@@ -21,6 +21,7 @@ from ft_core.detection.drives import (
     HELD_LIMIT_MARGIN,
     HELD_TIME,
     STILL_SPAN,
+    UNANSWERED_TIME,
     Accelerations,
     Drives,
 )
@@ -133,6 +134,8 @@ class LockDetector:
         #: rad/s^2, the joints' accelerations at the last update (the window slopes'
         #: change over `drives.ACCELERATION_SPAN`); None: not yet known
         self.acceleration: np.ndarray | None = None
+        #: joints beyond their predictions whose drives did not answer at the last update
+        self.unanswered = np.zeros(self.n, dtype=bool)
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -384,6 +387,20 @@ class LockDetector:
                     drives.silent, measured, plausible, error, unlocked, undeclared,
                     np.asarray(gravity, dtype=float), (latest, self.lower, self.upper),
                     cfg.min_command, cfg.confidence, cfg.limit_margin)
+        # A stalled joint counts while another is seen moving as commanded; a held one alone.
+        witnessed = bool(rules.vouching(measured, plausible, error, unlocked, cfg.min_command,
+                                        cfg.confidence, cfg.following_ratio).any())
+        # A joint off its predictions whose drive does not answer (`Drives.unanswered`),
+        # another seen moving as commanded (a stopped plant moves none).
+        inside = (latest - self.lower > HELD_LIMIT_MARGIN) & (self.upper - latest
+                                                              > HELD_LIMIT_MARGIN)
+        away = np.zeros(self.n) if drives is None or not witnessed else rules.departure(
+            measured, plausible, error, unlocked & undeclared & inside, cfg.min_command,
+            cfg.confidence)
+        self.unanswered = unanswered = (drives.unanswered(away, plant.slowest_response)
+                                        if drives is not None and away.any()
+                                        else np.zeros(self.n, dtype=bool))
+        on_its_own = on_its_own | unanswered
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
             deficit, lost = self._lost_position(now, weakest, error, times, cfg.window)
@@ -404,8 +421,7 @@ class LockDetector:
             deficit = np.where(slow, behind, deficit)
             candidates = candidates | slow
         held = np.zeros(self.n, dtype=bool) if drives is None else rules.held_still(
-            drives.pushing & unlocked & (latest - self.lower > HELD_LIMIT_MARGIN)
-            & (self.upper - latest > HELD_LIMIT_MARGIN), positions, plausible,
+            drives.pushing & unlocked & inside, positions, plausible,
             cfg.min_command, STILL_SPAN)  # a push the joint does not follow
         if drives is not None and acceleration is not None and (candidates | held).any():
             # Stalled or held by the other links' accelerations, not by a brake.
@@ -462,12 +478,10 @@ class LockDetector:
         disturbance = Disturbance(joints, now, self._declared_at + settle)
         swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
-            lambda j: 0.0 if drives is not None and drives.silent[j] else rules.swing_wait(
-                measured_of[j], error_of[j], plausible, settle, cfg.confidence,
-                cfg.min_command), veto)
-        # A stalled joint counts while another is seen moving as commanded; a held one alone.
-        witnessed = bool(rules.vouching(measured, plausible, error, unlocked, cfg.min_command,
-                                        cfg.confidence, cfg.following_ratio).any())
+            lambda j: 0.0 if drives is not None and drives.silent[j] else min(
+                rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
+                                 cfg.confidence, cfg.min_command),
+                UNANSWERED_TIME if unanswered[j] else math.inf), veto)
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)

@@ -55,6 +55,18 @@ window is judged over a longer span (`rules.slow_stall`), where a few mrad of la
 nothing alone. `Drives.braking` asks that its drive push along the command beyond what
 the motion needs, by `BRAKE_SHARE` of the effort limit (and `BRAKE_TORQUE`): a brake
 takes its servo's push.
+
+A joint gravity hardly turns (a vertical axis, `GRAVITY_SHARE`) is never silent: without
+torque it coasts as commanded, as a healthy joint at constant speed does, and its drive's
+torque there is as small as a healthy one's. It shows once the others' reactions or a
+change of command take its velocity beyond every plausible prediction, by more than the
+noise: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv (rad/s)
+and a response time T (the plausible set's slowest), and a drive without torque gives
+none. `Drives.unanswered` names such a joint where that answer is at least
+`ANSWER_TORQUE` and its drive gives under `ANSWER_SHARE` of it beyond gravity; the lock
+detector takes it as moving on its own once that has held `UNANSWERED_TIME` s (healthy
+drives crossing zero torque as an overshoot turns stayed under the share for at most
+24 ms at a time on the physics plant).
 """
 
 from __future__ import annotations
@@ -103,6 +115,14 @@ COUPLING_SHARE = 0.02
 BRAKE_SHARE = 0.02
 #: N m, and at least this (a wrist's model errors are a large share of its small limit).
 BRAKE_TORQUE = 1.0
+#: Share of a servo's answer to its joint's departure from every plausible prediction
+#: under which a drive leaves it unanswered (`Drives.unanswered`).
+ANSWER_SHARE = 0.1
+#: N m, the least answer a departure must call for to say anything (below it, a drive's
+#: torque is mostly its model's error).
+ANSWER_TORQUE = 0.25
+#: s a departure must stay unanswered for its joint to move on its own.
+UNANSWERED_TIME = 0.05
 #: s over which the window slopes' change gives the accelerations.
 ACCELERATION_SPAN = 0.02
 #: Share of a joint's gravity torque its drive's torque may err by, the gravity model's
@@ -167,6 +187,26 @@ class Drives:
         least = np.maximum(BRAKE_SHARE * np.asarray(self.robot.effort_limits, float),
                            BRAKE_TORQUE)
         return np.sign(along) * residual >= least
+
+    def unanswered(self, departure: np.ndarray, response: float) -> np.ndarray:
+        """Whether each drive leaves its joint's departure unanswered (n,) bool.
+
+        `departure` (rad/s, >= 0): how far each joint's velocity lies beyond every
+        plausible prediction (0: within, or not to be judged); `response` (s): the
+        slowest plausible response time. A servo answers with about M_jj(q) departure /
+        `response` (N m); where that is at least `ANSWER_TORQUE`, the joint's gravity
+        torque under `GRAVITY_SHARE` of its effort limit (`silent` judges the others) and
+        its drive's torque beyond gravity under `ANSWER_SHARE` of the answer, the drive
+        gives none (the module). False everywhere without efforts or inertias.
+        """
+        robot = self.robot
+        if robot is None or self.q is None or self.external is None or self.gravity is None:
+            return np.zeros(departure.size, bool)
+        _, inertia = robot.gravity_dynamics(self.q)
+        answer = inertia * departure / response
+        limits = np.asarray(robot.effort_limits, float)
+        return ((answer >= ANSWER_TORQUE) & (self.gravity < GRAVITY_SHARE * limits)
+                & (np.abs(self.external) < ANSWER_SHARE * answer))
 
     @staticmethod
     def _residual(robot: Robot, q: np.ndarray, effort: np.ndarray, velocity: np.ndarray,

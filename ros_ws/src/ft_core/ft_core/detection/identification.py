@@ -76,11 +76,11 @@ class PlantIdentification:
         return float(self.model_latency[model] + 3 * self.model_response[model])
 
     def set_plausible(self, plausible: np.ndarray) -> None:
-        """The plausible models (mask and indices), and their longest settling time."""
+        """The plausible models (mask and indices), their longest settling and response times."""
         self.plausible = plausible
         self.plausible_models = np.flatnonzero(plausible)
-        self.slowest = (float(self.model_latency[plausible].max())
-                        + 3 * float(self.model_response[plausible].max()))
+        self.slowest_response = float(self.model_response[plausible].max())
+        self.slowest = float(self.model_latency[plausible].max()) + 3 * self.slowest_response
 
     def identify(self, now: float, measured: np.ndarray, slopes: np.ndarray,
                  error: np.ndarray, usable: np.ndarray, *, window: float,
