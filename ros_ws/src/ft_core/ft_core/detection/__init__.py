@@ -17,7 +17,6 @@ One concept per module:
 from ft_core.detection.config import DetectorConfig
 from ft_core.detection.detector import (
     DECISION_PERIOD,
-    SLOW_SPAN,
     SUSPECT_SPAN,
     Confirmation,
     Decision,
@@ -36,6 +35,7 @@ from ft_core.detection.identification import (
 )
 from ft_core.detection.plant_model import CommandHistory, _add_command
 from ft_core.detection.rules import classify as _classify
+from ft_core.detection.spans import SLOW_SPAN
 from ft_core.detection.window import (
     Offsets,
     Samples,

@@ -28,18 +28,14 @@ from ft_core.detection.drives import (
 from ft_core.detection.evidence import (
     Disturbance,
     JointEvidence,
-    SlowStalls,
     Veto,
     declare_locks,
     declare_swings,
 )
 from ft_core.detection.follow import MEMORY, FollowMeter
-from ft_core.detection.identification import (
-    LATENCY_STEP,
-    PlantEstimate,
-    PlantIdentification,
-)
+from ft_core.detection.identification import PlantEstimate, PlantIdentification
 from ft_core.detection.plant_model import CommandHistory
+from ft_core.detection.spans import SLOW_SPAN, Spans
 from ft_core.detection.window import Offsets, Samples, _ingest, _window_fit
 
 #: Shortest time (s) between two decisions (`LockDetector.measure`). Every measurement
@@ -54,11 +50,6 @@ DECISION_PERIOD = 0.0025
 #: judged (`LockDetector.confirm`): the task-space channel's window, over which it
 #: suspected the joint.
 SUSPECT_SPAN = 0.5
-#: s over which the detector judges, on its own, the joints commanded too slowly for the
-#: window's test (`rules.slow_stall`): two halves longer than the window, so their means
-#: do not overlap, and short enough that a lock as the arm slows into its goal is named
-#: before the next goal (docs/detection.md, "Slowly commanded joints").
-SLOW_SPAN = 0.2
 
 
 @dataclass(frozen=True)
@@ -120,6 +111,8 @@ class LockDetector:
         self.history = CommandHistory(self.n, response_times)
         self._samples = Samples(self.n, models)
         self._offsets = Offsets(self.n, models)
+        self._spans = Spans(self._samples, self._offsets, self.history, self._plant,
+                            self.lower, self.upper)
         self._resumed_at = -math.inf  # when commands last resumed after a gap (or began)
         self._seen_following = 0.0
         self._last_update = -math.inf
@@ -196,7 +189,7 @@ class LockDetector:
             self._seen_following = 0.0
         # Floats and contiguous arrays: the types `compile_ahead` compiled for.
         self.history.append(float(time), np.ascontiguousarray(velocity, dtype=float),
-                            time - max(2 * self.config.window, self._horizon())
+                            time - max(2 * self.config.window, self._spans.horizon(self.config))
                             - self._longest_latency)
 
     def measure(self, time: float, position: np.ndarray, blind: str | None = None,
@@ -215,9 +208,11 @@ class LockDetector:
         (no torque while gravity turns it) outside its plausible predictions, the way
         gravity turns it, moves on its own at once, with no allowance for a servo's
         transient and no wait; one whose drive works against its motion does not
-        (`Drives.let_go`); one whose drive pushes, still within `STILL_SPAN` over the
-        window while a plausible model commands it and another joint moves, is a lock
-        candidate.
+        (`Drives.let_go`); one off every plausible prediction whose drive gives nothing
+        for it (`Drives.unanswered`), another joint moving as commanded, moves on its
+        own after `UNANSWERED_TIME`; one whose drive pushes, still within `STILL_SPAN`
+        over the window while a plausible model commands it and another joint moves, is
+        a lock candidate.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -227,7 +222,7 @@ class LockDetector:
         dt = time - self._last_update if math.isfinite(self._last_update) else 0.0
         self._last_update = time
         reason = blind or rules.not_observing(
-            time, self.history.last_time, self._resumed_at, self._settling_time(),
+            time, self.history.last_time, self._resumed_at, self._spans.settling_time(self.config),
             self._samples.window()[0], self.config.window, self.config.min_samples)
         self.not_observing = reason
         if reason is not None:
@@ -248,7 +243,8 @@ class LockDetector:
             samples.times, samples.positions, samples.predicted, samples.predicted_sum,
             samples.timed_sum, (samples.start, samples.end), samples.base,
             time - self.config.window, offsets.times, offsets.values, offsets.means,
-            (offsets.start, offsets.end), time - max(self._horizon(), SUSPECT_SPAN))
+            (offsets.start, offsets.end),
+            time - max(self._spans.horizon(self.config), SUSPECT_SPAN))
         samples.end += 1
         offsets.end += 1
 
@@ -268,7 +264,8 @@ class LockDetector:
             return Confirmation(Decision.KNOWN, replace(evidence))
         if not evidence.candidate:
             slow = None if (self.not_observing is not None or self.plant_fault is not None
-                            ) else self._slow_stalls(
+                            ) else self._spans.slow_stalls(
+                self.config, self._resumed_at,
                 np.array([e.standard_error for e in self.joints]), SUSPECT_SPAN)
             if slow is None or not slow.stalled[joint]:
                 return Confirmation(Decision.REFUSED, replace(evidence))
@@ -279,71 +276,7 @@ class LockDetector:
         return Confirmation(Decision.LOCKED,
                             replace(evidence, locked_at=time, position=position))
 
-    def _slow_stalls(self, error: np.ndarray, span: float = SLOW_SPAN) -> SlowStalls | None:
-        """Every joint's motion over the last `span` s, and which of them lost it.
-
-        Over each half of the span (window means `span` / 2 apart) the best model
-        predicts a displacement d = (change of the window-mean position) - (change of
-        its offset); `rules.slow_stall` judges them, allowing for a model latency off by
-        a step of the grid (`LATENCY_STEP` times the change of command over the half,
-        each taken at its mark lagged by the model's latency). None: no judgement, with
-        commands (re)started within the span and its settling time or fewer offsets kept
-        than the span. `error`: the slopes' standard errors (rad/s, (n,)).
-        """
-        cfg, offsets = self.config, self._offsets
-        now = self.latest_time
-        if (self._resumed_at + self._settling_time() > now - span
-                or offsets.times[offsets.start] > now - span + self.config.window):
-            return None
-        times = offsets.times[offsets.start:offsets.end]
-        marks = offsets.start + np.searchsorted(
-            times, [now - span, now - span / 2, now], side="left")
-        marks[-1] = offsets.end - 1
-        best = self._plant.best
-        moved = np.diff(offsets.means[marks], axis=0)
-        predicted = moved - np.diff(offsets.values[marks, best], axis=0)
-        lag = self._plant.model_latency[best] + cfg.window / 2
-        shift = LATENCY_STEP * np.abs(np.diff(self.history.at(offsets.times[marks] - lag),
-                                              axis=0))
-        sigma = rules.mean_difference_error(error, self._samples.window()[0])
-        stalled = rules.slow_stall(
-            moved, predicted, offsets.means[marks[0]:marks[-1] + 1],
-            self._samples.positions[self._samples.end - 1], self.lower, self.upper, sigma,
-            shift, cfg.min_command * cfg.window, cfg.ratio, cfg.confidence, cfg.limit_margin)
-        half = float(offsets.times[marks[-1]] - offsets.times[marks[1]])
-        along = np.sign(predicted)
-        return SlowStalls(stalled, moved[-1] / half, predicted[-1] / half,
-                          (np.abs(predicted) - along * moved).sum(axis=0))
-
-    def _lost_position(self, now: float, along: np.ndarray, error: np.ndarray,
-                       times: np.ndarray, since: float) -> tuple[np.ndarray, np.ndarray]:
-        """`rules.lost_position` against the windows that ended `since` s ago or earlier.
-
-        The best model alone: the plausible models' offsets differ by their lags times
-        the change of command, no loss of position. Its latency is known to within a
-        step of the grid: a change of command dv since an earlier window (at its middle,
-        lagged) moves its offset by up to that step times dv. `along` (n,): the
-        prediction the deficit is counted along (rad/s); `error` the slopes' standard
-        errors (rad/s), `times` the window's (s).
-        """
-        cfg, offsets, best = self.config, self._offsets, self._plant.best
-        ends, past = offsets.between(now - self._horizon(), now - since)
-        lag = self._plant.model_latency[best] + cfg.window / 2
-        commands = self.history.at(np.append(ends, now) - lag)
-        return rules.lost_position(
-            offsets.values[offsets.end - 1, best], past[:, best], along,
-            rules.mean_difference_error(error, times), cfg.confidence,
-            LATENCY_STEP * np.abs(commands[:-1] - commands[-1]))
-
     # -------------------------------------------------------------- decisions
-    def _settling_time(self) -> float:
-        """The window and the plausible set's slowest settling time (s)."""
-        return self.config.window + self._plant.slowest
-
-    def _horizon(self) -> float:
-        """How long (s) window offsets are kept: the window and twice the slowest settling."""
-        return self.config.window + 2 * self._plant.slowest
-
     def _clear_evidence(self) -> None:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
@@ -403,7 +336,8 @@ class LockDetector:
         on_its_own = on_its_own | unanswered
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
-            deficit, lost = self._lost_position(now, weakest, error, times, cfg.window)
+            deficit, lost = self._spans.lost_position(cfg, now, weakest, error, times,
+                                                      cfg.window)
             candidates = candidates & (lost | ~undeclared)
         # Commanded too slowly for the window: judged over the slow span, behind where
         # it stood before the span's second half (a servo that ran ahead and pauses until
@@ -411,11 +345,12 @@ class LockDetector:
         # not explain (`Drives.braking`; without efforts, not judged).
         self.acceleration = acceleration = self._accelerations.update(now, measured)
         slow = unlocked & undeclared & ~observable & ~on_its_own & ~candidates
-        stalls = self._slow_stalls(error) if slow.any() and drives is not None else None
+        stalls = (self._spans.slow_stalls(cfg, self._resumed_at, error)
+                  if slow.any() and drives is not None else None)
         if (stalls is not None and drives is not None and acceleration is not None
                 and (slow & stalls.stalled).any()):
-            behind, lost = self._lost_position(now, stalls.commanded, error, times,
-                                               SLOW_SPAN / 2)
+            behind, lost = self._spans.lost_position(cfg, now, stalls.commanded, error,
+                                                     times, SLOW_SPAN / 2)
             slow = slow & stalls.stalled & lost & drives.braking(measured, acceleration,
                                                                  stalls.commanded)
             deficit = np.where(slow, behind, deficit)

@@ -19,8 +19,6 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 
 @dataclass
 class JointEvidence:
@@ -55,21 +53,6 @@ class JointEvidence:
 
 
 
-@dataclass(frozen=True)
-class SlowStalls:
-    """What the detector saw of every joint over a span of two halves (arrays (n,)).
-
-    Attributes:
-        stalled: the joints that lost their motion there (`rules.slow_stall`).
-        measured: the velocity over the span's second half (rad/s).
-        commanded: the model's over that half (rad/s).
-        deficit: the position lost over the span, along each half's prediction (rad).
-    """
-
-    stalled: np.ndarray
-    measured: np.ndarray
-    commanded: np.ndarray
-    deficit: np.ndarray
 
 
 class Disturbance:
