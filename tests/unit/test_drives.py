@@ -12,6 +12,7 @@ that change sign faster than the plant's plausible lags: test_physics_loop.py to
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -192,6 +193,39 @@ def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_o
     assert own.tolist() == [True, False, False, False]
 
 
+def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float,
+                         command_at: Callable[[float], np.ndarray], seed: int,
+                         ) -> tuple[list[str], float, Monitor, list[tuple[float, float]]]:
+    """3 s of the physics plant from `q` behind `driver`, commanded through a monitor.
+
+    `command_at(t)`: the controller's command at t (rad/s); `joint` loses its torque at
+    `fails_at` s; 1e-3 rad of noise (`seed`) on the positions, the drives' torques as
+    efforts. Returns the monitor's events, when (s) the first came, the monitor, and per
+    step (t, |command in force at the plant - velocity| of `joint`, rad/s).
+    """
+    monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
+    plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
+    rng = np.random.default_rng(seed)
+    events: list[str] = []
+    off: list[tuple[float, float]] = []
+    first = np.inf
+    t = 0.0
+    for _ in range(round(3.0 / DT)):
+        if abs(t - fails_at) < DT / 2:
+            plant.inject(joint, Fault(FaultKind.FREE_SWING, PANDA.joint_names[joint]))
+        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
+                                 effort=plant.torque)
+        if change.events and not events:
+            first = t
+        events += change.events
+        plant.command(t, monitor.command(command_at(t), t))
+        t += DT
+        plant.step(t)
+        off.append((t, abs(plant.path.in_force(t)[joint] - plant.qd[joint])))
+    monitor.close()
+    return events, first, monitor, off
+
+
 def _onto_the_stop(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
     """Panda joint 2 driven at 0.1 rad/s onto its upper stop, losing its torque at `fails_at` s.
 
@@ -201,27 +235,11 @@ def _onto_the_stop(driver: str, fails_at: float) -> tuple[list[str], float, Moni
     q = PANDA.home()
     q[1] = PANDA.upper[1] - 0.2
     assert swing.falling_directions(PANDA, q)[1] > 0  # gravity turns it into that stop
-    monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
-    plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
-    rng = np.random.default_rng(3)
     command = np.zeros(PANDA.n)
     command[[0, 1, 4, 6]] = [0.3, 0.1, 0.3, 0.3]
-    events: list[str] = []
-    first = np.inf
-    t = 0.0
-    for _ in range(round(3.0 / DT)):
-        if abs(t - fails_at) < DT / 2:
-            plant.inject(1, Fault(FaultKind.FREE_SWING, PANDA.joint_names[1]))
-        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
-                                 effort=plant.torque)
-        if change.events and not events:
-            first = t - fails_at
-        events += change.events
-        plant.command(t, monitor.command(command, t))
-        t += DT
-        plant.step(t)
-    monitor.close()
-    return events, first, monitor
+    events, first, monitor, _ = _through_the_monitor(
+        q, driver, 1, fails_at, lambda t: command, 3)
+    return events, first - fails_at, monitor
 
 
 @pytest.mark.parametrize("driver", list(DRIVERS))
@@ -251,31 +269,16 @@ def _coasting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
     joint 1's velocity, after the loss, first differed by 0.1 rad/s from the command in
     force at the plant to the first event, and the monitor.
     """
-    monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
-    plant = PhysicsPlant(PANDA, Q, DRIVERS[driver])
-    rng = np.random.default_rng(5)
-    events: list[str] = []
-    shown = first = np.inf
-    t = 0.0
-    for _ in range(round(3.0 / DT)):
-        if abs(t - fails_at) < DT / 2:
-            plant.inject(0, Fault(FaultKind.FREE_SWING, PANDA.joint_names[0]))
-        change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
-                                 effort=plant.torque)
-        if change.events and not events:
-            first = t
-        events += change.events
+    def command_at(t: float) -> np.ndarray:
         command = np.zeros(PANDA.n)
         command[[0, 1, 4, 6]] = [float(np.clip(0.3 - 2.0 * (t - 1.8), -0.3, 0.3)), 0.1,
                                  0.3, 0.3]
         if t < 1.2:  # varied: the monitor identifies the plant's lag meanwhile
             command[[0, 1, 4, 6]] += 0.15 * math.sin(4 * math.pi * t)
-        plant.command(t, monitor.command(command, t))
-        t += DT
-        plant.step(t)
-        if t >= fails_at and abs(plant.path.in_force(t)[0] - plant.qd[0]) >= 0.1:
-            shown = min(shown, t)
-    monitor.close()
+        return command
+
+    events, first, monitor, off = _through_the_monitor(Q, driver, 0, fails_at, command_at, 5)
+    shown = min((t for t, away in off if t >= fails_at and away >= 0.1), default=np.inf)
     return events, first - shown, monitor
 
 
