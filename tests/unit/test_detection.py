@@ -608,6 +608,25 @@ def test_a_lock_without_a_witness_is_a_candidate_the_detector_does_not_declare()
     assert detector.confirm(1, -0.3, 3.1).decision == "known"
 
 
+def test_a_suspect_explained_by_contact_is_refused_unless_its_drive_gives_no_torque() -> None:
+    """The veto (contact) refuses the suspect; not when the joint's drive is torqueless."""
+    alone = np.zeros(7)
+    alone[1] = 0.2
+    asked: list[list[int]] = []
+
+    def wall(joints: list[int], _since: float) -> str:
+        asked.append(joints)
+        return "the tool against a wall"
+
+    detector, _ = run(lambda t: alone, 3.0, lock=((1,), 2.0))
+    assert detector.joints[1].candidate
+    assert detector.confirm(1, -0.3, 3.0, wall).decision == "refused"
+    assert asked == [[1]] and detector.locked == {}
+    detector.torqueless[1] = True  # its drive silent at the last update (`Drives`)
+    assert detector.confirm(1, -0.3, 3.0, wall).decision == "locked"
+    assert asked == [[1]] and detector.locked == {1: -0.3}
+
+
 def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     detector.command(0.0, np.full(7, 0.5))

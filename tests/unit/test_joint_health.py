@@ -17,8 +17,8 @@ from builtin_interfaces.msg import Time
 from ft_core import robots
 from ft_core.detection import DetectorConfig, LockDetector
 from ft_core.detection.follow import DEGRADED_SHARE, MIN_MOTION, PERSISTENCE, FollowMeter
-from ft_core.health import Health, HealthBoard, JointHealth
-from ft_core.monitor import JointCondition, Monitor, MonitorConfig
+from ft_core.health import Health, HealthBoard, JointCondition, JointHealth
+from ft_core.monitor import Monitor, MonitorConfig
 from ft_core.plant import PlantConfig
 from ft_msgs_py import health
 from ft_msgs_py.messages import MessageError

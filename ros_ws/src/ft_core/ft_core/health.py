@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -131,6 +131,25 @@ class HealthBoard:
     def of(self, state: Health) -> list[int]:
         """The joints in `state`, in chain order."""
         return [j for j, s in enumerate(self.states) if s == state]
+
+    def report(self, joint: int, evidence: JointEvidence) -> JointReport:
+        """`joint`'s state for diagnostics, from its declared state and `evidence`.
+
+        A declared free swing, then a lock (braked or not), then a stall at a joint limit,
+        then a declared degradation: the first that holds.
+        """
+        declared = self.states[joint]
+        if declared == Health.FREE_SWINGING:
+            state = JointCondition.FREE_SWINGING
+        elif evidence.locked_at is not None:
+            state = JointCondition.LOCKED
+        elif evidence.at_limit:
+            state = JointCondition.AT_LIMIT
+        elif declared == Health.DEGRADED:
+            state = JointCondition.DEGRADED
+        else:
+            state = JointCondition.OK
+        return JointReport(state, replace(evidence))
 
     def health(self, joint: int, follows: float, torque_margin: float, lower: float,
                upper: float) -> JointHealth:

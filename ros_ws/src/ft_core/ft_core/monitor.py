@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +59,7 @@ from ft_core.detection import (
 )
 from ft_core.detection.contact import ContactWatch, driven
 from ft_core.detection.drives import DriveWatch
-from ft_core.health import Health, HealthBoard, JointCondition, JointHealth, JointReport
+from ft_core.health import Health, HealthBoard, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
 from ft_core.smoothing import Smoother
@@ -365,9 +365,8 @@ class Monitor:
 
     def _contact(self, joints: list[int], _since: float) -> str | None:
         """Why stalled `joints` are in contact, not failed, or None (`detection.contact`)."""
-        if (self.effort is None or self.q is None or self._drives.silent[joints].any()
-                or self.detector.unanswered[joints].any()):
-            return None  # a drive without torque pushes against nothing (`detection.drives`)
+        if self.effort is None or self.q is None:
+            return None
         return self._touch.explains(self.robot, self.q, self.effort, joints,
                                     self.detector.latest_time, self.detector.joints,
                                     acceleration=self.detector.acceleration)
@@ -387,9 +386,9 @@ class Monitor:
 
     def suspect(self, joint: int, now: float) -> tuple[Confirmation, Change]:
         """Decide on a lock of `joint` suspected elsewhere, on its own evidence (not in contact)."""
-        if self.q is None or self._contact([joint], now) is not None:
+        if self.q is None:
             return Confirmation(Decision.REFUSED, JointEvidence()), Change()
-        answer = self.detector.confirm(joint, float(self.q[joint]), now)
+        answer = self.detector.confirm(joint, float(self.q[joint]), now, self._contact)
         if answer.decision != Decision.LOCKED:
             return answer, Change()
         evidence = answer.evidence
@@ -428,19 +427,8 @@ class Monitor:
         return released
 
     def joint_report(self, joint: int) -> JointReport:
-        """The state of `joint` (chain index) for diagnostics."""
-        evidence, declared = self.detector.joints[joint], self.board.states[joint]
-        if declared == Health.FREE_SWINGING:
-            state = JointCondition.FREE_SWINGING
-        elif evidence.locked_at is not None:
-            state = JointCondition.LOCKED
-        elif evidence.at_limit:
-            state = JointCondition.AT_LIMIT
-        elif declared == Health.DEGRADED:
-            state = JointCondition.DEGRADED
-        else:
-            state = JointCondition.OK
-        return JointReport(state, replace(evidence))
+        """The state of `joint` (chain index) for diagnostics (`HealthBoard.report`)."""
+        return self.board.report(joint, self.detector.joints[joint])
 
     def plant_values(self) -> dict[str, object]:
         """The detector's view of the plant, for diagnostics."""

@@ -8,7 +8,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from ft_core.monitor import UNSEEN_AFTER, JointCondition, Monitor
+from ft_core.health import JointCondition
+from ft_core.monitor import UNSEEN_AFTER, Monitor
 from ft_msgs_py import diagnostics
 
 #: Diagnostic level of each joint state of `Monitor.joint_report`.

@@ -129,6 +129,9 @@ class LockDetector:
         self.acceleration: np.ndarray | None = None
         #: joints beyond their predictions whose drives did not answer at the last update
         self.unanswered = np.zeros(self.n, dtype=bool)
+        #: joints whose drives gave no torque at the last update (silent or unanswered):
+        #: never explained by contact, since such a drive pushes against nothing
+        self.torqueless = np.zeros(self.n, dtype=bool)
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -203,7 +206,8 @@ class LockDetector:
         (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
         it is called only when a joint moves on its own by the other tests (gravity's
         test can only clear a joint), so a healthy cycle pays nothing for it. `veto`
-        (`evidence.Veto`) is asked before joints are declared locked (contact).
+        (`evidence.Veto`) is asked before joints are declared locked (contact), never
+        about a joint whose drive gives no torque (`torqueless`).
         `drives` (`drives.DriveWatch`, from the efforts): a joint whose drive is silent
         (no torque while gravity turns it) outside its plausible predictions, the way
         gravity turns it, moves on its own at once, with no allowance for a servo's
@@ -248,8 +252,12 @@ class LockDetector:
         samples.end += 1
         offsets.end += 1
 
-    def confirm(self, joint: int, position: float, time: float) -> Confirmation:
+    def confirm(self, joint: int, position: float, time: float,
+                veto: Veto | None = None) -> Confirmation:
         """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.
+
+        Refused when `veto` explains the joint's stall (contact), unless its drive gave
+        no torque at the last update (`torqueless`).
 
         Locked when the joint is a candidate of the detector's own stall test at the
         last update, without the witness of another joint seen following (a suspect
@@ -262,6 +270,9 @@ class LockDetector:
         evidence = self.joints[joint]
         if evidence.locked_at is not None:
             return Confirmation(Decision.KNOWN, replace(evidence))
+        veto = _sparing(veto, self.torqueless)
+        if veto is not None and veto([joint], time) is not None:
+            return Confirmation(Decision.REFUSED, replace(evidence))
         if not evidence.candidate:
             slow = None if (self.not_observing is not None or self.plant_fault is not None
                             ) else self._spans.slow_stalls(
@@ -334,6 +345,8 @@ class LockDetector:
                                         if drives is not None and away.any()
                                         else np.zeros(self.n, dtype=bool))
         on_its_own = on_its_own | unanswered
+        self.torqueless = unanswered | (False if drives is None else drives.silent)
+        veto = _sparing(veto, self.torqueless)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
             deficit, lost = self._spans.lost_position(cfg, now, weakest, error, times,
@@ -436,6 +449,17 @@ class LockDetector:
         for j in degraded:
             joints[j].degraded_at = now
         return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
+
+
+def _sparing(veto: Veto | None, torqueless: np.ndarray) -> Veto | None:
+    """`veto`, but giving no reason where any of the joints asked about is `torqueless`.
+
+    A drive without torque pushes against nothing: contact cannot explain its joint's
+    motion (`detection.drives`).
+    """
+    if veto is None or not torqueless.any():
+        return veto
+    return lambda joints, since: None if torqueless[joints].any() else veto(joints, since)
 
 
 @functools.cache
