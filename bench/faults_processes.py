@@ -6,13 +6,15 @@ its inertias behind the slow driver: 50 ms latency, a 50 ms servo, the last comm
 install space at their default parameters, as `bench/soak.py` starts them, in real time
 on this machine. A probe in this process sends pose goals every 1.5 s; for each fault it
 waits until the monitor observes and the faulty joint is commanded and moves at 0.1 rad/s
-or more, publishes the fault on `ft/inject_fault` (a second lock follows on joint
-(j + 3) mod 6 after `SECOND` s), watches `ft/joint_health` for `WATCH` s while the goals
-go on, then resets the sim and the monitor (`~/reset`) for the next one. Kinds, in turn
-on each of the six joints the position task commands: lock, free swing, intermittent
-jam (0.5 s), viscous 50 N m s/rad, dry 5 N m, authority 0.25, a range cut 0.05 rad ahead,
-a second lock, lock and free swing again: 60 faults; `--loaded` runs them with one busy
-process per core beside the nodes (`ft_sim.cpu_load.busy_cores`).
+or more, publishes the fault on `ft/inject_fault`, watches `ft/joint_health` for `WATCH` s
+while the goals go on, then resets the sim and the monitor (`~/reset`) for the next one.
+A second lock, on joint (j + 3) mod 6, follows the first `SECOND` s later, once its joint
+moves as the first did (waiting at most `SECOND_WAIT` s more), and is watched at least
+`SECOND_WATCH` s. Kinds, in turn on each of the six joints the position task commands:
+lock, free swing, intermittent jam (0.5 s), viscous 50 N m s/rad, dry 5 N m, authority
+0.25, a range cut 0.05 rad ahead, a second lock, lock and free swing again: 60 faults;
+`--loaded` runs them with one busy process per core beside the nodes
+(`ft_sim.cpu_load.busy_cores`).
 
 Per fault: the state the monitor first declared the faulty joint in, and when (s from the
 injection's publication to the `ft/joint_health` message's arrival here: the delay a
@@ -62,10 +64,14 @@ JOINTS = [f"panda_joint{k}" for k in range(1, 8)]
 KINDS = [("lock", math.nan), ("free_swing", math.nan), ("intermittent", 0.5),
          ("viscous", 50.0), ("dry", 5.0), ("authority", 0.25), ("range", 0.05),
          ("second", math.nan), ("lock", math.nan), ("free_swing", math.nan)]
-#: s after the first lock of a "second" run that the second joint locks.
+#: s after the first lock of a "second" run that the second joint may lock.
 SECOND = 2.0
+#: s the second lock then waits at most for its joint to move at `MOVING`.
+SECOND_WAIT = 4.0
 #: s each fault is watched.
 WATCH = 8.0
+#: s a second lock is watched at least.
+SECOND_WATCH = 3.0
 #: rad/s the faulty joint must be commanded and move at when it fails; also how far its
 #: velocity must differ from the command in force for its fault to show.
 MOVING = 0.1
@@ -90,6 +96,7 @@ class Outcome:
     kind: str
     joint: int
     moving: bool = False  #: the joint moved at `MOVING` when it failed
+    second_moving: bool = False  #: the second lock's joint moved at `MOVING` when it locked
     named: str = "healthy"  #: the faulty joint's first declared state
     delay: float = math.nan  #: s from the injection to that message
     second_delay: float = math.nan  #: s from the second lock to its joint's declaration
@@ -148,6 +155,10 @@ class FaultProbe(Probe):
             self.sent = np.array([msg.velocity[index[name]] for name in JOINTS])
             self._sent_since.append((time.monotonic(), self.sent))
 
+    def moving(self, joint: int) -> bool:
+        """Whether `joint` is commanded and moves at `MOVING` or more."""
+        return min(abs(self.sent[joint]), abs(self.qd[joint])) >= MOVING
+
     def tick(self, send_goals: bool = True) -> None:
         """Send the next goal when due (no resets: the run does them)."""
         now = time.monotonic()
@@ -201,15 +212,17 @@ def run_fault(probe: FaultProbe, executor: EventsExecutor, kind: str, value: flo
     """One fault, from waiting for its joint to move to the resets after it."""
     outcome = Outcome(kind, joint)
     spin(probe, executor, 30.0, lambda: probe.observing == "yes")
-    outcome.moving = spin(probe, executor, MOVE_TIMEOUT, lambda: min(
-        abs(probe.sent[joint]), abs(probe.qd[joint])) >= MOVING)
+    outcome.moving = spin(probe, executor, MOVE_TIMEOUT, lambda: probe.moving(joint))
     injected = probe.inject(_fault(kind, value, joint, probe), joint)
     second, second_at = (joint + 3) % 6, math.inf
     end = injected + WATCH
     while time.monotonic() < end:
-        if kind == "second" and math.isinf(second_at) and \
-                time.monotonic() - injected >= SECOND:
+        since = time.monotonic() - injected
+        if kind == "second" and math.isinf(second_at) and since >= SECOND and (
+                probe.moving(second) or since >= SECOND + SECOND_WAIT):
+            outcome.second_moving = probe.moving(second)
             second_at = probe.inject(Fault(FaultKind.LOCK, JOINTS[second]), second)
+            end = max(end, second_at + SECOND_WATCH)
         spin(probe, executor, 0.02)
     name = JOINTS[joint]
     if name in probe.states:
