@@ -437,6 +437,36 @@ def test_a_drive_giving_nothing_for_its_joints_departure_leaves_it_unanswered() 
     assert not blind.unanswered(np.full(PANDA.n, 0.2), 0.05).any()
 
 
+def test_a_drive_that_pushed_within_its_last_response_times_answered_the_departure() -> None:
+    """A healthy servo's torque crosses zero as its velocity overshoots a hard acceleration.
+
+    Its reference term still pushes the joint on while its velocity term holds it back;
+    just before, it pushed. Joint 1 at home, 0.2 rad/s beyond its predictions behind a
+    50 ms servo (an answer of 2.1 N m): its drive gave 2 N m until 0.1 s, then nothing.
+    Unanswered only once the push is `ANSWER_SPANS` response times (0.1 s) old, and at
+    once for a drive that gave nothing throughout; a reset forgets the push.
+    """
+    gravity = PANDA.gravity(Q)
+    pushed = gravity.copy()
+    pushed[0] += 2.0
+    away = np.zeros(PANDA.n)
+    away[0] = 0.2
+    times = 0.004 * np.arange(76)
+
+    def first_unanswered(watch: DriveWatch, push_until: float) -> float:
+        return min((float(t) for t in times if watch.update(
+            t, Q, pushed if t <= push_until + 1e-9 else gravity).unanswered(away, 0.05)[0]),
+                   default=math.inf)
+
+    assert first_unanswered(DriveWatch(PANDA), 0.1) == pytest.approx(0.204)
+    assert first_unanswered(DriveWatch(PANDA), -1.0) == 0.0
+    watch = DriveWatch(PANDA)
+    for t in times[:26]:
+        watch.update(float(t), Q, pushed)
+    watch.reset()
+    assert watch.update(0.104, Q, gravity).unanswered(away, 0.05)[0]
+
+
 def test_a_departure_is_how_far_a_velocity_lies_beyond_every_plausible_prediction() -> None:
     """Outside [low, high], ahead or behind, by more than the noise, for the free joints."""
     plausible = np.array([[0.2, -0.1, 0.0, 0.3, 0.3], [0.3, -0.2, 0.0, 0.3, 0.5]])

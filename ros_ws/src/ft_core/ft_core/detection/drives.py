@@ -63,16 +63,20 @@ change of command take its velocity beyond every plausible prediction, by more t
 noise: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv (rad/s)
 and a response time T (the plausible set's slowest), and a drive without torque gives
 none. `Drives.unanswered` names such a joint where that answer is at least
-`ANSWER_TORQUE` and its drive gives under `ANSWER_SHARE` of it beyond gravity; the lock
-detector takes it as moving on its own once that has held `UNANSWERED_TIME` s (healthy
-drives crossing zero torque as an overshoot turns stayed under the share for at most
-24 ms at a time on the physics plant).
+`ANSWER_TORQUE` and its drive gave under `ANSWER_SHARE` of it beyond gravity throughout
+the last `ANSWER_SPANS` response times; the lock detector takes it as moving on its own
+once that has held `UNANSWERED_TIME` s. A healthy servo's torque crosses zero too: as a
+hard acceleration ends, its velocity overshoots the command while its reference term
+still pushes the joint on, and the two cancel for a few tens of ms (docs/benchmarks.md);
+but just before, it pushed the joint there. A drive without torque gave nothing
+throughout.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,6 +127,12 @@ ANSWER_SHARE = 0.1
 ANSWER_TORQUE = 0.25
 #: s a departure must stay unanswered for its joint to move on its own.
 UNANSWERED_TIME = 0.05
+#: Response times over which a drive must have given under `ANSWER_SHARE` of the answer.
+ANSWER_SPANS = 2
+#: s of the drives' torques kept for `Drives.unanswered` (beyond the longest span it asks).
+ANSWER_HORIZON = 0.5
+#: Most drives' torques kept (a bound on the loop over them, whatever the state rate).
+ANSWER_KEPT = 1000
 #: s over which the window slopes' change gives the accelerations.
 ACCELERATION_SPAN = 0.02
 #: Share of a joint's gravity torque its drive's torque may err by, the gravity model's
@@ -143,6 +153,9 @@ class Drives:
     robot: Robot | None = None  #: its inertias; None: unknown
     q: np.ndarray | None = None  #: rad, where the efforts were
     effort: np.ndarray | None = None  #: N m, the drives' torques tau
+    #: the largest |tau - g(q)| (N m, (n,)) each drive gave over the last given s, up to
+    #: this update; None: only this update's is known
+    given: Callable[[float], np.ndarray] | None = None
 
     def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
                         commanded: np.ndarray, least_lag: float) -> np.ndarray:
@@ -196,8 +209,9 @@ class Drives:
         slowest plausible response time. A servo answers with about M_jj(q) departure /
         `response` (N m); where that is at least `ANSWER_TORQUE`, the joint's gravity
         torque under `GRAVITY_SHARE` of its effort limit (`silent` judges the others) and
-        its drive's torque beyond gravity under `ANSWER_SHARE` of the answer, the drive
-        gives none (the module). False everywhere without efforts or inertias.
+        its drive's torque beyond gravity under `ANSWER_SHARE` of the answer throughout
+        the last `ANSWER_SPANS` `response` (`given`), the drive gives none (the module).
+        False everywhere without efforts or inertias.
         """
         robot = self.robot
         if robot is None or self.q is None or self.external is None or self.gravity is None:
@@ -205,8 +219,10 @@ class Drives:
         _, inertia = robot.gravity_dynamics(self.q)
         answer = inertia * departure / response
         limits = np.asarray(robot.effort_limits, float)
+        given = (np.abs(self.external) if self.given is None
+                 else self.given(ANSWER_SPANS * response))
         return ((answer >= ANSWER_TORQUE) & (self.gravity < GRAVITY_SHARE * limits)
-                & (np.abs(self.external) < ANSWER_SHARE * answer))
+                & (given < ANSWER_SHARE * answer))
 
     @staticmethod
     def _residual(robot: Robot, q: np.ndarray, effort: np.ndarray, velocity: np.ndarray,
@@ -267,12 +283,27 @@ class DriveWatch:
                               np.maximum(PUSH_SHARE * limits, PUSH_TORQUE), math.inf)
         self._pushed_at = np.full(robot.n, -math.inf)  # s, when each last pushed
         self.silent = np.zeros(robot.n, bool)  #: the joints named silent at the last update
+        #: (s, |tau - g| (N m, (n,))) of the last `ANSWER_HORIZON` s, oldest first
+        self._given: deque[tuple[float, np.ndarray]] = deque(maxlen=ANSWER_KEPT)
 
     def reset(self) -> None:
-        """Forget every silence and push."""
+        """Forget every silence, push and torque given."""
         self._since[:] = math.nan
         self._pushed_at[:] = -math.inf
         self.silent[:] = False
+        self._given.clear()
+
+    def given(self, span: float) -> np.ndarray:
+        """The largest |tau - g(q)| (N m, (n,)) each drive gave over the last `span` s."""
+        peak = np.zeros(self._robot.n)
+        if not self._given:
+            return peak
+        latest = self._given[-1][0]
+        for at, torque in reversed(self._given):
+            if at < latest - span:
+                break
+            np.maximum(peak, torque, out=peak)
+        return peak
 
     def update(self, now: float, q: np.ndarray, effort: np.ndarray) -> Drives:
         """What the `effort` (N m) says of each joint at `now` (s) and q (rad)."""
@@ -280,7 +311,14 @@ class DriveWatch:
         if not robot.has_inertias or not np.isfinite(self._least).any():
             return Drives(self.silent, np.zeros(robot.n, bool))
         signed = robot.gravity(q)
-        self._pushed_at[np.abs(effort - signed) >= self._push] = now
+        external = np.abs(effort - signed)
+        given = self._given
+        if given and given[-1][0] > now:  # time went back (a reset clock): start anew
+            given.clear()
+        while given and given[0][0] < now - ANSWER_HORIZON:
+            given.popleft()
+        given.append((now, external))
+        self._pushed_at[external >= self._push] = now
         pushing = now - self._pushed_at <= PUSH_MEMORY
         gravity = np.abs(signed)
         quiet = (gravity >= self._least) & (np.abs(effort) < SILENT_SHARE * gravity)
@@ -297,4 +335,5 @@ class DriveWatch:
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
                                   & (fallen >= FALL))
-        return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort)
+        return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort,
+                      self.given)
