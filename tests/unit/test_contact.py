@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ft_core import robots
+from ft_core.detection import drives
 from ft_core.detection.contact import (
     AFTER_CONTACT,
     MIN_TORQUE,
@@ -153,6 +154,32 @@ def test_a_tool_pushing_into_a_wall_declares_no_joint(driver: str, seed: int) ->
     loop.plant.remove_obstacle()
     loop.run(3.0)  # and after it: the shares made in contact are forgotten
     assert _declared(loop) == {} and loop.declared == []
+
+
+def test_a_wall_that_carries_a_joints_weight_leaves_no_drive_torqueless() -> None:
+    """Pushed into a wall behind the slow driver, Panda joints 2 and 4 let the wall hold them.
+
+    Their efforts fall under a tenth of their gravity torques (`drives.SILENT_SHARE`),
+    which alone would name their drives silent, and a silent drive would keep the contact
+    test from being asked about any group of held joints that holds it. While the tool is
+    in contact no drive counts as giving no torque, and no joint is declared.
+    """
+    loop = _push("slow", 2)
+    idle: set[int] = set()
+    torqueless: set[int] = set()
+
+    def watch() -> bool:
+        gravity = np.abs(loop.robot.gravity(loop.plant.q))
+        quiet = (np.abs(loop.plant.torque) < drives.SILENT_SHARE * gravity) & (
+            gravity >= drives.GRAVITY_SHARE * np.asarray(loop.robot.effort_limits))
+        idle.update(np.flatnonzero(quiet).tolist())
+        torqueless.update(np.flatnonzero(loop.monitor.detector.torqueless).tolist())
+        return False
+
+    loop.run(3.0, stop=watch)
+    assert loop.tool_error() > 0.05, "the wall did not hold the tool"
+    assert {1, 3} <= idle, idle
+    assert torqueless == set() and _declared(loop) == {} and loop.declared == []
 
 
 @pytest.mark.parametrize("joint", [1, 3])

@@ -32,11 +32,12 @@ Q = PANDA.home()
 DT = 0.004  # s, the engine period
 
 
-def _watch(effort_of, step: np.ndarray, cycles: int) -> list[np.ndarray]:
+def _watch(effort_of, step: np.ndarray, cycles: int,
+           carried: bool = False) -> list[np.ndarray]:
     """The silent flags of a DriveWatch over `cycles` updates, q moving by `step` each."""
     watch, q, flags = DriveWatch(PANDA), Q.copy(), []
     for k in range(cycles):
-        flags.append(watch.update(k * DT, q, effort_of(q)).silent)
+        flags.append(watch.update(k * DT, q, effort_of(q), carried).silent)
         q = q + step
     return flags
 
@@ -63,6 +64,8 @@ def test_a_drive_without_torque_whose_joint_falls_is_silent_after_its_time() -> 
     # The same drive giving its gravity torque, or the joint going uphill: never.
     assert not any(f.any() for f in _watch(gravity, _falling(1), 40))
     assert not any(f.any() for f in _watch(lost, -_falling(1), 40))
+    # Nor while a force on the tool (a wall lately) may carry the joint's weight.
+    assert not any(f.any() for f in _watch(lost, _falling(1), 40, carried=True))
 
 
 def test_a_joint_gravity_does_not_turn_is_never_silent() -> None:
@@ -420,7 +423,8 @@ def test_a_drive_giving_nothing_for_its_joints_departure_leaves_it_unanswered() 
     the answer is 2.1 N m. A drive giving nothing, or 0.1 N m, leaves it unanswered; one
     giving 1 N m, half the answer, does not. A departure of 0.02 rad/s (0.21 N m, under
     `ANSWER_TORQUE`) says nothing, nor a slower servo's (the answer scales as 1 / T), nor
-    a shoulder gravity loads (`silent` judges it), nor a driver without efforts.
+    a shoulder gravity loads (`silent` judges it), nor a driver without efforts, nor a
+    drive while a force on the tool may answer for it (`Drives.carried`).
     """
     inertia = PANDA.gravity_dynamics(Q)[1][0]
     assert inertia == pytest.approx(0.53, abs=0.01)
@@ -435,6 +439,11 @@ def test_a_drive_giving_nothing_for_its_joints_departure_leaves_it_unanswered() 
     assert not _unanswered(1, 0.0, 0.2).any()
     blind = Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool))
     assert not blind.unanswered(np.full(PANDA.n, 0.2), 0.05).any()
+    away = np.zeros(PANDA.n)
+    away[0] = 0.2
+    assert DriveWatch(PANDA).update(0.0, Q, PANDA.gravity(Q)).unanswered(away, 0.05)[0]
+    carried = DriveWatch(PANDA).update(0.0, Q, PANDA.gravity(Q), carried=True)
+    assert not carried.unanswered(away, 0.05).any()  # a wall lately: it may answer instead
 
 
 def test_a_drive_that_pushed_within_its_last_response_times_answered_the_departure() -> None:

@@ -292,13 +292,15 @@ class Monitor:
         `effort`: the joints' efforts (N m) where the driver reports them.
         """
         self.q, self.effort = q, effort
+        touching = False  # the tool is or was lately in contact (`ContactWatch.lately`)
         if effort is not None:
             self.board.effort(now, effort)
-            if self.robot.has_inertias and self._touch.lately(self.robot, q, effort, now,
-                                                              self.detector.joints):
+            touching = self.robot.has_inertias and self._touch.lately(
+                self.robot, q, effort, now, self.detector.joints, self.detector.acceleration)
+            if touching:
                 self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
-        drives = None if effort is None else self._drives.update(now, q, effort)
+        drives = None if effort is None else self._drives.update(now, q, effort, touching)
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q),
                                        self._contact if self.robot.has_inertias

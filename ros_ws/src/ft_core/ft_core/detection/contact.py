@@ -34,7 +34,9 @@ window accelerations are known, the external torques are the inverse dynamics' r
 tau - M(q) qdd - C qd - g(q) (the external-torque reading of De Luca & Mattone's
 actuator-fault residuals): a weak drive's fall and a slowing arm leave none, a push on
 the tool leaves J^T f, and for an arm at rest against an obstacle it is tau - g(q).
-Only the watch's look with no joint stalled (`ContactWatch.lately`) reads tau - g(q).
+The watch's look with no joint stalled (`ContactWatch.lately`) reads it too: a link
+falling without torque loads the drives statically as a force at the tool would, and
+would end the silence of its drive (`ft_core.detection.drives`) for as long.
 
 The efforts also tell a joint that moved again after its lock with its drive's torque (a
 jam that let go, its servo catching up: `driven`) from one whose drive lost its torque
@@ -192,15 +194,19 @@ class ContactWatch:
         return in_contact(robot, q, effort, stalled, least, braked, commanded, motion=motion)
 
     def lately(self, robot: Robot, q: np.ndarray, effort: np.ndarray, now: float,
-               joints: Sequence[JointEvidence]) -> bool:
+               joints: Sequence[JointEvidence],
+               acceleration: np.ndarray | None = None) -> bool:
         """Whether the tool is or was lately in contact at `now` (s).
 
         Looked at every `CONTACT_PERIOD` s, with no joint stalled and `least` N m (`joints`
-        as `explains` takes them). The joints' shares of their commands then say nothing
-        of their drives (`ft_core.detection.follow`).
+        and `acceleration` as `explains` takes them). The joints' shares of their
+        commands then say nothing of their drives (`ft_core.detection.follow`), nor does
+        a drive that gives no torque (`ft_core.detection.drives`): the obstacle's force
+        can carry its joint's weight.
         """
         if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
-            if self.explains(robot, q, effort, [], now, joints, self.least) is not None:
+            if self.explains(robot, q, effort, [], now, joints, self.least,
+                             acceleration) is not None:
                 self._touched = now
         return now - self._touched < AFTER_CONTACT

@@ -17,10 +17,12 @@ fast as gravity does (a Panda's shoulder: its 7.5 rad/s^2 limit is about g / ine
 for 60 ms in 12 minutes of goals and for 200 ms in a remap after a brake, on the physics
 plant. So a silent joint still has to move outside its plausible predictions, but with
 no allowance for a servo's transient and no wait (`LockDetector.measure`), and the
-contact veto does not hold it back (a drive pushing against an obstacle gives more
-torque, not none). A joint gravity hardly turns (a vertical axis) is never silent: its
-free swing is told by its motion alone. Without efforts, inertias or effort limits
-nothing is silent.
+contact veto does not hold it back. Nor is a drive silent while the tool is or was
+lately pushed by an obstacle (`ContactWatch.lately`): the obstacle's force carries part
+of the arm's weight, and a healthy drive whose joint it props up gives none (a Panda's
+shoulder and elbow against a wall, on the physics plant). A joint gravity hardly turns
+(a vertical axis) is never silent: its free swing is told by its motion alone. Without
+efforts, inertias or effort limits nothing is silent.
 
 The other way round, a drive that *pushes* a joint that does not move: a brake or a jam
 takes its drive's torque, so the external torque tau - g(q) of its joint grows with the
@@ -64,12 +66,12 @@ noise: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv
 and a response time T (the plausible set's slowest), and a drive without torque gives
 none. `Drives.unanswered` names such a joint where that answer is at least
 `ANSWER_TORQUE` and its drive gave under `ANSWER_SHARE` of it beyond gravity throughout
-the last `ANSWER_SPANS` response times; the lock detector takes it as moving on its own
-once that has held `UNANSWERED_TIME` s. A healthy servo's torque crosses zero too: as a
-hard acceleration ends, its velocity overshoots the command while its reference term
-still pushes the joint on, and the two cancel for a few tens of ms (docs/benchmarks.md);
-but just before, it pushed the joint there. A drive without torque gave nothing
-throughout.
+the last `ANSWER_SPANS` response times, the tool not pushed lately (`Drives.carried`);
+the lock detector takes it as moving on its own once that has held `UNANSWERED_TIME` s.
+A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
+overshoots the command while its reference term still pushes the joint on, and the two
+cancel for a few tens of ms; but just before, it pushed the joint there. A drive without
+torque gave nothing throughout.
 """
 
 from __future__ import annotations
@@ -156,6 +158,8 @@ class Drives:
     #: the largest |tau - g(q)| (N m, (n,)) each drive gave over the last given s, up to
     #: this update; None: only this update's is known
     given: Callable[[float], np.ndarray] | None = None
+    #: a force on the tool lately, which can carry any joint's weight: no drive unanswered
+    carried: bool = False
 
     def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
                         commanded: np.ndarray, least_lag: float) -> np.ndarray:
@@ -211,10 +215,11 @@ class Drives:
         torque under `GRAVITY_SHARE` of its effort limit (`silent` judges the others) and
         its drive's torque beyond gravity under `ANSWER_SHARE` of the answer throughout
         the last `ANSWER_SPANS` `response` (`given`), the drive gives none (the module).
-        False everywhere without efforts or inertias.
+        False everywhere without efforts or inertias, and while `carried`.
         """
         robot = self.robot
-        if robot is None or self.q is None or self.external is None or self.gravity is None:
+        if (robot is None or self.q is None or self.external is None or self.gravity is None
+                or self.carried):
             return np.zeros(departure.size, bool)
         _, inertia = robot.gravity_dynamics(self.q)
         answer = inertia * departure / response
@@ -305,8 +310,13 @@ class DriveWatch:
             np.maximum(peak, torque, out=peak)
         return peak
 
-    def update(self, now: float, q: np.ndarray, effort: np.ndarray) -> Drives:
-        """What the `effort` (N m) says of each joint at `now` (s) and q (rad)."""
+    def update(self, now: float, q: np.ndarray, effort: np.ndarray,
+               carried: bool = False) -> Drives:
+        """What the `effort` (N m) says of each joint at `now` (s) and q (rad).
+
+        `carried`: the tool is or was lately pushed by an obstacle (`detection.contact`),
+        whose force can carry any joint's weight: no drive is silent or unanswered.
+        """
         robot = self._robot
         if not robot.has_inertias or not np.isfinite(self._least).any():
             return Drives(self.silent, np.zeros(robot.n, bool))
@@ -334,6 +344,6 @@ class DriveWatch:
                 fallen = (q - self._from) * falling
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
-                                  & (fallen >= FALL))
+                                  & (fallen >= FALL) & (not carried))
         return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort,
-                      self.given)
+                      self.given, carried)
