@@ -12,8 +12,11 @@ A second lock, on joint (j + 3) mod 6, follows the first `SECOND` s later, once 
 moves as the first did (waiting at most `SECOND_WAIT` s more), and is watched at least
 `SECOND_WATCH` s. Kinds, in turn on each of the six joints the position task commands:
 lock, free swing, intermittent jam (0.5 s), viscous 50 N m s/rad, dry 5 N m, authority
-0.25, a range cut 0.05 rad ahead, a second lock, lock and free swing again: 60 faults;
-`--loaded` runs them with one busy process per core beside the nodes
+0.25, a range cut 0.05 rad ahead, a second lock, lock and free swing again: 60 faults.
+Then 20 contacts: with the arm at rest at a goal, a wall (`ft_sim.closed_loop.WALL`) is
+placed across the tool's way to the next one (`ft_sim.closed_loop.wall_across`), the goal
+sent, the wall removed `PUSH` s later, and the goal waited for; every joint declared is
+a healthy one. `--loaded` runs them all with one busy process per core beside the nodes
 (`ft_sim.cpu_load.busy_cores`).
 
 Per fault: the state the monitor first declared the faulty joint in, and when (s from the
@@ -37,6 +40,7 @@ import math
 import os
 import time
 from collections import deque
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -51,13 +55,15 @@ from ft_core.health import Health
 from ft_msgs_py import faults as fault_messages
 from ft_msgs_py import health as health_messages
 from ft_msgs_py import names, qos
+from ft_sim.closed_loop import WALL, wall_across
 from ft_sim.cpu_load import busy_cores
 from rclpy.context import Context
 from rclpy.experimental.events_executor import EventsExecutor
 from sensor_msgs.msg import JointState
-from soak_probe import STREAM, Probe
+from soak_probe import GOALS, STREAM, Probe
 from soak_processes import PLANTS, deployed
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
 
 JOINTS = [f"panda_joint{k}" for k in range(1, 8)]
 #: (kind, value) in turn; "second" is a lock, then another `SECOND` s later.
@@ -82,6 +88,17 @@ LATENCY = float(PLANTS["physics"]["sim"]["command_latency"])
 #: stops there, healthy or not.
 LIMIT_MARGIN = DetectorConfig().limit_margin
 PANDA = robots.load("panda")
+#: The deployed model and tool point (`soak_processes.PLANTS`), for where the tool is.
+TOOL = robots.load(PLANTS["physics"]["model"]["robot_model"],
+                   tip_link=PLANTS["physics"]["model"]["tip_link"])
+#: Contacts after the faults, and s the tool is driven into the wall in each.
+CONTACTS = 20
+PUSH = 3.0
+#: s the arm rests at a goal before the wall; s the goal is waited for once it is gone.
+REST = 2.0
+REACH = 10.0
+#: m from the goal for it to count as reached.
+REACHED = 0.01
 #: s the probe waits for the joint to move before it injects anyway.
 MOVE_TIMEOUT = 20.0
 #: The states that name a fault of each kind right (the rest: any but healthy).
@@ -103,6 +120,8 @@ class Outcome:
     shown_delay: float = math.nan  #: s from when the fault showed to that message
     second_shown_delay: float = math.nan  #: the same for the second lock
     others: list[str] = field(default_factory=list)  #: healthy joints declared
+    held: float = math.nan  #: m, a contact's tool from its goal as the wall was removed
+    reached: bool = False  #: a contact's goal reached once the wall was gone
 
 
 class FaultProbe(Probe):
@@ -113,6 +132,7 @@ class FaultProbe(Probe):
         node = self.node
         self._inject = node.create_publisher(DiagnosticArray, names.INJECT_FAULT, qos.RELIABLE)
         self._sim_reset = node.create_client(Trigger, "sim/reset")
+        self._obstacle = node.create_publisher(Marker, names.OBSTACLE, qos.RELIABLE)
         node.create_subscription(DiagnosticArray, names.JOINT_HEALTH, self._on_health,
                                  qos.LATCHED)
         node.create_subscription(JointState, names.JOINT_STATES, self._on_q, STREAM)
@@ -166,6 +186,23 @@ class FaultProbe(Probe):
             self._send_goal()
             self._next_goal = now + self.goal_period
 
+    def tool(self) -> np.ndarray:
+        """Where the tool point is by the latest joint state (m, base frame)."""
+        return TOOL.transform(self.q)[:3, 3]
+
+    def next_goal(self) -> np.ndarray:
+        """The goal the next `send_goal` sends (m)."""
+        return np.array(GOALS[self._goal_index % len(GOALS)])
+
+    def send_goal(self) -> None:
+        """Send the next goal now."""
+        self._send_goal()
+
+    def wall(self, pose: np.ndarray | None) -> None:
+        """A wall of edges `WALL` at `pose` (4x4, base frame) in the sim; None: removed."""
+        self._obstacle.publish(Marker(action=Marker.DELETE) if pose is None
+                               else fault_messages.obstacle_message(pose, WALL))
+
     def inject(self, fault: Fault, joint: int) -> float:
         """Publish `fault` of `joint`; the monotonic time of publication."""
         self._inject.publish(fault_messages.message([fault]))
@@ -181,11 +218,11 @@ class FaultProbe(Probe):
 
 
 def spin(probe: FaultProbe, executor: EventsExecutor, seconds: float,
-         until=lambda: False) -> bool:
-    """Spin `seconds` (wall clock) with the goals going on; stop early once `until()`."""
+         until=lambda: False, goals: bool = True) -> bool:
+    """Spin `seconds` (wall clock), the goals going on if `goals`; stop early once `until()`."""
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        probe.tick()
+        probe.tick(goals)
         executor.spin_once(timeout_sec=0.005)
         if until():
             return True
@@ -243,6 +280,29 @@ def run_fault(probe: FaultProbe, executor: EventsExecutor, kind: str, value: flo
     return outcome
 
 
+def run_contact(probe: FaultProbe, executor: EventsExecutor) -> Outcome:
+    """One contact: the tool driven into a wall for `PUSH` s, then freed (the module)."""
+    outcome = Outcome("contact", -1)
+    spin(probe, executor, 30.0, lambda: probe.observing == "yes")
+    spin(probe, executor, REST, goals=False)
+    goal = probe.next_goal()
+    probe.wall(wall_across(probe.tool(), goal))
+    spin(probe, executor, 0.5, goals=False)
+    probe.send_goal()
+    spin(probe, executor, PUSH, goals=False)
+    outcome.held = float(np.linalg.norm(probe.tool() - goal))
+    probe.wall(None)
+    outcome.reached = spin(probe, executor, REACH, lambda: bool(
+        np.linalg.norm(probe.tool() - goal) < REACHED), goals=False)
+    spin(probe, executor, 1.0)
+    outcome.others = sorted(probe.states)
+    probe.reset(executor)
+    spin(probe, executor, 2.0)
+    print(f"{time.strftime('%H:%M:%S')} contact: held {outcome.held:.3f} m from its goal, "
+          f"reached after {outcome.reached}, declared {outcome.others}", flush=True)
+    return outcome
+
+
 def _percentile(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else math.nan
 
@@ -268,6 +328,12 @@ def table(outcomes: list[Outcome]) -> list[str]:
                      + f" | {_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f} | "
                      f"{_percentile(shown, 50):.0f} / {_percentile(shown, 99):.0f} | "
                      f"{sum(bool(o.others) for o in rows)} |")
+    contacts = [o for o in outcomes if o.kind == "contact"]
+    if contacts:
+        lines.append(f"| contact {PUSH:.0f} s | {len(contacts)} | - | held "
+                     f"{_percentile([o.held for o in contacts], 50):.2f} m from its goal "
+                     f"(median), reached after the wall {sum(o.reached for o in contacts)} | "
+                     f"- | - | {sum(bool(o.others) for o in contacts)} |")
     return lines
 
 
@@ -278,6 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loaded", action="store_true",
                         help="one busy process per core beside the nodes")
     parser.add_argument("--faults", type=int, default=len(KINDS) * 6)
+    parser.add_argument("--contacts", type=int, default=CONTACTS)
     args = parser.parse_args(argv)
     domain = int(os.environ.get("FT_BENCH_DOMAIN_FAULTS", "64"))
     context = Context()
@@ -290,11 +357,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with deployed("physics", domain, args.out / "faults_processes_logs", "separate"):
             spin(probe, executor, 90.0, lambda: probe.observing == "yes")
-            if args.loaded:
-                with busy_cores():
-                    outcomes = [run_fault(probe, executor, *case) for case in cases]
-            else:
+            with busy_cores() if args.loaded else nullcontext():
                 outcomes = [run_fault(probe, executor, *case) for case in cases]
+                outcomes += [run_contact(probe, executor) for _ in range(args.contacts)]
     finally:
         executor.shutdown()
         rclpy.shutdown(context=context)

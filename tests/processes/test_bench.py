@@ -205,18 +205,24 @@ def test_fault_grid_benchmark_names_a_lock_and_holds_a_contact(tmp_path: Path) -
 
 @pytest.mark.slow
 def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
-    """`bench/faults_processes.py`: two locks into the installed executables, and the table."""
+    """`bench/faults_processes.py`: two locks and a contact into the installed executables."""
     env = {**os.environ, "FT_BENCH_DOMAIN_FAULTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "faults_processes.py"), "--out", str(tmp_path),
-         "--faults", "2"], capture_output=True, text=True, timeout=300, check=False, env=env)
+         "--faults", "2", "--contacts", "1"], capture_output=True, text=True, timeout=300,
+        check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     outcomes = json.loads((tmp_path / "faults_processes.json").read_text())["outcomes"]
-    assert [(o["kind"], o["joint"]) for o in outcomes] == [("lock", 0), ("lock", 1)]
+    assert [(o["kind"], o["joint"]) for o in outcomes] == [("lock", 0), ("lock", 1),
+                                                            ("contact", -1)]
+    locks, contact = outcomes[:2], outcomes[2]
     assert all(o["named"] == "locked" and 0 < o["delay"] < 2.0 and o["others"] == []
-               for o in outcomes), outcomes
+               for o in locks), outcomes
     # Each lock showed once its joint, commanded, stood still: no later than it was named.
     assert all(o["shown_delay"] is not None and 0 <= o["shown_delay"] <= o["delay"]
-               for o in outcomes), outcomes
+               for o in locks), outcomes
+    # The wall held the tool short of its goal, nothing was declared, the goal was reached.
+    assert contact["held"] > 0.05 and contact["others"] == [] and contact["reached"], contact
     table = (tmp_path / "faults_processes.md").read_text()
     assert "| lock | 2 | 2 | locked 2 |" in table
+    assert "| contact 3 s | 1 | - | held " in table and "reached after the wall 1 |" in table
