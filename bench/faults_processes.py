@@ -177,7 +177,7 @@ class FaultProbe(Probe):
 
     def moving(self, joint: int) -> bool:
         """Whether `joint` is commanded and moves at `MOVING` or more."""
-        return min(abs(self.sent[joint]), abs(self.qd[joint])) >= MOVING
+        return bool(min(abs(self.sent[joint]), abs(self.qd[joint])) >= MOVING)
 
     def tick(self, send_goals: bool = True) -> None:
         """Send the next goal when due (no resets: the run does them)."""
