@@ -194,16 +194,17 @@ class Graph:
             f"timed out waiting for {what}\n{self.report()}")
 
     def report(self) -> str:
-        """What the graph shows now: the locked set, the processes, the monitor's state.
+        """What the graph shows now: the locked set, the processes, the nodes' states.
 
         A timed-out wait prints it, so a failure on a CI machine says why.
         """
-        monitor = self.values("/monitor")
+        monitor, controller = self.values("/monitor"), self.values("/controller")
         logs = "\n".join(f"--- {name}, its last lines\n"
                          + "\n".join(self.log(name).splitlines()[-12:])
                          for name in self.processes)
         return (f"locked set {self.locked_names()}, ever {sorted(self.ever_locked())}; "
                 f"running {self.alive()}\nmonitor status {monitor[-1] if monitor else None}\n"
+                f"controller status {controller[-1] if controller else None}\n"
                 f"{logs}")
 
     def send_goal(self, index: int | None = None) -> None:

@@ -205,11 +205,15 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
     """
     values = parameters(tmp_path, HOLDING_PLANT)
     rate = 250.0  # the controller's default control_rate
+    arm = robots.load("panda")
     with graph(tmp_path, values) as g:
         observing(g)
+        # From rest at the first goal, the third is a long move: the arm is moving fast
+        # when the monitor dies (sent on the way to another goal, it may never be).
         g.send_goal(0)
-        g.spin(0.3)
-        g.send_goal(2)  # a long move: the arm is moving fast when the monitor dies
+        g.wait(lambda: np.linalg.norm(_tool(g, arm) - np.array(GOALS[0])) < 0.01, 10.0,
+               "the tool at the first goal")
+        g.send_goal(2)
         g.wait(lambda: bool(g.commands) and np.max(np.abs(g.commands[-1].velocity)) > 0.6,
                10.0, "the arm moving fast")
         fast = len(g.commands) - 1
