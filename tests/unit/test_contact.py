@@ -49,6 +49,26 @@ def test_a_force_on_the_tool_explains_the_torques_a_lock_does_not() -> None:
     assert in_contact(PANDA, Q, gravity, [1]) is None  # free, at rest: nothing external
 
 
+def test_a_tool_held_at_a_wall_by_six_stalled_joints_is_contact() -> None:
+    """The deployed wall: the tool pressed with 200 N, six Panda joints held still.
+
+    Six locks would explain every external torque (all but the flange's, which is nil),
+    as the force does; weighed with as many unknowns as the force has, they explain 81 %.
+    A brake's push among them that the force cannot explain is still no contact.
+    """
+    q = np.array([-0.11, 0.31, -0.1, -2.09, 1.56, 0.63, 0.81])
+    J = PANDA.base_jacobian(q)[:3]
+    pushed = J.T @ np.array([-23.0, -110.0, -162.0])
+    held = [0, 1, 2, 3, 4, 5]
+    assert pushed[held] @ pushed[held] / (pushed @ pushed) == pytest.approx(1.0)
+    contact, by_force, by_locks = explained_by_contact(pushed, J, held)
+    assert contact and by_force == pytest.approx(1.0) and by_locks == pytest.approx(0.81, abs=0.01)
+    braked = np.zeros(7)
+    braked[0] = 80.0  # panda_joint1's drive pushing its brake, near its limit
+    contact, by_force, _ = explained_by_contact(pushed + braked, J, held)
+    assert not contact and by_force < 0.8
+
+
 def test_a_joint_falling_under_its_weak_drive_is_no_force_on_the_tool() -> None:
     """The shoulder falling with tau = M qdd + C qd + g exactly: its torque short of g(q).
 

@@ -13,7 +13,12 @@ command in free motion needs little more than g(q). When joints are about to be
 declared locked (or degraded), `explained_by_contact` compares both explanations of
 tau_ext: the best force at the tool, R_f = |tau_ext - J^T f|^2 / |tau_ext|^2 over f
 (least squares, the tool point's linear rows of J), and the stalled joints alone, R_l =
-the share of |tau_ext|^2 outside them. It is contact when the force explains the
+the share of |tau_ext|^2 outside them. Both explanations are weighed with as many
+unknowns: a force has three components, k locks k brake torques, and k locks explain
+more as k grows, every torque once all the joints that carry one are stalled (a tool
+held at a wall, its controller's recovery pushing six Panda joints against it). So for
+more than three stalled joints R_l counts only the three of them with the largest
+external torques. It is contact when the force explains the
 torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R_f),
 they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m), and the
 command drives the tool into the force: an obstacle pushes back only on a tool sent into
@@ -88,7 +93,8 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: li
             `PUSH_ANGLE` of the tool velocity they command. None: not asked.
 
     Returns:
-        (contact, share the force explains 1 - R_f, share the stalled joints explain 1 - R_l).
+        (contact, share the force explains 1 - R_f, share the stalled joints explain 1 - R_l,
+        the latter from at most as many of them as the force has components).
     """
     total = float(external @ external)
     if not math.isfinite(total) or total < MIN_TORQUE ** 2:
@@ -96,7 +102,8 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: li
     force = np.linalg.lstsq(jacobian.T, external, rcond=None)[0]
     residual = external - jacobian.T @ force
     by_force = 1.0 - float(residual @ residual) / total
-    by_locks = float(external[stalled] @ external[stalled]) / total
+    shares = np.sort(external[stalled] ** 2)[::-1]
+    by_locks = float(shares[:len(force)].sum()) / total
     contact = by_force >= CONTACT_SHARE and by_force > by_locks
     if contact and commanded is not None:
         sent = jacobian @ commanded
