@@ -93,7 +93,7 @@ TOOL = robots.load(PLANTS["physics"]["model"]["robot_model"],
                    tip_link=PLANTS["physics"]["model"]["tip_link"])
 #: Contacts after the faults, and s the tool is driven into the wall in each.
 CONTACTS = 20
-PUSH = 6.0  # past the controller's recovery, which pushes on with every joint
+PUSH = 6.0  # past the start of the controller's recovery, which holds six joints at the wall
 #: s the arm rests at a goal before the wall; s the goal is waited for once it is gone.
 REST = 2.0
 REACH = 10.0

@@ -225,4 +225,4 @@ def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
     assert contact["held"] > 0.05 and contact["others"] == [] and contact["reached"], contact
     table = (tmp_path / "faults_processes.md").read_text()
     assert "| lock | 2 | 2 | locked 2 |" in table
-    assert "| contact 3 s | 1 | - | held " in table and "reached after the wall 1 |" in table
+    assert "| contact 6 s | 1 | - | held " in table and "reached after the wall 1 |" in table
