@@ -210,9 +210,7 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
         observing(g)
         # From rest at the first goal, the third is a long move: the arm is moving fast
         # when the monitor dies (sent on the way to another goal, it may never be).
-        g.send_goal(0)
-        g.wait(lambda: np.linalg.norm(_tool(g, arm) - np.array(GOALS[0])) < 0.01, 10.0,
-               "the tool at the first goal")
+        _to_first_goal(g, arm)
         g.send_goal(2)
         g.wait(lambda: bool(g.commands) and np.max(np.abs(g.commands[-1].velocity)) > 0.6,
                10.0, "the arm moving fast")
@@ -408,6 +406,13 @@ def _tool(g: Graph, arm: robots.Robot) -> np.ndarray:
     return arm.transform(convert.joint_vector(g.states[-1], arm.joint_names))[:3, 3]
 
 
+def _to_first_goal(g: Graph, arm: robots.Robot) -> None:
+    """Send GOALS[0] and wait (10 s at most) until the tool is within 1 cm of it."""
+    g.send_goal(0)
+    g.wait(lambda: np.linalg.norm(_tool(g, arm) - np.array(GOALS[0])) < 0.01, 10.0,
+           "the tool at the first goal")
+
+
 @pytest.mark.slow
 @pytest.mark.no_other_graph
 @pytest.mark.parametrize("loaded", [False, True], ids=["idle", "loaded"])
@@ -433,9 +438,7 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
             (busy_cores() if loaded else nullcontext()):
         g.spin(2.0, goal_period=1.5)
         observing(g)
-        g.send_goal(0)
-        g.wait(lambda: np.linalg.norm(_tool(g, arm) - np.array(GOALS[0])) < 0.01, 10.0,
-               "the tool at the first goal")
+        _to_first_goal(g, arm)
         start, goal = _tool(g, arm), np.array(GOALS[1])
         g.place_obstacle(wall_across(start, goal), WALL)
         g.spin(0.5)
