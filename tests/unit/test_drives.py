@@ -307,6 +307,44 @@ def test_a_joint_gravity_does_not_turn_coasting_without_torque_is_named_as_it_de
     assert events == []
 
 
+def _starting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
+    """The arm starts from rest, joint 1 commanded to -0.3 rad/s at 1 rad/s^2.
+
+    Joints 2, 5 and 7 move as commanded from the start (witnesses); joint 1 loses its
+    torque at `fails_at` s. Returns the monitor's events, when (s) the first came, and
+    the monitor.
+    """
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(PANDA.n)
+        command[[0, 1, 4, 6]] = [-min(0.3, t), 0.1, 0.3, 0.3]
+        return command
+
+    events, first, monitor, _ = _through_the_monitor(Q, driver, 0, fails_at, command_at, 7)
+    return events, first, monitor
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+def test_a_joint_without_torque_from_the_start_is_named_before_the_plant_was_seen_following(
+        driver: str) -> None:
+    """Its drive gives nothing while the others follow: the plant is live all the same.
+
+    Joint 1 without torque from the first command stands still while the others follow:
+    the plant is never seen following with no joint stalled, which the detector waits
+    for before any decision. A drive giving nothing for its joint's departure, another
+    joint following, shows the plant live: free-swinging within 1 s of the start (the
+    window, the settling after commands begin, then `UNANSWERED_TIME`). Healthy: nothing.
+    """
+    events, first, monitor = _starting(driver, 0.0)
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint1 free-swinging")
+    assert "its drive not answering" in events[0]
+    assert first <= 1.0
+    assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [0]
+    events, _, monitor = _starting(driver, np.inf)
+    assert monitor.detector.not_observing is None
+    assert events == []
+
+
 def test_a_healthy_joint_pushed_into_its_stop_is_not_named() -> None:
     events, _, monitor = _onto_the_stop("slow", np.inf)
     assert monitor.detector.not_observing is None  # it judged the motion throughout
@@ -487,6 +525,13 @@ def test_a_departure_is_how_far_a_velocity_lies_beyond_every_plausible_predictio
     # standard errors of 0.1; 0.2 behind 0.3.
     assert away == pytest.approx([0.2, 0.2, 0.0, 0.0, 0.2])
     assert rules.departure(measured, plausible, error, ~free, 0.05, 5.0).tolist() == [0] * 5
+    # Departed at the last update, half the margin keeps it: 0.04 beyond 0.3 against a
+    # margin of 0.05, the others as before.
+    measured[4] = 0.26
+    kept = np.array([False, False, False, False, True])
+    assert rules.departure(measured, plausible, error, free, 0.05, 5.0,
+                           kept, 0.5) == pytest.approx([0.2, 0.2, 0.0, 0.0, 0.04])
+    assert rules.departure(measured, plausible, error, free, 0.05, 5.0)[4] == 0.0
 
 
 def test_accelerations_are_the_velocities_change_over_their_span() -> None:

@@ -18,6 +18,8 @@ import numpy as np
 from ft_core.detection import rules
 from ft_core.detection.config import DetectorConfig
 from ft_core.detection.drives import (
+    DEPARTURE_KEEP,
+    DEPARTURE_SHARE,
     HELD_LIMIT_MARGIN,
     HELD_TIME,
     STILL_SPAN,
@@ -291,6 +293,7 @@ class LockDetector:
     def _clear_evidence(self) -> None:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
+        self.unanswered = np.zeros(self.n, dtype=bool)
 
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None,
@@ -339,8 +342,8 @@ class LockDetector:
         inside = (latest - self.lower > HELD_LIMIT_MARGIN) & (self.upper - latest
                                                               > HELD_LIMIT_MARGIN)
         away = np.zeros(self.n) if drives is None or not witnessed else rules.departure(
-            measured, plausible, error, unlocked & undeclared & inside, cfg.min_command,
-            cfg.confidence)
+            measured, plausible, error, unlocked & undeclared & inside,
+            DEPARTURE_SHARE * cfg.min_command, cfg.confidence, self.unanswered, DEPARTURE_KEEP)
         self.unanswered = unanswered = (drives.unanswered(away, plant.slowest_response)
                                         if drives is not None and away.any()
                                         else np.zeros(self.n, dtype=bool))
@@ -413,10 +416,13 @@ class LockDetector:
                 evidence.candidate = False
             return Update()
         self.plant_fault = None
-        if self._seen_following < cfg.follow_time and not any(unheld):
-            if held_long.any():  # a drive pushing a joint that stays: the plant is live
+        if self._seen_following < cfg.follow_time:
+            # The plant is live where a drive gives nothing for its joint's departure
+            # while another joint follows (`unanswered` asks for that witness), whatever
+            # else stalls; or, nothing stalling, where a drive pushes a joint that stays.
+            if unanswered.any() or (held_long.any() and not any(unheld)):
                 self._seen_following = cfg.follow_time
-            elif n_following:
+            elif n_following and not any(unheld):
                 self._seen_following += dt
         if self._seen_following < cfg.follow_time:
             self.not_observing = "plant not yet seen following commands"

@@ -62,12 +62,13 @@ A joint gravity hardly turns (a vertical axis, `GRAVITY_SHARE`) is never silent:
 torque it coasts as commanded, as a healthy joint at constant speed does, and its drive's
 torque there is as small as a healthy one's. It shows once the others' reactions or a
 change of command take its velocity beyond every plausible prediction, by more than the
-noise: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv (rad/s)
+noise and `DEPARTURE_SHARE` of `detection.min_command`: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv (rad/s)
 and a response time T (the plausible set's slowest), and a drive without torque gives
 none. `Drives.unanswered` names such a joint where that answer is at least
 `ANSWER_TORQUE` and its drive gave under `ANSWER_SHARE` of it beyond gravity throughout
 the last `ANSWER_SPANS` response times, the tool not pushed lately (`Drives.carried`);
-the lock detector takes it as moving on its own once that has held `UNANSWERED_TIME` s.
+the lock detector takes it as moving on its own once that has held `UNANSWERED_TIME` s
+(the departure kept meanwhile by `DEPARTURE_KEEP` of its margin).
 A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
 overshoots the command while its reference term still pushes the joint on, and the two
 cancel for a few tens of ms; but just before, it pushed the joint there. A drive without
@@ -127,6 +128,14 @@ ANSWER_SHARE = 0.1
 #: N m, the least answer a departure must call for to say anything (below it, a drive's
 #: torque is mostly its model's error).
 ANSWER_TORQUE = 0.25
+#: Share of `detection.min_command` (rad/s) a joint's velocity must lie beyond every
+#: plausible prediction, and beyond the noise, for its drive's answer to be asked
+#: (`rules.departure`): `ANSWER_TORQUE` bounds it from below as well (a Panda shoulder's
+#: 0.025 rad/s over a 50 ms response asks about 0.5 N m).
+DEPARTURE_SHARE = 0.5
+#: Share of that margin a departure left unanswered at the last update must keep: one
+#: near the margin otherwise comes and goes with the window slope's noise.
+DEPARTURE_KEEP = 0.5
 #: s a departure must stay unanswered for its joint to move on its own.
 UNANSWERED_TIME = 0.05
 #: Response times over which a drive must have given under `ANSWER_SHARE` of the answer.

@@ -158,20 +158,25 @@ def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: n
 
 
 def departure(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
-              free: np.ndarray, min_command: float, confidence: float) -> np.ndarray:
+              free: np.ndarray, floor: float, confidence: float,
+              kept: np.ndarray | None = None, keep: float = 1.0) -> np.ndarray:
     """How far each joint's velocity lies beyond every plausible prediction (n,) (rad/s).
 
     Outside [low, high] over the plausible predictions (`plausible`, models x n, rad/s),
-    ahead of them or behind, by more than max(`confidence` `error`, `min_command`), for
-    the joints `free` to be judged; 0 elsewhere (`drives.Drives.unanswered` asks whether
-    a drive answers it). Behind its predictions is also how a stall looks: a joint a
-    brake holds, its drive pushing, is answered; a stopped plant moves no witness.
+    ahead of them or behind, by more than max(`confidence` `error`, `floor`), for the
+    joints `free` to be judged; 0 elsewhere (`drives.Drives.unanswered` asks whether a
+    drive answers it). The joints `kept` (departed at the last update) need only `keep`
+    of that margin, so that a departure near it does not come and go with the slope's
+    noise. Behind its predictions is also how a stall looks: a joint a brake holds, its
+    drive pushing, is answered; a stopped plant moves no witness.
     """
     if plausible.size == 0:
         return np.zeros(measured.size)
     low, high = plausible.min(axis=0), plausible.max(axis=0)
     outside = np.maximum(low - measured, measured - high)
-    noise = np.maximum(confidence * error, min_command)
+    noise = np.maximum(confidence * error, floor)
+    if kept is not None:
+        noise = np.where(kept, keep * noise, noise)
     return np.where(free & (outside > noise), outside, 0.0)
 
 
