@@ -104,13 +104,14 @@ def test_a_lock_as_the_arm_slows_into_its_goal_is_named_within_0_8_s(joint: int)
 
 def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: float,
                seed: int = 3, lock: tuple[int, float] | None = None,
-               silent: set[int] | None = None) -> tuple[list, list]:
+               silent: set[int] | None = None, efforts: bool = True) -> tuple[list, list]:
     """The monitor between fixed commands and the physics plant behind the slow driver.
 
     From `q` (rad), the plant is sent `command_at(t)` (rad/s) through the monitor every
     4 ms until `until` (s); `lock` (joint, s): that joint's brake engages then. Returns
     the declarations [(t, line)] and the plant's velocities [(t, qd)]; `silent` collects
-    the joints whose drives the monitor found silent (`detection.drives`).
+    the joints whose drives the monitor found silent (`detection.drives`). Without
+    `efforts` the monitor is not given the drives' torques.
     """
     robot = robots.load("panda_inertial", tip_link="panda_link8")
     monitor = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
@@ -121,7 +122,7 @@ def _open_loop(q: np.ndarray, command_at: Callable[[float], np.ndarray], until: 
         if lock is not None and abs(t - lock[1]) < dt / 2:
             plant.lock(lock[0])
         change = monitor.observe(plant.q + rng.normal(0.0, NOISE, robot.n), t,
-                                 effort=plant.torque)
+                                 effort=plant.torque if efforts else None)
         events += [(t, line) for line in change.events]
         if silent is not None:
             silent.update(np.flatnonzero(monitor._drives.silent).tolist())
@@ -155,6 +156,41 @@ def _decelerating(joint: int, fast: float, lock_at: float | None = None) -> tupl
     events, _ = _open_loop(q, command_at, 3.0,
                            lock=None if lock_at is None else (joint, lock_at))
     return events, math.nan if lock_at is None else lock_at
+
+
+def _from_the_start(lock_at: float | None) -> list:
+    """Declarations as the arm starts from rest, efforts unreported, joint 1 locked at `lock_at` s.
+
+    Joint 1 is commanded to -0.3 rad/s at 1 rad/s^2, joints 2, 5 and 7 at 0.1, 0.3 and
+    0.3 rad/s from the first command (witnesses).
+    """
+    panda = robots.load("panda_inertial", tip_link="panda_link8")
+
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(panda.n)
+        command[[0, 1, 4, 6]] = [-min(0.3, t), 0.1, 0.3, 0.3]
+        return command
+
+    events, _ = _open_loop(panda.home(), command_at, 2.0, efforts=False,
+                           lock=None if lock_at is None else (0, lock_at))
+    return events
+
+
+def test_a_lock_from_the_first_command_is_named_while_the_others_follow() -> None:
+    """The plant counts as seen following while joints follow and no plant fault shows.
+
+    Before any decision the detector waits for the plant to follow its commands for
+    `detection.follow_time`. Joint 1 braked from the first command stalls throughout,
+    so with the others following it is a lock candidate, not a stopped plant: named
+    locked within 1 s of the start (the window, the settling after commands begin, the
+    following time), and nothing else. Healthy: nothing.
+    """
+    events = _from_the_start(0.0)
+    assert events, "the lock was not named"
+    assert [line.split()[1] for _, line in events] == ["panda_joint1"]
+    assert "locked" in events[0][1]
+    assert events[0][0] <= 1.0
+    assert _from_the_start(None) == []
 
 
 @pytest.mark.parametrize(("joint", "fast"), [(3, 1.5), (5, 1.5), (5, 2.0)])

@@ -417,12 +417,14 @@ class LockDetector:
             return Update()
         self.plant_fault = None
         if self._seen_following < cfg.follow_time:
-            # The plant is live where a drive gives nothing for its joint's departure
-            # while another joint follows (`unanswered` asks for that witness), whatever
-            # else stalls; or, nothing stalling, where a drive pushes a joint that stays.
+            # The plant follows while joints follow and the stalled ones show no plant
+            # fault (a joint failed since the start or a gap stalls throughout). It is
+            # live at once where a drive gives nothing for its joint's departure while
+            # another joint follows (`unanswered` asks for that witness), or, nothing
+            # else stalling, where a drive pushes a joint that stays.
             if unanswered.any() or (held_long.any() and not any(unheld)):
                 self._seen_following = cfg.follow_time
-            elif n_following and not any(unheld):
+            elif n_following:
                 self._seen_following += dt
         if self._seen_following < cfg.follow_time:
             self.not_observing = "plant not yet seen following commands"

@@ -62,14 +62,14 @@ A joint gravity hardly turns (a vertical axis, `GRAVITY_SHARE`) is never silent:
 torque it coasts as commanded, as a healthy joint at constant speed does, and its drive's
 torque there is as small as a healthy one's. It shows once the others' reactions or a
 change of command take its velocity beyond every plausible prediction, by more than the
-noise and `DEPARTURE_SHARE` of `detection.min_command`: a servo answers that departure, about M_jj(q) |dv| / T for a departure dv (rad/s)
-and a response time T (the plausible set's slowest), and a drive without torque gives
-none. `Drives.unanswered` names such a joint where that answer is at least
-`ANSWER_TORQUE` and its drive gave under `ANSWER_SHARE` of it beyond gravity throughout
-the last `ANSWER_SPANS` response times, the tool not pushed lately (`Drives.carried`);
-the lock detector takes it as moving on its own once that has held `UNANSWERED_TIME` s
-(the departure kept meanwhile by `DEPARTURE_KEEP` of its margin).
-A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
+noise and `DEPARTURE_SHARE` of `detection.min_command`: a servo answers that departure,
+about M_jj(q) |dv| / T for a departure dv (rad/s) and a response time T (the plausible
+set's slowest), and a drive without torque gives none. `Drives.unanswered` names such a
+joint where that answer is at least `ANSWER_TORQUE` and its drive gave under
+`ANSWER_SHARE` of it beyond gravity throughout the last `ANSWER_SPANS` response times,
+the tool not pushed lately (`Drives.carried`); the lock detector takes it as moving on
+its own once that has held `UNANSWERED_TIME` s (the departure kept meanwhile by
+`DEPARTURE_KEEP` of its margin). A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
 overshoots the command while its reference term still pushes the joint on, and the two
 cancel for a few tens of ms; but just before, it pushed the joint there. A drive without
 torque gave nothing throughout.
