@@ -69,7 +69,8 @@ joint where that answer is at least `ANSWER_TORQUE` and its drive gave under
 `ANSWER_SHARE` of it beyond gravity throughout the last `ANSWER_SPANS` response times,
 the tool not pushed lately (`Drives.carried`); the lock detector takes it as moving on
 its own once that has held `UNANSWERED_TIME` s (the departure kept meanwhile by
-`DEPARTURE_KEEP` of its margin). A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
+`DEPARTURE_KEEP` of its margin).
+A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
 overshoots the command while its reference term still pushes the joint on, and the two
 cancel for a few tens of ms; but just before, it pushed the joint there. A drive without
 torque gave nothing throughout.
