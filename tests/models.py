@@ -1,4 +1,7 @@
-"""Small test robots as URDF strings, and the open-loop control of Maciejewski et al. Theorem 1."""
+"""Small test robots, the open-loop control of Maciejewski et al. Theorem 1, a Panda command.
+
+The robots as URDF strings; the Panda's command from rest is shared by the detection tests.
+"""
 
 from __future__ import annotations
 
@@ -83,3 +86,14 @@ def pseudoinverse_control(q0, x_d, locked: int, seconds: float = 20.0, gain: flo
         moved[locked] = 0.0
         q = q + DT * moved
     return q, qd, channel, suspected_at
+
+
+def panda_from_rest(t: float) -> np.ndarray:
+    """A Panda's command (rad/s, 7 joints) at t s after starting from rest.
+
+    Joint 1 ramps to -0.3 rad/s at 1 rad/s^2; joints 2, 5 and 7 move at 0.1, 0.3 and
+    0.3 rad/s from the first command (witnesses that the plant follows).
+    """
+    command = np.zeros(7)
+    command[[0, 1, 4, 6]] = [-min(0.3, t), 0.1, 0.3, 0.3]
+    return command

@@ -24,6 +24,7 @@ from ft_core.health import Health
 from ft_core.monitor import Monitor, MonitorConfig
 from ft_core.physics import PhysicsPlant
 from ft_sim.closed_loop import DRIVERS, NOISE, ClosedLoop
+from models import panda_from_rest
 
 pytestmark = pytest.mark.unit
 
@@ -308,18 +309,12 @@ def test_a_joint_gravity_does_not_turn_coasting_without_torque_is_named_as_it_de
 
 
 def _starting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
-    """The arm starts from rest, joint 1 commanded to -0.3 rad/s at 1 rad/s^2.
+    """The arm starts from rest (`models.panda_from_rest`); joint 1 loses its torque at `fails_at`.
 
-    Joints 2, 5 and 7 move as commanded from the start (witnesses); joint 1 loses its
-    torque at `fails_at` s. Returns the monitor's events, when (s) the first came, and
-    the monitor.
+    `fails_at` in s. Returns the monitor's events, when (s) the first came, and the monitor.
     """
-    def command_at(t: float) -> np.ndarray:
-        command = np.zeros(PANDA.n)
-        command[[0, 1, 4, 6]] = [-min(0.3, t), 0.1, 0.3, 0.3]
-        return command
-
-    events, first, monitor, _ = _through_the_monitor(Q, driver, 0, fails_at, command_at, 7)
+    events, first, monitor, _ = _through_the_monitor(Q, driver, 0, fails_at,
+                                                     panda_from_rest, 7)
     return events, first, monitor
 
 

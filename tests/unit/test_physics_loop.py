@@ -28,6 +28,7 @@ from ft_core.detection import DetectorConfig
 from ft_core.monitor import Monitor, MonitorConfig
 from ft_core.physics import PhysicsPlant
 from ft_sim.closed_loop import DRIVERS, GOAL_PERIOD, NOISE, ClosedLoop
+from models import panda_from_rest
 
 #: s of healthy goals before the lock (the monitor identifies the plant meanwhile).
 HEALTHY = 4.0
@@ -161,17 +162,10 @@ def _decelerating(joint: int, fast: float, lock_at: float | None = None) -> tupl
 def _from_the_start(lock_at: float | None) -> list:
     """Declarations as the arm starts from rest, efforts unreported, joint 1 locked at `lock_at` s.
 
-    Joint 1 is commanded to -0.3 rad/s at 1 rad/s^2, joints 2, 5 and 7 at 0.1, 0.3 and
-    0.3 rad/s from the first command (witnesses).
+    The command is `models.panda_from_rest`.
     """
     panda = robots.load("panda_inertial", tip_link="panda_link8")
-
-    def command_at(t: float) -> np.ndarray:
-        command = np.zeros(panda.n)
-        command[[0, 1, 4, 6]] = [-min(0.3, t), 0.1, 0.3, 0.3]
-        return command
-
-    events, _ = _open_loop(panda.home(), command_at, 2.0, efforts=False,
+    events, _ = _open_loop(panda.home(), panda_from_rest, 2.0, efforts=False,
                            lock=None if lock_at is None else (0, lock_at))
     return events
 

@@ -165,7 +165,7 @@ def departure(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
     Outside [low, high] over the plausible predictions (`plausible`, models x n, rad/s),
     ahead of them or behind, by more than max(`confidence` `error`, `floor`), for the
     joints `free` to be judged; 0 elsewhere (`drives.Drives.unanswered` asks whether a
-    drive answers it). The joints `kept` (departed at the last update) need only `keep`
+    drive answers it). The joints `kept` (left unanswered at the last update) need only `keep`
     of that margin, so that a departure near it does not come and go with the slope's
     noise. Behind its predictions is also how a stall looks: a joint a brake holds, its
     drive pushing, is answered; a stopped plant moves no witness.
