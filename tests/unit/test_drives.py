@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from ft_core import robots, swing
 from ft_core.detection import DetectorConfig, drives, rules
-from ft_core.detection.drives import Drives, DriveWatch
+from ft_core.detection.drives import UNANSWERED_TIME, Drives, DriveWatch
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_core.monitor import Monitor, MonitorConfig
@@ -199,19 +199,21 @@ def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_o
 
 def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float,
                          command_at: Callable[[float], np.ndarray], seed: int,
-                         ) -> tuple[list[str], float, Monitor, list[tuple[float, float]]]:
+                         ) -> tuple[list[str], float, Monitor, list[tuple[float, float, float]]]:
     """3 s of the physics plant from `q` behind `driver`, commanded through a monitor.
 
     `command_at(t)`: the controller's command at t (rad/s); `joint` loses its torque at
     `fails_at` s; 1e-3 rad of noise (`seed`) on the positions, the drives' torques as
     efforts. Returns the monitor's events, when (s) the first came, the monitor, and per
-    step (t, |command in force at the plant - velocity| of `joint`, rad/s).
+    step (t, |command in force at the plant - velocity| of `joint`, rad/s, since when (s)
+    the detector has seen `joint` depart where its drive leaves that unanswered, NaN
+    elsewhere).
     """
     monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
     plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
     rng = np.random.default_rng(seed)
     events: list[str] = []
-    off: list[tuple[float, float]] = []
+    off: list[tuple[float, float, float]] = []
     first = np.inf
     t = 0.0
     for _ in range(round(3.0 / DT)):
@@ -225,7 +227,9 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
         plant.command(t, monitor.command(command_at(t), t))
         t += DT
         plant.step(t)
-        off.append((t, abs(plant.path.in_force(t)[joint] - plant.qd[joint])))
+        detector = monitor.detector
+        off.append((t, abs(plant.path.in_force(t)[joint] - plant.qd[joint]),
+                    detector.departed_since[joint] if detector.unanswered[joint] else np.nan))
     monitor.close()
     return events, first, monitor, off
 
@@ -264,14 +268,16 @@ def test_a_free_swing_that_lands_on_its_stop_is_named_and_the_joints_it_drags_ar
     assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [1]
 
 
-def _coasting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
+def _coasting(driver: str, fails_at: float,
+              ) -> tuple[list[str], float, Monitor, tuple[float, float, float]]:
     """Panda joint 1 at 0.3 rad/s loses its torque at `fails_at` s; at 1.8 s its command turns.
 
     Joints 2, 5 and 7 move throughout (witnesses), all four commands vary by 0.15 rad/s
     at 2 Hz for the first 1.2 s (the plant's lag identified), joint 1's ramps from 0.3 to
     -0.3 rad/s at 2 rad/s^2 from 1.8 s on. Returns the monitor's events, the s from when
     joint 1's velocity, after the loss, first differed by 0.1 rad/s from the command in
-    force at the plant to the first event, and the monitor.
+    force at the plant to the first event, the monitor, and when (s) the detector saw
+    joint 1 depart, first found its drive leaving that unanswered, and named it.
     """
     def command_at(t: float) -> np.ndarray:
         command = np.zeros(PANDA.n)
@@ -282,8 +288,10 @@ def _coasting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:
         return command
 
     events, first, monitor, off = _through_the_monitor(Q, driver, 0, fails_at, command_at, 5)
-    shown = min((t for t, away in off if t >= fails_at and away >= 0.1), default=np.inf)
-    return events, first - shown, monitor
+    shown = min((t for t, away, _ in off if t >= fails_at and away >= 0.1), default=np.inf)
+    found, departed = next(((t - DT, since) for t, _, since in off if since == since),
+                           (np.inf, np.inf))  # judged at the step's start, DT before t
+    return events, first - shown, monitor, (departed, found, first)
 
 
 @pytest.mark.parametrize("driver", list(DRIVERS))
@@ -297,15 +305,32 @@ def test_a_joint_gravity_does_not_turn_coasting_without_torque_is_named_as_it_de
     the noise first, then `UNANSWERED_TIME`), braked, no other joint named. The same
     motion with the drive healthy: nothing.
     """
-    events, after, monitor = _coasting(driver, 1.5)
+    events, after, monitor, _ = _coasting(driver, 1.5)
     assert events, "the swing was not named"
     assert events[0].startswith("joint panda_joint1 free-swinging")
     assert "its drive not answering" in events[0]
     assert 0.0 <= after <= 0.25
     assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [0]
-    events, _, monitor = _coasting(driver, np.inf)
+    events, _, monitor, _ = _coasting(driver, np.inf)
     assert monitor.detector.not_observing is None
     assert events == []
+
+
+def test_an_unanswered_departure_counts_from_when_it_began() -> None:
+    """A departure seen before its drive is found silent counts from when it began.
+
+    Joint 1 loses its torque as its command turns: its departure shows before its drive
+    is found silent, the torque from before the loss still within the two response times
+    `Drives.unanswered` looks back over. Those times show the drive giving nothing all
+    along, so the departure's `UNANSWERED_TIME` counts from when it began: the joint is
+    named `persistence` after its drive is found silent, not `UNANSWERED_TIME` later.
+    """
+    events, _, _, (departed, found, named) = _coasting("slow", 1.93)
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint1 free-swinging")
+    assert departed <= found - UNANSWERED_TIME  # it departed that long before
+    persistence = DetectorConfig().persistence
+    assert found + persistence - 1e-9 <= named <= found + persistence + 2 * DT
 
 
 def _starting(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:

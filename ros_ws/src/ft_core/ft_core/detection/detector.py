@@ -18,6 +18,7 @@ import numpy as np
 from ft_core.detection import rules
 from ft_core.detection.config import DetectorConfig
 from ft_core.detection.drives import (
+    ANSWER_SPANS,
     DEPARTURE_KEEP,
     DEPARTURE_SHARE,
     HELD_LIMIT_MARGIN,
@@ -131,6 +132,9 @@ class LockDetector:
         self.acceleration: np.ndarray | None = None
         #: joints beyond their predictions whose drives did not answer at the last update
         self.unanswered = np.zeros(self.n, dtype=bool)
+        #: s, since when each joint's velocity has lain beyond its predictions
+        #: (`rules.departure`); NaN: not now
+        self.departed_since = np.full(self.n, math.nan)
         #: joints whose drives gave no torque at the last update (silent or unanswered):
         #: never explained by contact, since such a drive pushes against nothing
         self.torqueless = np.zeros(self.n, dtype=bool)
@@ -216,9 +220,9 @@ class LockDetector:
         transient and no wait; one whose drive works against its motion does not
         (`Drives.let_go`); one off every plausible prediction whose drive gives nothing
         for it (`Drives.unanswered`), another joint moving as commanded, moves on its
-        own after `UNANSWERED_TIME`; one whose drive pushes, still within `STILL_SPAN`
-        over the window while a plausible model commands it and another joint moves, is
-        a lock candidate.
+        own once it has been off them `UNANSWERED_TIME` (`departed_since`); one whose
+        drive pushes, still within `STILL_SPAN` over the window while a plausible model
+        commands it and another joint moves, is a lock candidate.
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -294,6 +298,7 @@ class LockDetector:
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
         self.unanswered = np.zeros(self.n, dtype=bool)
+        self.departed_since = np.full(self.n, math.nan)
 
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None,
@@ -347,6 +352,8 @@ class LockDetector:
         self.unanswered = unanswered = (drives.unanswered(away, plant.slowest_response)
                                         if drives is not None and away.any()
                                         else np.zeros(self.n, dtype=bool))
+        self.departed_since = departed = np.where(away > 0, np.fmin(self.departed_since, now),
+                                                  math.nan)
         on_its_own = on_its_own | unanswered
         self.torqueless = unanswered | (False if drives is None else drives.silent)
         veto = _sparing(veto, self.torqueless)
@@ -432,12 +439,16 @@ class LockDetector:
             return Update()
         settle = plant.settling_time(best)
         disturbance = Disturbance(joints, now, self._declared_at + settle)
+        # An unanswered departure's time counts from when it began, as far back as the
+        # drive's torques show it giving nothing (`drives.ANSWER_SPANS` response times).
+        silent_for = ANSWER_SPANS * plant.slowest_response
         swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
-            lambda j: 0.0 if drives is not None and drives.silent[j] else min(
+            lambda j, since: 0.0 if drives is not None and drives.silent[j] else min(
                 rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
                                  cfg.confidence, cfg.min_command),
-                UNANSWERED_TIME if unanswered[j] else math.inf), veto)
+                max(0.0, UNANSWERED_TIME - min(since - departed[j], silent_for))
+                if unanswered[j] else math.inf), veto)
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
                                        cfg.persistence, settle, veto)

@@ -68,8 +68,9 @@ set's slowest), and a drive without torque gives none. `Drives.unanswered` names
 joint where that answer is at least `ANSWER_TORQUE` and its drive gave under
 `ANSWER_SHARE` of it beyond gravity throughout the last `ANSWER_SPANS` response times,
 the tool not pushed lately (`Drives.carried`); the lock detector takes it as moving on
-its own once that has held `UNANSWERED_TIME` s (the departure kept meanwhile by
-`DEPARTURE_KEEP` of its margin).
+its own once the departure has held `UNANSWERED_TIME` s (kept meanwhile by
+`DEPARTURE_KEEP` of its margin), counted from when it began as far back as those
+`ANSWER_SPANS` response times reach.
 A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
 overshoots the command while its reference term still pushes the joint on, and the two
 cancel for a few tens of ms; but just before, it pushed the joint there. A drive without
@@ -137,7 +138,8 @@ DEPARTURE_SHARE = 0.5
 #: Share of that margin a departure left unanswered at the last update must keep: one
 #: near the margin otherwise comes and goes with the window slope's noise.
 DEPARTURE_KEEP = 0.5
-#: s a departure must stay unanswered for its joint to move on its own.
+#: s a departure must stay unanswered for its joint to move on its own (from when it
+#: began, at most `ANSWER_SPANS` response times before its drive was found silent).
 UNANSWERED_TIME = 0.05
 #: Response times over which a drive must have given under `ANSWER_SHARE` of the answer.
 ANSWER_SPANS = 2

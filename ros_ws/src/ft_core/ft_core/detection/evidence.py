@@ -88,15 +88,16 @@ Veto = Callable[[list[int], float], str | None]
 
 def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
                    disturbance: Disturbance, persistence: float, settle: float,
-                   wait: Callable[[int], float], veto: Veto | None = None,
+                   wait: Callable[[int, float], float], veto: Veto | None = None,
                    ) -> tuple[list[int], list[int], str | None]:
     """Joints newly declared free-swinging at `now` (s), those of them that were locked.
 
-    `own[j]`: joint j moves on its own at this update; `wait(j)`: `rules.swing_wait` for
-    it (s); `settle`: the plant's settling time (s). A joint declared locked that moves
-    was never locked: it swings, and its lock is taken back. When `veto` gives a reason
-    for the joints ready to be declared, none is, their evidence starts anew, and the
-    reason is returned last.
+    `own[j]`: joint j moves on its own at this update; `wait(j, since)`: how long (s)
+    beyond `persistence` it must go on doing so, having done so since `since` (s);
+    `settle`: the plant's settling time (s). A joint declared locked that moves was never
+    locked: it swings, and its lock is taken back. When `veto` gives a reason for the
+    joints ready to be declared, none is, their evidence starts anew, and the reason is
+    returned last.
     """
     ready = []
     for j, evidence in enumerate(joints):
@@ -107,7 +108,7 @@ def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
             continue
         if evidence.swing_since is None:
             evidence.swing_since, evidence.swing_late = now, disturbance.late(j)
-        needed = persistence + wait(j)
+        needed = persistence + wait(j, evidence.swing_since)
         if evidence.swing_late:
             needed = max(needed, persistence + settle)
         if now - evidence.swing_since >= needed:
