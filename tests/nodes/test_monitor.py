@@ -14,6 +14,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ft_core import robots
 from ft_core.command_limits import DriverCheck, command_limits
 from ft_core.health import Health
+from ft_core.smoothing import Smoother
+from ft_monitor.handover import HANDOVER, LISTEN, Handover
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, diagnostics, health, names, qos, wire
 from ft_msgs_py.monitor_guard import ECHO_PERIOD
@@ -273,6 +275,112 @@ def test_the_monitor_echoes_what_it_sends_at_most_once_per_echo_period() -> None
             assert (echo.header.stamp.sec, echo.header.stamp.nanosec) == tuple(stamp)
         assert len(echoes) <= span / ECHO_PERIOD + 1 < count, (
             f"{len(echoes)} echoes of {count} commands sent in {span * 1e3:.1f} ms")
+
+
+def test_the_monitor_holds_off_while_the_guard_commands_then_goes_on_from_its_stop() -> None:
+    """`ft/command_guard`: the controller's guard commands the plant; the monitor is back.
+
+    Each command that comes meanwhile is echoed alone (the guard, answered, stops) and
+    nothing goes on `ft/command`; `HANDOVER` after the guard's last command the monitor
+    commands again, from it: the guard's commands and the monitor's make one stream
+    within Franka's limits. A `ft/command_guard` from a node that does not publish on
+    `ft/command` is refused and changes nothing.
+    """
+    limits = command_limits(PANDA.name, PANDA.joint_names, PANDA.velocity_limits)
+    every = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    with loop() as lp:
+        echoes: list[JointState] = []
+        lp.node.create_subscription(JointState, names.COMMAND_ECHO, echoes.append, every)
+        stranger = harness_node("stranger", lp.monitor.context)
+        lp.executor.add_node(stranger)
+        guard = lp.node.create_publisher(JointState, names.COMMAND_GUARD, qos.RELIABLE)
+        assert spin_until(lp.executor, lambda: lp.monitor.count_publishers(
+            names.COMMAND_GUARD) == 1, 10.0), "the guard's publisher never seen"
+        for _ in range(100):
+            lp.step(constant(np.full(7, 0.6)))
+
+        def answered(velocity: np.ndarray, publisher) -> JointState:
+            """A guard command stamped now, then a command; the echo that answers it."""
+            publisher.publish(convert.joint_state(PANDA.joint_names, lp.stamp(),
+                                                  velocity=velocity.tolist()))
+            time.sleep(ECHO_PERIOD)  # echoes go out at most once per period
+            echoed = len(echoes)
+            lp.send(np.full(7, 0.6))
+            assert spin_until(lp.executor, lambda: len(echoes) > echoed, 5.0), "no echo"
+            return echoes[-1]
+
+        # A stranger's: refused, the monitor keeps commanding.
+        foreign = stranger.create_publisher(JointState, names.COMMAND_GUARD, qos.RELIABLE)
+        assert spin_until(lp.executor, lambda: lp.monitor.count_publishers(
+            names.COMMAND_GUARD) == 2, 10.0)
+        sent = len(lp.commands)
+        lp.sim.step()
+        answered(np.zeros(7), foreign)
+        assert spin_until(lp.executor, lambda: len(lp.commands) > sent, 5.0)
+        assert "ft/command_guard" in lp.monitor.problems.active
+        stranger.destroy_publisher(foreign)
+        assert spin_until(lp.executor, lambda: lp.monitor.count_publishers(
+            names.COMMAND_GUARD) == 1, 10.0)
+        # The guard of the plant's stream (it publishes on ft/command too).
+        lp.node.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
+        assert spin_until(lp.executor, lambda: lp.monitor.count_publishers(names.COMMAND) == 2,
+                          10.0)
+        stream = [(convert.stamp_seconds(m.header.stamp), np.array(m.velocity))
+                  for m in lp.commands]
+        ramp = Smoother(limits)
+        ramp.reset(stream[-1][1])
+        before = len(lp.commands)
+        for _ in range(15):
+            lp.sim.step()
+            stream.append((lp.sim.t, ramp.step(np.zeros(7), lp.sim.t)))
+            echo = answered(stream[-1][1], guard)
+            np.testing.assert_array_equal(echo.velocity, stream[-1][1])
+        assert len(lp.commands) == before, "the monitor commanded while the guard did"
+        assert "guard" in lp.monitor.problems.active
+        time.sleep(HANDOVER)
+        lp.sim.step()
+        for _ in range(50):
+            lp.step(constant(np.full(7, 0.6)))
+        assert "guard" not in lp.monitor.problems.active
+        after = [(convert.stamp_seconds(m.header.stamp), np.array(m.velocity))
+                 for m in lp.commands[before:]]
+        assert 0.0 < after[0][1][0] - stream[-1][1][0] < 0.1, "not from the guard's last"
+        np.testing.assert_array_equal(after[-1][1], np.full(7, 0.6))  # the target again
+        driver = DriverCheck(limits)
+        for stamp, velocity in sorted(stream + after, key=lambda c: c[0]):
+            assert driver.check(velocity, stamp) is None, f"at {stamp:.3f} s"
+
+
+def test_a_monitor_that_was_away_listens_before_it_commands_where_a_guard_is() -> None:
+    """`Handover`: after a gap in its commands it sends nothing for `LISTEN` s.
+
+    The gap counts against the commands' usual interval (a slow controller is not an
+    absence), only where a guard's publisher is matched and on wall time; the guard's
+    queue is taken at each command, and a guard command holds it off for `HANDOVER` s.
+    """
+    def handover(guards: int = 1, wall_time: bool = True) -> tuple[Handover, list[float]]:
+        taken: list[float] = []
+        h = Handover()
+        h.take_guard = lambda: taken.append(1.0)
+        h.guards.count, h.wall_time = guards, wall_time
+        return h, taken
+
+    h, taken = handover()
+    steady = [k * 0.004 for k in range(10)]
+    assert not any(h.held_off(t) for t in steady) and len(taken) == 10
+    back = steady[-1] + 0.1  # the process stopped for 0.1 s
+    assert h.held_off(back) and h.held_off(back + LISTEN - 1e-4)
+    assert not h.held_off(back + LISTEN + 1e-4)
+    h.guarded(back + 0.012)  # then commands every 4 ms, as before
+    after = [back + 0.012 + k * 0.004 for k in range(1, 12)]
+    assert [h.held_off(t) for t in after] == [t - back - 0.012 < HANDOVER for t in after]
+    # A controller at 10 Hz: its 0.1 s intervals are no absence once they are usual.
+    h, _ = handover()
+    held = [h.held_off(k * 0.1) for k in range(10)]
+    assert held[1] and not any(held[3:]), held
+    # No guard matched, or simulated time: never held off after a gap.
+    for h, _ in (handover(guards=0), handover(wall_time=False)):
+        assert not h.held_off(0.0) and not h.held_off(1.0)
 
 
 def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:

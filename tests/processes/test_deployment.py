@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import nullcontext
 from itertools import pairwise
 from pathlib import Path
 
@@ -279,6 +280,56 @@ def test_a_killed_monitor_stops_a_plant_that_holds_the_last_command(tmp_path: Pa
                goal_period=1.5)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("loaded", [False, pytest.param(True, marks=pytest.mark.busy_machine)],
+                         ids=["idle", "loaded"])
+def test_a_paused_monitor_takes_the_plant_back_from_the_guard_in_one_stream(
+        tmp_path: Path, loaded: bool) -> None:
+    """The guard's stop and the monitor's return make one stream a driver accepts.
+
+    The monitor is paused (SIGSTOP) for 0.1 s, eight times, while the arm moves: past the
+    guard's 50 ms the controller's guard ramps the arm down on `ft/command` itself; the
+    monitor, back, finds the guard's commands on `ft/command_guard`, sends nothing on
+    `ft/command` while they come and goes on from the guard's last one
+    (docs/commands.md). The sim's driver refuses any command over the Panda's limits
+    and stops the arm, as a Franka's reflex does: it refuses no jump, the guard fired,
+    and the arm moved on after the last pause. A monitor stopped inside its publish
+    sends that command late, after the guard's, stamped before them: the one case the
+    handover cannot help (docs/commands.md); the driver refuses it by its stamp, the
+    test resets the sim and counts it. Once more with a busy process per core, where the
+    monitor also stalls on its own.
+    """
+    with graph(tmp_path, parameters(tmp_path, HOLDING_PLANT)) as g, \
+            (busy_cores() if loaded else nullcontext()):
+        reset = g.node.create_client(Trigger, "sim/reset")
+        observing(g)
+        late = 0
+        for pause in range(8):
+            g.send_goal(pause % len(GOALS))
+            g.wait(lambda: bool(g.commands)
+                   and np.max(np.abs(g.commands[-1].velocity)) > 0.2, 10.0, "the arm moving")
+            g.pause("monitor", 0.1)
+            g.spin(1.0)
+            reflexes = [line for line in g.log("sim").splitlines() if "driver reflex" in line]
+            if len(reflexes) > late:
+                assert "command stamp not after the previous one" in reflexes[-1], \
+                    g.log("sim")[-3000:]
+                late += 1
+                future = reset.call_async(Trigger.Request())
+                g.wait(future.done, 10.0, "the sim's reset")
+        # The guard's first episode is logged (each lasts some 50 ms: the diagnostics,
+        # once a second, can miss them all).
+        assert "no answer from the monitor" in g.log("controller"), (
+            "the guard never fired: nothing was handed over")
+        monitor = g.log("monitor")
+        assert "guard: the controller's guard commands the plant" in monitor, monitor[-3000:]
+        assert "guard: recovered" in monitor, monitor[-3000:]
+        assert late <= 3, f"{late} of 8 pauses ended in a late command"
+        before = g.travelled()
+        g.spin(3.0, goal_period=1.0)
+        assert g.travelled() > before + 0.1, "the arm did not move on after the pauses"
+
+
 #: A node that floods `ft/declare_failure` for 4 s at 10 kHz (the issue's rate; bursts of
 #: 100 every 10 ms).
 FLOOD = """
@@ -428,8 +479,6 @@ def test_on_the_physics_plant_contact_is_not_a_failure_and_a_jam_is_named(
     every second: named locked, alone, on `ft/locked_joints` and `ft/joint_health`. Once
     on an idle machine, once with a busy process on every core.
     """
-    from contextlib import nullcontext
-
     from ft_core.faults import Fault
     from ft_sim.closed_loop import WALL, wall_across
 

@@ -204,6 +204,50 @@ def test_the_monitor_smooths_its_remap_at_a_lock_and_ramps_its_zeros() -> None:
     assert not np.any(sent) and t > 0.8 + 0.1  # a ramp, not a step
 
 
+@pytest.mark.parametrize("guard_steps", [10, 200], ids=["mid-ramp", "at-rest"])
+def test_the_monitor_takes_over_from_another_nodes_stop_within_the_limits(
+        guard_steps: int) -> None:
+    """The controller's guard stops the plant while the monitor is away, then hands back.
+
+    The monitor, away for 60 ms, follows the guard's stop ramp (`Monitor.follow`) and,
+    30 ms after its last command, commands again: one stream the driver accepts, the
+    detector's commands with it. Going on from its own last command instead is refused.
+    """
+    def run(follow: bool) -> tuple[Monitor, DriverCheck, list]:
+        monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
+        monitor.q = Q
+        driver, refusals = DriverCheck(LIMITS), []
+        qd = np.array([0.8, -0.6, 0.6, 0.8, -0.5, 0.6, 0.5])
+        t = 0.0
+        for _ in range(200):
+            t += 0.004
+            refusals.append(driver.check(monitor.command(qd, t), t))
+        guard = Smoother(LIMITS)
+        guard.reset(monitor.sent)  # the guard's ramp from the monitor's last echo
+        t += 0.06
+        for _ in range(guard_steps):
+            sent = guard.step(np.zeros(7), t)
+            refusals.append(driver.check(sent, t))
+            if follow:
+                monitor.follow(sent, t)
+                np.testing.assert_array_equal(monitor.sent, sent)
+            t += 0.004
+        t += 0.03
+        for _ in range(100):
+            refusals.append(driver.check(monitor.command(qd, t), t))
+            t += 0.004
+        return monitor, driver, [r for r in refusals if r is not None]
+
+    monitor, driver, refusals = run(follow=True)
+    assert refusals == [] and driver.peaks.max() <= 1.0 + 1e-6
+    assert monitor.detector.history.last_time == pytest.approx(monitor.smoother.time)
+    # A guard's command stamped before the monitor's last is not taken over from.
+    sent = monitor.sent.copy()
+    monitor.follow(np.zeros(7), monitor.smoother.time - 0.001)
+    np.testing.assert_array_equal(monitor.sent, sent)
+    assert run(follow=False)[2], "going on from its own last command passed the driver"
+
+
 def test_command_limits_refuse_what_no_arm_has() -> None:
     with pytest.raises(ValueError, match="acceleration limits"):
         CommandLimits(np.ones(2), np.array([1.0, -1.0]), np.ones(2))

@@ -194,6 +194,7 @@ class ControllerNode(SuiteNode):
         """Every command to `take` as a call (`Outputs.taker`), without the guard (ft-stack)."""
         self.outputs.taker = take
         self.destroy_subscription(self._echo_subscription)
+        self.destroy_publisher(self.outputs.guard)
 
     def cycle_on_joint_states(self) -> None:
         """Cycles on the joint states handed over (ft-stack); with `use_sim_time`, the timer's."""

@@ -4,7 +4,9 @@ The command goes out as bytes (`wire.CommandWriter`) on `ft/command_raw`, or as 
 a monitor of the same process (`Outputs.taker`, ft-stack) and then on the topic only
 while someone else subscribes; the metrics only while someone subscribes (a recorder, a
 plot). The guard's stop goes on the plant's own topics, `ft/command` and
-`ft/command_array`, while the monitor does not answer.
+`ft/command_array`, while the monitor does not answer, and on `ft/command_guard` for the
+monitor: a monitor that answers again sends nothing while the guard commands, then goes on
+from the guard's last command (`ft_monitor.command_path`).
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ class Outputs:
         self._plant = node.create_publisher(JointState, names.COMMAND, qos.RELIABLE)
         self._plant_array = node.create_publisher(Float64MultiArray, names.COMMAND_ARRAY,
                                                   qos.RELIABLE)
+        #: The guard's commands for the monitor (none in ft-stack: no guard there).
+        self.guard = node.create_publisher(JointState, names.COMMAND_GUARD, qos.RELIABLE)
         self._metrics, self._metrics_audience = node.create_counted_publisher(
             Float64MultiArray, names.METRICS, qos.RELIABLE)
         self._suspect = node.create_publisher(JointState, names.SUSPECTED_FAILURE, qos.RELIABLE)
@@ -69,10 +73,15 @@ class Outputs:
             self._metrics.publish(loaded.metrics_msg)
 
     def send_to_plant(self, loaded: Loaded, velocity: list[float], nanoseconds: int) -> None:
-        """The guard's command (command order) on the plant's topics, past the monitor."""
-        self._plant.publish(convert.joint_state(
-            loaded.joints, convert.stamp_from_nanoseconds(nanoseconds), velocity=velocity))
+        """The guard's command (command order) on the plant's topics, past the monitor.
+
+        And the same on `ft/command_guard`, for the monitor to hand over from.
+        """
+        msg = convert.joint_state(loaded.joints, convert.stamp_from_nanoseconds(nanoseconds),
+                                  velocity=velocity)
+        self._plant.publish(msg)
         self._plant_array.publish(Float64MultiArray(data=velocity))
+        self.guard.publish(msg)
 
     def send_suspect(self, joint: str, nanoseconds: int) -> None:
         """The joint the task channel suspects, on `ft/suspected_failure`."""

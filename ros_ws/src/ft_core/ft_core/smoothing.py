@@ -123,6 +123,25 @@ class Smoother:
         self._interval, self.time = dt, t
         return self.velocity.copy()
 
+    def adopt(self, velocity: np.ndarray, t: float) -> bool:
+        """Go on from a command (rad/s) another node sent the plant stamped `t` (s).
+
+        As if this smoother had sent it: the velocity, and the mean acceleration from the
+        last command to it (the profile's acceleration within the limits), so the next
+        command continues the stream the driver saw. Whether it was taken: a stamp not
+        after the last command's is not (the driver refuses it).
+        """
+        if self.time is not None and not t > self.time:
+            return False
+        velocity = np.array(velocity, dtype=float)
+        dt = FIRST_INTERVAL if self.time is None else t - self.time
+        self._mean = (velocity - self.velocity) / dt
+        self.acceleration = np.clip(self._mean, -self.limits.acceleration,
+                                    self.limits.acceleration)
+        self.velocity, self._target = velocity, velocity.copy()
+        self._interval, self.time = dt, t
+        return True
+
     def _profile(self, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration dt s along the time-optimal profile to `target`.
 

@@ -5,6 +5,9 @@ A command on `ft/command_raw` (a JointState: stamped, by name) or `ft/command_ra
 malformed, stamped ahead of the clock or older than `timeout`, or physically absurd
 (`Monitor.absurd_command`) is reported and replaced by zeros (reached on a ramp within
 the limits); a good one goes through `Monitor.command` to `Outputs.send`.
+
+Before a command goes to the plant, `Handover` says whether the controller's guard
+commands it instead (`ft_monitor.handover`); a command held off is echoed alone.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from ft_msgs_py.episodes import Episodes
 from ft_msgs_py.node import JointStateLike
 from std_msgs.msg import Float64MultiArray
 
+from ft_monitor.handover import Handover
 from ft_monitor.outputs import Outputs, Wiring
 
 
@@ -39,6 +43,15 @@ class CommandPath:
         self._outputs, self._problems, self._commanded = outputs, problems, commanded
         self.timeout = timeout
         self.last, self.last_steady = -math.inf, time.monotonic()
+        #: Whether the guard commands the plant; its `take_guard` is the node's.
+        self.handover = Handover()
+
+    def guarded(self, core: Monitor, qd: np.ndarray, stamp: float) -> None:
+        """A command (chain order, rad/s) the controller's guard sent, stamped `stamp` (s)."""
+        core.follow(qd, stamp)
+        self.handover.guarded(time.monotonic())
+        self._problems.report("guard", "the controller's guard commands the plant: nothing "
+                              "sent on ft/command until it stops", warning=True)
 
     def command(self, core: Monitor, wiring: Wiring, msg: JointStateLike, now: float) -> None:
         """A JointState from `ft/command_raw` at node time `now` (s)."""
@@ -68,7 +81,23 @@ class CommandPath:
                stamp: Time | wire.Stamp, now: float) -> None:
         """A malformed command: reported, and replaced by zeros (reached on a ramp)."""
         self._problems.report(topic, f"{error}: commanding zeros")
-        self._outputs.send(wiring, core.zeros(now), now, stamp)
+        if not self._held_off(core, wiring, stamp):
+            self._outputs.send(wiring, core.zeros(now), now, stamp)
+
+    def stop_step(self, core: Monitor, wiring: Wiring, now: float) -> bool:
+        """The next command of a stop ramp at node time `now` (s); whether at rest."""
+        if self.handover.stop_held_off(time.monotonic()):
+            return False
+        self._outputs.send(wiring, core.zeros(now), now)
+        return not core.stopping
+
+    def _held_off(self, core: Monitor, wiring: Wiring, stamp: Time | wire.Stamp) -> bool:
+        """Whether the command stamped `stamp` must not go to the plant; then echoed alone."""
+        if not self.handover.held_off(time.monotonic()):
+            self._problems.report("guard", None)
+            return False
+        self._outputs.echo(wiring, core.sent, stamp)
+        return True
 
     def forward(self, core: Monitor, wiring: Wiring, source: str, qd: np.ndarray,
                 stamp: Time | wire.Stamp, now: float) -> None:
@@ -80,4 +109,5 @@ class CommandPath:
         self._problems.report(source, None)
         self.last, self.last_steady = now, time.monotonic()
         self._commanded()
-        self._outputs.send(wiring, core.command(qd, now), now, stamp)
+        if not self._held_off(core, wiring, stamp):
+            self._outputs.send(wiring, core.command(qd, now), now, stamp)

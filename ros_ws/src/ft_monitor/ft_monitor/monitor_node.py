@@ -28,7 +28,17 @@ from builtin_interfaces.msg import Time
 from ft_core import locked_set, robots
 from ft_core.detection import Decision
 from ft_core.monitor import Change, Monitor
-from ft_msgs_py import convert, diagnostics, names, parameter_table, parameters, qos, spin, wire
+from ft_msgs_py import (
+    convert,
+    diagnostics,
+    names,
+    parameter_table,
+    parameters,
+    publishers,
+    qos,
+    spin,
+    wire,
+)
 from ft_msgs_py.node import JointStateLike, StateListener, SuiteNode
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
@@ -76,6 +86,10 @@ class MonitorNode(SuiteNode):
         self.create_service(Trigger, names.RESET, self._on_reset)
         self.commands = CommandPath(self.outputs, self.problems, self.param("command_timeout"),
                                     self.stop_ramp)
+        handover = self.commands.handover
+        handover.take_guard = self.take_on_demand(self.subscribe_joint_states(
+            names.COMMAND_GUARD, self._on_guard, qos.RELIABLE, publishers=handover.guards))
+        handover.wall_time = not self.param("use_sim_time")
         parameter_table.on_change(self, PARAMETERS, self._check, self._configure)
         parameters.request_model(self, self._set_model)
         # On steady time: with use_sim_time and no /clock the watchdog must still run.
@@ -286,6 +300,38 @@ class MonitorNode(SuiteNode):
             self.commands.refuse(self.core, self.wiring, "ft/command_raw", error,
                                  wire.Stamp.of(nanoseconds), nanoseconds * 1e-9)
 
+    def _on_guard(self, msg: JointStateLike) -> None:
+        """A command of the controller's guard (`ft_monitor.handover`), if obeyed.
+
+        Obeyed from the one publisher of `ft/command_guard` that publishes on `ft/command`
+        too (asked of the graph as the guard starts, not at each of its commands): any
+        other can already command the plant, or can not, and is reported and ignored.
+        """
+        core = self.core
+        if core is None:
+            return
+        now = self.now()
+        stamp = self.problems.message_time(names.COMMAND_GUARD, msg.header.stamp, now)
+        try:
+            if stamp is None:
+                return
+            qd = convert.joint_vector(msg, core.robot.joint_names, "velocity")
+            if not self.commands.handover.guarded_lately(time.monotonic()):
+                guards = self._publisher_names(names.COMMAND_GUARD)
+                if len(guards) != 1 or guards[0] not in self._publisher_names(names.COMMAND):
+                    raise convert.MessageError(f"published by {guards[:5]}, not by one node "
+                                               "that publishes ft/command too")
+        except convert.MessageError as error:
+            self.problems.report(names.COMMAND_GUARD, f"{error}: ignored")
+            return
+        self.problems.report(names.COMMAND_GUARD, None)
+        self.commands.guarded(core, qd, stamp)
+
+    def _publisher_names(self, topic: str) -> list[str]:
+        """Full names of the nodes publishing `topic`."""
+        return [publishers.full_name(p.node_namespace, p.node_name)
+                for p in self.get_publishers_info_by_topic(self.resolve_topic_name(topic))]
+
     def _on_array(self, msg: Float64MultiArray) -> None:
         if self.core is not None:
             self.commands.array(self.core, self.wiring, msg, self.get_clock().now().to_msg(),
@@ -310,9 +356,7 @@ class MonitorNode(SuiteNode):
 
     def _ramp_step(self, nanoseconds: int) -> bool:
         """The next command of a stop ramp, stamped `nanoseconds`; whether it is at rest."""
-        now = nanoseconds * 1e-9
-        self.outputs.send(self.wiring, self.core.zeros(now), now)
-        return not self.core.stopping
+        return self.commands.stop_step(self.core, self.wiring, nanoseconds * 1e-9)
 
     def _announce_written(self) -> None:
         """Announce the changes of the locked set written since the last announcement.

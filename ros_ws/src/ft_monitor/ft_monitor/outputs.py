@@ -6,8 +6,9 @@ JointGroupVelocityController), and to a plant of the same process as a call
 (`Outputs.taker`; `ft/command` then only while someone subscribes). The echo on
 `ft/command_echo` (the controller's guard of a dead monitor) carries the stamp of the
 command it answers, at most once per `ECHO_PERIOD` of steady time while someone
-subscribes. The locked set goes on `ft/locked_joints` and every joint's health on
-`ft/joint_health` (both transient local).
+subscribes; while the controller's guard commands the plant, the echo alone goes out
+(`ft_monitor.handover`). The locked set goes on `ft/locked_joints` and every joint's
+health on `ft/joint_health` (both transient local).
 """
 
 from __future__ import annotations
@@ -81,17 +82,28 @@ class Outputs:
         serialized = wiring.writer.serialize(stamp.sec, stamp.nanosec, ordered)
         if self.taker is None or self.command_audience.count:
             self.command.publish(serialized)
-            if answered is not None and self._echo_audience.count:
-                steady = time.monotonic()
-                if steady - self._last_echo >= ECHO_PERIOD:
-                    self._echo.publish(wiring.writer.serialize(
-                        answered.sec, answered.nanosec, ordered))
-                    self._last_echo = steady
+            if answered is not None:
+                self._echo_ordered(wiring, ordered, answered)
         if self.taker is not None:
             self.taker(self._taker_reader.read(serialized))
         if self.array_audience.count:
             wiring.array.data = ordered.tolist()
             self.array.publish(wiring.array)
+
+    def echo(self, wiring: Wiring, qd_chain: np.ndarray, answered: Time | wire.Stamp) -> None:
+        """The echo alone: the command stamped `answered` came, the plant holds `qd_chain`."""
+        self._echo_ordered(
+            wiring, qd_chain if wiring.reorder is None else qd_chain[wiring.reorder], answered)
+
+    def _echo_ordered(self, wiring: Wiring, ordered: np.ndarray,
+                      answered: Time | wire.Stamp) -> None:
+        """`ft/command_echo` (command order), at most once per `ECHO_PERIOD`, if heard."""
+        if self._echo_audience.count:
+            steady = time.monotonic()
+            if steady - self._last_echo >= ECHO_PERIOD:
+                self._echo.publish(wiring.writer.serialize(
+                    answered.sec, answered.nanosec, ordered))
+                self._last_echo = steady
 
     def send_locked(self, locked: dict[str, float], time: float) -> None:
         """The locked set ({joint: position at lock, rad}) stamped `time` (s)."""

@@ -6,7 +6,7 @@ to send the command on `ft/command_raw` beside the call of ft-stack, the metrics
 array command. rmw's publication-matched event carries the same count whenever a
 subscription comes or goes, so an `Audience` keeps it for the cycle to read. The event
 is taken by the node's executor, so a new subscriber is counted from the executor's
-next turn on.
+next turn on. A subscription's matched event counts its publishers the same way.
 """
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ from rclpy.event_handler import QoSPublisherMatchedInfo
 
 
 class Audience:
-    """The subscriptions matched to one publisher (`SuiteNode.create_counted_publisher`)."""
+    """The other ends matched to a publisher or a subscription (`SuiteNode`)."""
 
     def __init__(self) -> None:
-        self.count = 0  #: matched subscriptions, as the last matched event said
+        self.count = 0  #: matched other ends, as the last matched event said
 
     def matched(self, info: QoSPublisherMatchedInfo) -> None:
-        """The publisher's matched event: a subscription came or went."""
+        """The matched event: another end came or went."""
         self.count = info.current_count

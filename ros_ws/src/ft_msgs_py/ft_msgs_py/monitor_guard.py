@@ -10,7 +10,9 @@ timeout, not every cycle. The controller remembers the stamps of the commands
 it sent; an echo carrying one of them is the monitor's answer. Once an echo has been
 seen (a graph without a monitor never triggers the guard), commands left unanswered for
 `timeout` s of steady time mean the monitor is gone or stalled: the controller then
-publishes explicit zeros on the plant's command topics itself, until an echo comes back.
+publishes explicit zeros on the plant's command topics itself, until an echo comes back,
+each also on `ft/command_guard` for a monitor that comes back to go on from
+(`ft_monitor.handover`).
 Times are steady seconds. The controller asks (`silent`) every cycle; a longer gap
 between two questions than `timeout` is the controller's own stall (stopped, starved of
 the CPU), not the monitor's: echoes that arrived meanwhile may still wait in its queue

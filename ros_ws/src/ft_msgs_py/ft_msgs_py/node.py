@@ -9,7 +9,7 @@ from typing import TypeAlias
 
 import numpy as np
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
@@ -170,11 +170,12 @@ class SuiteNode(Node):
     def subscribe_joint_states(
             self, topic: str, callback: Callable[[JointStateLike], None],
             qos_profile: QoSProfile,
-            malformed: Callable[[convert.MessageError], None] | None = None) -> Subscription:
+            malformed: Callable[[convert.MessageError], None] | None = None,
+            publishers: Audience | None = None) -> Subscription:
         """Take `topic`'s JointStates as bytes: `callback` gets what a JointStateReader reads.
 
         Bytes that are not a JointState go to `malformed`, or by default are reported
-        under `topic` and go no further.
+        under `topic` and go no further. `publishers` counts the publishers matched.
         """
         reader = wire.JointStateReader()
 
@@ -188,7 +189,10 @@ class SuiteNode(Node):
                     self.problems.report(topic, f"{error}: message ignored")
                 return
             callback(msg)
-        return self.create_subscription(JointState, topic, take, qos_profile, raw=True)
+        return self.create_subscription(
+            JointState, topic, take, qos_profile, raw=True,
+            event_callbacks=None if publishers is None else SubscriptionEventCallbacks(
+                matched=publishers.matched))
 
     def read_joint_state(self, msg: JointStateLike, joints: Sequence[str],
                          absurd: Callable[[np.ndarray], str | None] | None = None,
