@@ -158,9 +158,6 @@ class Monitor:
         self._observed_at: np.ndarray | None = None
         self._observed_latest = -math.inf  #: the largest of `_observed_at` (s)
         self.smoother: Smoother | None = None
-        #: The last command the plant was sent (rad/s, chain order): this monitor's, or
-        #: one it followed.
-        self.sent = np.zeros(robot.n)
         self.config = MonitorConfig(limits=None)
         self.configure(detection, config)
 
@@ -258,7 +255,6 @@ class Monitor:
         if self.smoother is not None:
             qd = self.smoother.step(qd, now, locked)
         self.detector.command(now, qd)
-        self.sent = qd
         return qd
 
     def zeros(self, now: float) -> np.ndarray:
@@ -270,8 +266,12 @@ class Monitor:
         if self.smoother is not None:
             qd = self.smoother.step(qd, now, sorted(self.detector.locked))
         self.detector.command(now, qd)
-        self.sent = qd
         return qd
+
+    @property
+    def sent(self) -> np.ndarray:
+        """The last command the plant was sent (rad/s, chain order; zeros before any)."""
+        return self.detector.history.at(np.array([math.inf]))[0]
 
     def follow(self, qd: np.ndarray, now: float) -> None:
         """A command (rad/s, chain order) another node sent the plant, stamped `now` (s).
@@ -282,7 +282,6 @@ class Monitor:
         """
         if self.smoother is None or self.smoother.adopt(qd, now):
             self.detector.command(now, qd)
-            self.sent = np.array(qd, dtype=float)
 
     # ------------------------------------------------------------- detection
     def absurd(self, q: np.ndarray) -> str | None:
