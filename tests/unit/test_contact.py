@@ -8,6 +8,8 @@ named, at the latest once the tool leaves the wall.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from ft_core import robots
@@ -24,6 +26,7 @@ from ft_core.detection.contact import (
 from ft_core.detection.evidence import JointEvidence
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
+from ft_sim import closed_loop
 from ft_sim.closed_loop import DRIVERS, WALL, ClosedLoop, wall_across
 
 PANDA = robots.load("panda_inertial", tip_link="panda_link8", task_space="position")
@@ -148,6 +151,54 @@ def test_a_contact_begins_only_where_the_command_drives_the_tool_into_the_force(
     assert watch.explains(PANDA, Q, effort, [1], 0.3 + AFTER_CONTACT, sent(-into)) is None
 
 
+def test_three_stalled_joints_that_carry_all_of_a_force_are_contact_if_driven_into_it() -> None:
+    """A force whose torques fall on three joints: both explanations fit; the command decides.
+
+    At this Panda posture a force of 148 N at the tool loads joints 1, 3 and 5 alone,
+    nearly: their three locks explain the torques as fully as the force does (a wall
+    across the physics plant's way, where their drives' model errors made the locks
+    explain a little more). Where the force leaves less than a drive's model error
+    (`MIN_TORQUE`), the stalled joints, as many as the force has components, are no
+    better an explanation: contact if the command drives the tool into the force.
+    """
+    q = np.array([0.6908, -0.7082, -0.4383, -2.3572, -1.1797, 0.9167, 0.7892])
+    J = PANDA.base_jacobian(q)[:3]
+    external = J.T @ np.array([-50.7, 130.9, 40.9])
+    external[1] = 0.0  # its 3 N m on joint 2 within that drive's model error
+    commanded = np.array([0.349, 0.044, 0.357, -0.019, 0.151, -0.161, 0.0])
+    contact, by_force, by_locks = explained_by_contact(external, J, [0, 2, 4], commanded)
+    assert contact and by_force > 0.99 and by_locks > by_force  # the locks fit better
+    assert not explained_by_contact(external, J, [0, 2, 4], -commanded)[0]
+
+
+def test_a_joint_on_its_stop_is_left_out_like_a_braked_one() -> None:
+    """A wall pushes Panda joint 6 onto its lower stop: the stop takes torque, not the drive.
+
+    The efforts are the force's torques but for joint 6's, 50 N m of which its stop
+    carries (a wall across the physics plant's way, joints 1, 2 and 6 stalled). With
+    joint 6 in the fit, the force explains 84 %, its stall with joints 1's and 2's more;
+    left out, as a brake's joint is, the force explains the rest: contact. Off its stop
+    the same torques are no contact.
+    """
+    q = np.array([-0.669, 0.4794, 1.484, -1.6842, -1.678, -0.024, 0.771])
+    assert q[5] < PANDA.lower[5]
+    J = PANDA.base_jacobian(q)[:3]
+    external = J.T @ np.array([309.7, 128.8, -85.6])
+    external[5] -= 50.0
+    commanded = np.array([0.452, 0.277, 0.003, 0.106, -0.43, 1.305, 0.0])
+    joints = [JointEvidence(commanded=c) for c in commanded]
+    assert not explained_by_contact(external, J, [0, 1, 5], commanded)[0]
+    watch = ContactWatch(PANDA)
+    effort = PANDA.gravity(q) + external
+    assert watch.explains(PANDA, q, effort, [0, 1, 5], 0.0, joints) is not None
+    free = q.copy()
+    free[5] = 0.3
+    effort = PANDA.gravity(free) + PANDA.base_jacobian(free)[:3].T @ np.array(
+        [309.7, 128.8, -85.6])
+    effort[5] -= 50.0
+    assert watch.explains(PANDA, free, effort, [0, 1, 5], 0.0, joints) is None
+
+
 def _push(driver: str, seed: int) -> ClosedLoop:
     """A loop whose tool has just met a wall across its way to a fresh goal."""
     loop = ClosedLoop("position", DRIVERS[driver], seed=seed)
@@ -174,6 +225,50 @@ def test_a_tool_pushing_into_a_wall_declares_no_joint(driver: str, seed: int) ->
     loop.plant.remove_obstacle()
     loop.run(3.0)  # and after it: the shares made in contact are forgotten
     assert _declared(loop) == {} and loop.declared == []
+
+
+#: Walls across the way between two goals where healthy joints were once declared, behind
+#: the slow driver: (from, to (m), the wall's share of the way, s pushed, the loop's seed).
+WALLS = {
+    "three joints carry the force": ((0.323, -0.207, 0.465), (0.322, 0.197, 0.609), 0.42,
+                                     3.2, 91),
+    "a wrist on its stop": ((0.328, 0.021, 0.617), (0.594, 0.209, 0.548), 0.55, 5.9, 10),
+    "the lurch as the wall goes": ((0.317, 0.028, 0.476), (0.497, 0.044, 0.338), 0.5, 2.1,
+                                   99),
+}
+
+
+@pytest.mark.parametrize("wall", list(WALLS))
+def test_a_wall_between_two_goals_declares_no_joint_while_pushed_or_after(
+        wall: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tool at rest at a goal, a wall across its way to the next, pushed, then freed.
+
+    Three ways a contact read as locks: three stalled joints carrying the force's torques
+    (`explained_by_contact`), a wrist held on its stop by the wall (`ContactWatch`), and
+    the arm's lurch as the wall goes, a healthy joint moved back against its command for
+    0.2 s with nothing external on it (`Drives.braking`, asked while the tool was pushed
+    lately).
+    """
+    start, goal, share, push, seed = WALLS[wall]
+    monkeypatch.setattr(closed_loop, "GOALS", (start, goal, start))
+    loop = ClosedLoop("position", DRIVERS["slow"], seed=seed)
+    try:
+        loop.run(1.5)
+        loop.goal_period = math.inf
+        loop.run(2.0)
+        tool = loop.robot.transform(loop.plant.q)[:3, 3]
+        loop.plant.place_obstacle(wall_across(tool, np.array(goal), share), np.array(WALL))
+        loop.run(0.5)
+        loop.send_goal()
+        loop.run(push)
+        assert loop.tool_error() > 0.05, "the wall did not hold the tool"
+        assert _declared(loop) == {} and loop.declared == []
+        loop.plant.remove_obstacle()
+        loop.run(3.0)
+        assert _declared(loop) == {} and loop.declared == []
+        assert loop.tool_error() < 0.01
+    finally:
+        loop.close()
 
 
 def test_a_wall_that_carries_a_joints_weight_leaves_no_drive_torqueless() -> None:

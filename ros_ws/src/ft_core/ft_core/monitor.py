@@ -143,7 +143,7 @@ class Monitor:
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
-        self._touch = ContactWatch(robot)
+        self._touch = ContactWatch(robot, detection.limit_margin)
         self._drives = DriveWatch(robot)
         self.store = store
         self._report = report

@@ -104,7 +104,9 @@ def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: li
     by_force = 1.0 - float(residual @ residual) / total
     shares = np.sort(external[stalled] ** 2)[::-1]
     by_locks = float(shares[:len(force)].sum()) / total
-    contact = by_force >= CONTACT_SHARE and by_force > by_locks
+    contact = by_force >= CONTACT_SHARE and (
+        by_force > by_locks or (len(stalled) >= len(force)
+                                and float(residual @ residual) < MIN_TORQUE ** 2))
     if contact and commanded is not None:
         sent = jacobian @ commanded
         contact = float(sent @ force) >= math.cos(PUSH_ANGLE) * float(
@@ -167,8 +169,10 @@ class ContactWatch:
     direction must go on telling them from a contact.
     """
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, stop_margin: float = 0.01) -> None:
         limits = robot.effort_limits
+        #: rad, how near a position limit a joint stands on its stop
+        self.stop_margin = stop_margin
         #: N m: `WATCH_SHARE` of the effort limits (no watch without finite limits)
         self.least = (WATCH_SHARE * float(np.linalg.norm(limits)) if np.isfinite(limits).all()
                       else math.inf)
@@ -192,7 +196,8 @@ class ContactWatch:
         stops one joint while the others speed up or slow loads the drives with the arm's
         own inertia, which statically reads as a force at the tool.
         """
-        braked = [j for j, e in enumerate(joints) if e.locked_at is not None]
+        on_stop = ((q - robot.lower <= self.stop_margin) | (robot.upper - q <= self.stop_margin))
+        braked = [j for j, e in enumerate(joints) if e.locked_at is not None or on_stop[j]]
         motion = None if acceleration is None else (
             np.array([e.measured for e in joints]), acceleration)
         swinging = bool(stalled) and all(joints[j].swing_since is not None for j in stalled)
