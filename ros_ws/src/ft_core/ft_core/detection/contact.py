@@ -23,7 +23,12 @@ torques (1 - R_f >= `CONTACT_SHARE`), better than the stalled joints do (R_l > R
 they are more than a drive's model error (|tau_ext| >= `MIN_TORQUE` N m), and the
 command drives the tool into the force: an obstacle pushes back only on a tool sent into
 it, so where no contact was found lately (`ContactWatch`) the commanded tool velocity
-J qd_c must lie within `PUSH_ANGLE` of f. This tells
+J qd_c must lie within `PUSH_ANGLE` of f. Where three or more joints stall and the force
+leaves less than a drive's model error unexplained (|tau_ext - J^T f| < `MIN_TORQUE`),
+the stalled joints are no better an explanation, however their shares compare (at some
+postures a force at the tool loads three Panda joints alone): the command's direction
+decides. A joint on its position stop is left out as a braked one is: the stop takes
+any torque (a wall that pushes a wrist onto its stop). This tells
 a contact from the reaction of links stopped by locks: a stopping link's inertial torques
 are also J^T of a force (the link's deceleration times its mass), and a locked pair of
 joints can put its drives' pushes in the range of J^T, but neither has anything to do
@@ -55,6 +60,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ft_core.detection.config import DetectorConfig
 from ft_core.detection.evidence import JointEvidence
 from ft_core.robots import Robot
 
@@ -84,6 +90,8 @@ DRIVEN_SHARE = 0.3
 def explained_by_contact(external: np.ndarray, jacobian: np.ndarray, stalled: list[int],
                          commanded: np.ndarray | None = None) -> tuple[bool, float, float]:
     """Whether a force on the tool explains the external torques better than locks do.
+
+    Or as well, three or more joints stalled, the force leaving under `MIN_TORQUE` N m.
 
     Args:
         external: (n,) tau_ext, the efforts less the gravity torques (N m).
@@ -169,9 +177,10 @@ class ContactWatch:
     direction must go on telling them from a contact.
     """
 
-    def __init__(self, robot: Robot, stop_margin: float = 0.01) -> None:
+    def __init__(self, robot: Robot,
+                 stop_margin: float = DetectorConfig.limit_margin) -> None:
         limits = robot.effort_limits
-        #: rad, how near a position limit a joint stands on its stop
+        #: rad, how near a position limit a joint stands on its stop (left out as braked)
         self.stop_margin = stop_margin
         #: N m: `WATCH_SHARE` of the effort limits (no watch without finite limits)
         self.least = (WATCH_SHARE * float(np.linalg.norm(limits)) if np.isfinite(limits).all()
@@ -187,7 +196,8 @@ class ContactWatch:
         It is asked unless `lately` found the tool in contact within `AFTER_CONTACT` s, and
         not for joints moving on their own. `joints`: every joint's evidence at the last
         update, for the velocities commanded (`JointEvidence.commanded`), the joints locked
-        (braked) and those moving on their own (`swing_since`). A joint that moves on its
+        (braked, as are those within `stop_margin` of a position limit) and those moving on
+        their own (`swing_since`). A joint that moves on its
         own while the drives' torques are a force at the tool is pushed, by an obstacle or
         by the arm's own links as they stop or start (their inertial reaction is J^T of a
         force too), whatever the command: not a free swing. Given the joints'

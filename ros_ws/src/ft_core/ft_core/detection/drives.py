@@ -56,7 +56,10 @@ The same residual, the other way: a joint commanded too slowly for the lock dete
 window is judged over a longer span (`rules.slow_stall`), where a few mrad of lag tell
 nothing alone. `Drives.braking` asks that its drive push along the command beyond what
 the motion needs, by `BRAKE_SHARE` of the effort limit (and `BRAKE_TORQUE`): a brake
-takes its servo's push.
+takes its servo's push. So does every lock candidate while the tool is or was lately
+pushed (`carried`): the arm lurches as the obstacle goes, its servos wound up at it, and
+a healthy joint moved back against its command for 0.2 s, nothing external on it
+(a wall removed on the physics plant), lags as a locked one does.
 
 A joint gravity hardly turns (a vertical axis, `GRAVITY_SHARE`) is never silent: without
 torque it coasts as commanded, as a healthy joint at constant speed does, and its drive's
