@@ -385,12 +385,9 @@ class LockDetector:
             # Stalled or held by the other links' accelerations, not by a brake.
             moved = drives.moved_by_others(measured, acceleration, weakest, cfg.min_command)
             candidates, held = candidates & ~moved, held & ~moved
-        if drives is not None and drives.carried and candidates.any():
-            # The tool pushed lately: its joints' lag says nothing of their drives (the arm
-            # lurches as the obstacle goes, its servos wound up at it); a brake takes its
-            # drive's push (`Drives.braking`).
+        if drives is not None and drives.carried and candidates.any():  # pushed lately:
             candidates = candidates & (False if acceleration is None else drives.braking(
-                measured, acceleration, weakest))
+                measured, acceleration, weakest))  # only a brake's push tells (`drives`)
         since = np.array([math.nan if e.held_since is None else e.held_since for e in joints])
         held_long = held & (now - np.fmin(since, now) >= HELD_TIME)
         candidates = candidates | held_long
