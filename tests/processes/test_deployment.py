@@ -132,6 +132,8 @@ def test_healthy_motion_under_full_cpu_load(tmp_path: Path) -> None:
         assert under_load, "no diagnostics from the monitor under load"
         assert any(v.get("observing") == "yes" for v in under_load), (
             "the monitor never observed under load: " + str(under_load[-3:]))
+        for name, process in g.processes.items():  # out of huge pages (`ft_msgs_py.huge_pages`)
+            assert "THP_enabled:\t0" in Path(f"/proc/{process.pid}/status").read_text(), name
 
 
 @pytest.mark.slow

@@ -51,6 +51,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
+from ft_msgs_py.huge_pages import refuse_huge_pages
 from ft_msgs_py.transport import avoid_shared_memory
 
 #: Longest time (s) between two checks of the stop flag.
@@ -193,14 +194,17 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     (`exit_if_stuck`). A node that is `Ticked`, or whose `cycles` (`loop.CycleDriver`) is,
     gets its ticks from this loop, which waits for the next one in `spin_once` (messages are
     taken meanwhile). The process keeps off Fast DDS's shared memory
-    (`ft_msgs_py.transport`).
+    (`ft_msgs_py.transport`) and out of transparent huge pages (`ft_msgs_py.huge_pages`).
     """
     stop_requested = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop_requested.set())
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     transport = avoid_shared_memory()  # before the participant is made
+    huge = refuse_huge_pages()  # before the arrays are made
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes = [make() for make in makers]
+    if huge is not None:
+        nodes[0].get_logger().warning(f"transparent huge pages left on: {huge}")
     if transport is not None:
         nodes[0].get_logger().info(f"Fast DDS without shared memory: {transport} "
                                    "(a killed process cannot stall this one)")
