@@ -16,6 +16,9 @@ import sys
 from ft_msgs_py import huge_pages
 if sys.argv[1] == "refuse":
     assert huge_pages.refuse_huge_pages() is None
+else:  # cleared: a process inherits the setting from the one that started it
+    import ctypes
+    ctypes.CDLL(None).prctl(huge_pages.PR_SET_THP_DISABLE, 0, 0, 0, 0)
 import numpy as np
 a = np.ones(1 << 20)
 smaps = open("/proc/self/smaps").read()
