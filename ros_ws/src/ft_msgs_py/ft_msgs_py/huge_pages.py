@@ -7,11 +7,10 @@ the process's pages into huge ones, taking the process's memory-map lock. On a m
 whose cores are busy, a thread that low may wait long for a core; a thread of the process
 that needs that lock to write (an `mprotect` as a malloc arena grows) queues behind it,
 and every thread that needs the lock after that (an `madvise`, a page fault) queues too,
-so the whole process can stand still for seconds (docs/benchmarks.md: the monitor's
-silences). A real-time setup disables huge pages machine-wide; `refuse_huge_pages` does
-it for this process alone (`prctl(PR_SET_THP_DISABLE)`, Linux 3.15 and later), and the
-processes it starts inherit it. The arrays lose nothing that matters: a few MiB each,
-read in small windows.
+so the whole process can stand still for as long. A real-time setup disables huge pages
+machine-wide; `refuse_huge_pages` does it for this process alone
+(`prctl(PR_SET_THP_DISABLE)`, Linux 3.15 and later), and the processes it starts inherit
+it. The arrays lose nothing that matters: a few MiB each, read in small windows.
 """
 
 from __future__ import annotations
