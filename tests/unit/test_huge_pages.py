@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 #: Allocates an 8 MiB numpy array (numpy advises huge pages for it), touches it, and
-#: prints how many of the process's mappings may take huge pages and whether they are off.
+#: prints how many of the process's mappings may take huge pages and whether they are off
+#: (`THP_enabled` in its status).
 PROBE = """
 import re
 import sys
@@ -22,7 +23,8 @@ else:  # cleared: a process inherits the setting from the one that started it
 import numpy as np
 a = np.ones(1 << 20)
 smaps = open("/proc/self/smaps").read()
-print(len(re.findall(r"THPeligible: +1", smaps)), huge_pages.huge_pages_refused(), float(a.sum()))
+status = open("/proc/self/status").read()
+print(len(re.findall(r"THPeligible: +1", smaps)), "THP_enabled:\t0" in status, float(a.sum()))
 """
 MODE = Path("/sys/kernel/mm/transparent_hugepage/enabled")
 

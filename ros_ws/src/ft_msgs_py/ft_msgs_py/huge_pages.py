@@ -19,9 +19,8 @@ import ctypes
 import os
 import sys
 
-#: prctl options (linux/prctl.h).
+#: prctl option (linux/prctl.h).
 PR_SET_THP_DISABLE = 41
-PR_GET_THP_DISABLE = 42
 
 
 def _prctl(option: int, value: int) -> int:
@@ -40,7 +39,3 @@ def refuse_huge_pages() -> str | None:
         return f"prctl(PR_SET_THP_DISABLE) refused ({os.strerror(ctypes.get_errno())})"
     return None
 
-
-def huge_pages_refused() -> bool:
-    """Whether this process has transparent huge pages disabled (False off Linux)."""
-    return sys.platform.startswith("linux") and _prctl(PR_GET_THP_DISABLE, 0) == 1
