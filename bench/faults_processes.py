@@ -17,7 +17,9 @@ Then 20 contacts: with the arm at rest at a goal, a wall (`ft_sim.closed_loop.WA
 placed across the tool's way to the next one (`ft_sim.closed_loop.wall_across`), the goal
 sent, the wall removed `PUSH` s later, and the goal waited for; every joint declared is
 a healthy one. `--loaded` runs them all with one busy process per core beside the nodes
-(`ft_sim.cpu_load.busy_cores`).
+(`ft_sim.cpu_load.busy_cores`). `--record` keeps every topic this probe hears as a rosbag2
+(`ft_sim.bag`, stamped with its arrival on this machine's monotonic clock, ns) in
+`<out>/faults_processes_bag/`: the monitor's inputs, to replay a declaration offline.
 
 Per fault: the state the monitor first declared the faulty joint in, and when (s from the
 injection's publication to the `ft/joint_health` message's arrival here: the delay a
@@ -55,6 +57,7 @@ from ft_core.health import Health
 from ft_msgs_py import faults as fault_messages
 from ft_msgs_py import health as health_messages
 from ft_msgs_py import names, qos
+from ft_sim.bag import Recorder
 from ft_sim.closed_loop import WALL, wall_across
 from ft_sim.cpu_load import busy_cores
 from rclpy.context import Context
@@ -84,6 +87,20 @@ MOVING = 0.1
 #: s, the sim's command latency (`soak_processes.PLANTS`): a command is in force this long
 #: after it was sent.
 LATENCY = float(PLANTS["physics"]["sim"]["command_latency"])
+#: s, the sim's servo response time: a healthy joint's velocity follows the command in
+#: force as the physics plant's critically damped servo makes it (`ft_core.physics`).
+RESPONSE_TIME = float(PLANTS["physics"]["sim"]["response_time"])
+#: A joint's share of its command: its measured motion along that healthy joint's
+#: velocity, against the healthy joint's motion, both forgotten with time constant
+#: `SHARE_MEMORY` s, once the latter is at least `SHARE_MOTION` rad (as
+#: `ft_core.detection.follow` measures it, but against the plant's own servo). A
+#: degraded joint has slowed (the target's "below half of its command") from when its
+#: share falls below `SLOWED` to stay there `SLOWED_FOR` s: a healthy panda_joint1, its
+#: drive at its torque limit as the command turns, dips below half for about 20 ms.
+SHARE_MEMORY = 0.3
+SHARE_MOTION = 0.02
+SLOWED = 0.5
+SLOWED_FOR = 0.1
 #: rad, the detector's `limit_margin`: this close to a limit, a joint commanded into it
 #: stops there, healthy or not.
 LIMIT_MARGIN = DetectorConfig().limit_margin
@@ -120,6 +137,11 @@ class Outcome:
     shown_delay: float = math.nan  #: s from when the fault showed to that message
     second_shown_delay: float = math.nan  #: the same for the second lock
     others: list[str] = field(default_factory=list)  #: healthy joints declared
+    least_share: float = math.nan  #: the faulty joint's least share while watched
+    others_least_share: float = math.nan  #: the other joints' least share (healthy: ~1)
+    #: s from the faulty joint's share first falling below `SLOWED` to its declaration
+    #: (0 when declared before; nan when it never slowed)
+    slowed_delay: float = math.nan
     held: float = math.nan  #: m, a contact's tool from its goal as the wall was removed
     reached: bool = False  #: a contact's goal reached once the wall was gone
 
@@ -144,6 +166,14 @@ class FaultProbe(Probe):
         self._sent_since: deque[tuple[float, np.ndarray]] = deque(maxlen=1000)
         #: joint -> when its fault showed (monotonic s; inf: not yet), for the faulty joints
         self.shown: dict[int, float] = {}
+        #: joint -> when its share first fell below `SLOWED` (inf: not yet), the same joints
+        self.slowed: dict[int, float] = {}
+        #: each joint's least share since `inject` (inf: too little commanded)
+        self.least = np.full(7, math.inf)
+        self._share_at = time.monotonic()
+        self._ref, self._healthy_q, self._healthy_qd = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._moved, self._commanded = np.zeros(7), np.zeros(7)
+        self._below_since: dict[int, float] = {}  # joint -> when its share fell below half
 
     def _on_health(self, msg: DiagnosticArray) -> None:
         arrival = time.monotonic()
@@ -165,9 +195,35 @@ class FaultProbe(Probe):
             stopped = (((in_force > 0) & (self.q >= PANDA.upper - LIMIT_MARGIN))
                        | ((in_force < 0) & (self.q <= PANDA.lower + LIMIT_MARGIN)))
             followable = np.where(stopped, 0.0, in_force)
+            self._share(followable, now)
             for joint, shown in self.shown.items():
                 if math.isinf(shown) and abs(followable[joint] - self.qd[joint]) >= MOVING:
                     self.shown[joint] = now
+
+    def _share(self, followable: np.ndarray, now: float) -> None:
+        """Update each joint's share of its command: see `SHARE_MEMORY`."""
+        dt = min(now - self._share_at, 0.1)
+        self._share_at = now
+        w = 1.0 / RESPONSE_TIME
+        for _ in range(max(round(dt / 1e-3), 1)):  # the healthy servo (ft_core.physics)
+            h = dt / max(round(dt / 1e-3), 1)
+            self._ref += followable * h
+            self._healthy_qd += h * (w * w * (self._ref - self._healthy_q)
+                                     + 2 * w * (followable - self._healthy_qd))
+            self._healthy_q += self._healthy_qd * h
+            self._ref = np.clip(self._ref, self._healthy_q - 0.1, self._healthy_q + 0.1)
+        decay = math.exp(-dt / SHARE_MEMORY)
+        self._moved = decay * self._moved + self.qd * np.sign(self._healthy_qd) * dt
+        self._commanded = decay * self._commanded + np.abs(self._healthy_qd) * dt
+        known = self._commanded >= SHARE_MOTION
+        share = np.divide(self._moved, self._commanded, out=np.ones(7), where=known)
+        self.least = np.minimum(self.least, np.where(known, share, np.inf))
+        for joint, slowed in self.slowed.items():
+            below = known[joint] and share[joint] < SLOWED
+            since = self._below_since.get(joint, math.inf)
+            self._below_since[joint] = min(since, now) if below else math.inf
+            if math.isinf(slowed) and below and now - since >= SLOWED_FOR:
+                self.slowed[joint] = since
 
     def _on_sent(self, msg: JointState) -> None:
         index = {name: k for k, name in enumerate(msg.name)}
@@ -206,7 +262,9 @@ class FaultProbe(Probe):
     def inject(self, fault: Fault, joint: int) -> float:
         """Publish `fault` of `joint`; the monotonic time of publication."""
         self._inject.publish(fault_messages.message([fault]))
-        self.shown[joint] = math.inf
+        self.shown[joint] = self.slowed[joint] = math.inf
+        if len(self.shown) == 1:
+            self.least = np.full(7, math.inf)
         return time.monotonic()
 
     def reset(self, executor: EventsExecutor) -> None:
@@ -214,7 +272,7 @@ class FaultProbe(Probe):
         for client in (self._sim_reset, self._reset):
             future = client.call_async(Trigger.Request())
             spin(self, executor, 5.0, future.done)
-        self.states, self.shown = {}, {}
+        self.states, self.shown, self.slowed, self._below_since = {}, {}, {}, {}
 
 
 def spin(probe: FaultProbe, executor: EventsExecutor, seconds: float,
@@ -270,12 +328,23 @@ def run_fault(probe: FaultProbe, executor: EventsExecutor, kind: str, value: flo
         arrival = probe.states[JOINTS[second]][1]
         outcome.second_delay = arrival - second_at
         outcome.second_shown_delay = max(arrival - probe.shown.get(second, math.inf), 0.0)
+    least = np.where(np.isinf(probe.least), math.nan, probe.least)
+    outcome.least_share = float(least[joint])
+    others = [j for j in range(6) if j != joint and not (kind == "second" and j == second)]
+    outcome.others_least_share = float(np.nanmin(least[others])) if np.isfinite(
+        least[others]).any() else math.nan
+    slowed = probe.slowed.get(joint, math.inf)
+    if math.isfinite(slowed):
+        outcome.slowed_delay = (max(probe.states[name][1] - slowed, 0.0)
+                                if name in probe.states else math.inf)
     faulty = {name} | ({JOINTS[second]} if kind == "second" else set())
     outcome.others = sorted(set(probe.states) - faulty)
     probe.reset(executor)
     spin(probe, executor, 2.0)
     print(f"{time.strftime('%H:%M:%S')} {kind} {name}: {outcome.named} after "
-          f"{1e3 * outcome.delay:.0f} ms, moving {outcome.moving}, others {outcome.others}",
+          f"{1e3 * outcome.delay:.0f} ms, moving {outcome.moving}, least share "
+          f"{outcome.least_share:.2f} (others {outcome.others_least_share:.2f}), named "
+          f"{1e3 * outcome.slowed_delay:.0f} ms after it slowed, others {outcome.others}",
           flush=True)
     return outcome
 
@@ -310,8 +379,9 @@ def _percentile(values: list[float], q: float) -> float:
 def table(outcomes: list[Outcome]) -> list[str]:
     """The markdown table, by kind."""
     lines = ["| fault | runs | named right | named as | delay p50 / p99 (ms) | "
-             "from when it showed, p50 / p99 (ms) | healthy joints declared |",
-             "|---|---|---|---|---|---|---|"]
+             "from when it showed, p50 / p99 (ms) | least share (median; others' least) | "
+             "slowed below half: named within 1 s | healthy joints declared |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for kind in dict.fromkeys(k for k, _ in KINDS):
         rows = [o for o in outcomes if o.kind == kind]
         right = [o for o in rows if o.named in {str(s) for s in RIGHT.get(kind, {
@@ -320,6 +390,9 @@ def table(outcomes: list[Outcome]) -> list[str]:
         shown = [1e3 * (o.second_shown_delay if kind == "second" else o.shown_delay)
                  for o in right]
         shown = [d for d in shown if math.isfinite(d)]
+        slowed = [o for o in rows if not math.isnan(o.slowed_delay)]
+        least = [o.least_share for o in rows if not math.isnan(o.least_share)]
+        others = [o.others_least_share for o in rows if not math.isnan(o.others_least_share)]
         named: dict[str, int] = {}
         for o in rows:
             named[o.named] = named.get(o.named, 0) + 1
@@ -327,13 +400,15 @@ def table(outcomes: list[Outcome]) -> list[str]:
                      + ", ".join(f"{k} {v}" for k, v in sorted(named.items()))
                      + f" | {_percentile(delays, 50):.0f} / {_percentile(delays, 99):.0f} | "
                      f"{_percentile(shown, 50):.0f} / {_percentile(shown, 99):.0f} | "
+                     f"{_percentile(least, 50):.2f}; {min(others, default=math.nan):.2f} | "
+                     f"{sum(o.slowed_delay <= 1.0 for o in slowed)} of {len(slowed)} | "
                      f"{sum(bool(o.others) for o in rows)} |")
     contacts = [o for o in outcomes if o.kind == "contact"]
     if contacts:
         lines.append(f"| contact {PUSH:.0f} s | {len(contacts)} | - | held "
                      f"{_percentile([o.held for o in contacts], 50):.2f} m from its goal "
                      f"(median), reached after the wall {sum(o.reached for o in contacts)} | "
-                     f"- | - | {sum(bool(o.others) for o in contacts)} |")
+                     f"- | - | - | - | {sum(bool(o.others) for o in contacts)} |")
     return lines
 
 
@@ -344,7 +419,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loaded", action="store_true",
                         help="one busy process per core beside the nodes")
     parser.add_argument("--faults", type=int, default=len(KINDS) * 6)
+    parser.add_argument("--kinds", default=",".join(dict.fromkeys(k for k, _ in KINDS)),
+                        help="the kinds to inject, comma-separated (default: all)")
     parser.add_argument("--contacts", type=int, default=CONTACTS)
+    parser.add_argument("--record", action="store_true",
+                        help="keep every topic heard in <out>/faults_processes_bag")
     args = parser.parse_args(argv)
     domain = int(os.environ.get("FT_BENCH_DOMAIN_FAULTS", "64"))
     context = Context()
@@ -352,7 +431,11 @@ def main(argv: list[str] | None = None) -> int:
     executor = EventsExecutor(context=context)
     probe = FaultProbe(context)
     executor.add_node(probe.node)
-    cases = [(kind, value, joint) for kind, value in KINDS for joint in range(6)][:args.faults]
+    recorder = (Recorder(probe.node, args.out / "faults_processes_bag", time.monotonic_ns)
+                if args.record else None)
+    kinds = set(args.kinds.split(","))
+    cases = [(kind, value, joint) for kind, value in KINDS if kind in kinds
+             for joint in range(6)][:args.faults]
     outcomes: list[Outcome] = []
     try:
         with deployed("physics", domain, args.out / "faults_processes_logs", "separate"):
@@ -361,6 +444,8 @@ def main(argv: list[str] | None = None) -> int:
                 outcomes = [run_fault(probe, executor, *case) for case in cases]
                 outcomes += [run_contact(probe, executor) for _ in range(args.contacts)]
     finally:
+        if recorder is not None:
+            recorder.close()
         executor.shutdown()
         rclpy.shutdown(context=context)
     report(args.out, "faults_processes_loaded" if args.loaded else "faults_processes",
