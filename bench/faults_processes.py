@@ -30,7 +30,9 @@ commanded, is there to see only later. So each delay is also given from when the
 showed: the joint's reported velocity first differing by `MOVING` from the command in
 force at the sim (this probe's last command sent `LATENCY` s before) after the injection,
 that command taken as 0 within `LIMIT_MARGIN` of the limit it points into (a healthy joint
-stops there too: a lock at a limit shows once the command turns away from it).
+stops there too: a lock at a limit shows once the command turns away from it). And each
+joint's least share of its command while watched, and for the faulty joint when it first
+slowed below half of it (`SHARE_MEMORY`, `SLOWED`): the degraded target counts from then.
 Writes `<out>/faults_processes.md` and `.json` (`_loaded` with `--loaded`), the processes'
 logs under `<out>/faults_processes_logs/`. DDS domain `FT_BENCH_DOMAIN_FAULTS` (default 64).
 """
