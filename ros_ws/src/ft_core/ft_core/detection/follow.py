@@ -18,9 +18,8 @@ prediction c is the identified plant model's (the best-scoring one,
 the plant is identified it is the weakest plausible prediction, what the slowest
 plausible healthy plant would have done. Not the weakest always: the plausible set stays
 wide where the identification's windows are disturbed (a loaded machine, a contact, the
-fault itself; latencies of 0 to 0.1 s and more), and the slowest plausible model then
-credits a joint with the motion a lagging plant would still owe: a wrist held by
-friction to a third of its command read as half of it. A joint is **degraded** once its
+fault itself), and the slowest plausible model then credits a slowed joint with the
+motion a lagging plant would still owe in every transient. A joint is **degraded** once its
 share, over at least `MIN_MOTION` of commanded motion, has stayed below
 `DEGRADED_SHARE` for `PERSISTENCE`.
 """
