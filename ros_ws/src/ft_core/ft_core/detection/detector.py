@@ -331,7 +331,6 @@ class LockDetector:
             flags = rules.classify(*evidence_of, np.asarray(directions, dtype=float), True,
                                    *limits)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
-        expected = plant.best_prediction(plausible, cfg.min_excitation)  # for `follow`
         on_its_own = on_its_own & (True if drives is None else drives.let_go(measured))
         if drives is not None and drives.silent.any():  # what the efforts say (`drives`)
             gravity = directions if directions is not None else falling() if falling else None
@@ -462,9 +461,8 @@ class LockDetector:
         if newly or swinging:
             self._declared_at = now
         judged = observable & ~pushing & ~on_its_own & (not disturbance.settling)
-        degraded = [j for j in self.follow.update(
-            now, dt, measured, weakest if expected is None else expected, judged)
-            if joints[j].degraded_at is None and joints[j].locked_at is None]
+        degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged)
+                    if joints[j].degraded_at is None and joints[j].locked_at is None]
         if degraded and veto is not None:  # slowed by a force on the tool: not degraded
             slowed = veto(degraded, now - MEMORY)
             if slowed is not None:  # the stall in contact says nothing of the drive

@@ -4,22 +4,17 @@ A joint whose drive is weakened (friction, lost torque authority) still moves, s
 than commanded; the lock test (`rules.is_stalled`, under `ratio` of the command) does
 not see it, or sees it late and then takes it for a lock. `FollowMeter` measures, per
 joint, the share of its commanded motion the joint made: the measured window slope v
-along the predicted slope c, against |c|, both integrated over the updates where the
-joint is judged (observable, not locked, not at a limit, not moving on its own) and
-forgotten with time constant `MEMORY`:
+along the weakest plausible prediction c, against |c|, both integrated over the updates
+where the joint is judged (observable, not locked, not at a limit, not moving on its
+own) and forgotten with time constant `MEMORY`:
 
     share = sum(v sign(c) dt e^(-age / MEMORY)) / sum(|c| dt e^(-age / MEMORY))
 
 Displacements, not velocities: a servo that ran ahead of its reference and pauses for
 it to catch up (docs/detection.md, "A lock loses position") loses nothing over the
 memory, while a joint that follows half its command loses half of it steadily. The
-prediction c is the identified plant model's (the best-scoring one,
-`PlantIdentification.best_prediction`), so a healthy joint's share is about 1; until
-the plant is identified it is the weakest plausible prediction, what the slowest
-plausible healthy plant would have done. Not the weakest always: the plausible set stays
-wide where the identification's windows are disturbed (a loaded machine, a contact, the
-fault itself), and the slowest plausible model then credits a slowed joint with the
-motion a lagging plant would still owe in every transient. A joint is **degraded** once its
+weakest plausible prediction is what the slowest plausible healthy plant would have
+done, so a healthy joint's share is about 1 or more. A joint is **degraded** once its
 share, over at least `MIN_MOTION` of commanded motion, has stayed below
 `DEGRADED_SHARE` for `PERSISTENCE`.
 """
@@ -63,13 +58,13 @@ class FollowMeter:
     def shares(self) -> np.ndarray:
         """(n,) share (0-1) of its command each joint followed (nan: too little commanded).
 
-        A joint ahead of its prediction followed all of it: 1.
+        A joint ahead of the weakest plausible prediction followed all of it: 1.
         """
         known = self.commanded >= MIN_MOTION
         share = np.divide(self.moved, self.commanded, out=np.zeros(self.n), where=known)
         return np.where(known, np.clip(share, 0.0, 1.0), math.nan)
 
-    def update(self, now: float, dt: float, measured: np.ndarray, predicted: np.ndarray,
+    def update(self, now: float, dt: float, measured: np.ndarray, weakest: np.ndarray,
                judged: np.ndarray) -> list[int]:
         """One decision's slopes (rad/s) over `dt` s; the joints degraded now, in order.
 
@@ -77,7 +72,7 @@ class FollowMeter:
             now: the decision's time (s).
             dt: s since the previous decision.
             measured: (n,) measured window slopes v.
-            predicted: (n,) predicted slopes c (see the module docstring).
+            weakest: (n,) weakest plausible predictions c.
             judged: (n,) joints whose motion counts at this decision.
 
         Returns:
@@ -87,8 +82,8 @@ class FollowMeter:
         decay = math.exp(-dt / MEMORY)
         self.moved *= decay
         self.commanded *= decay
-        self.moved += np.where(judged, measured * np.sign(predicted) * dt, 0.0)
-        self.commanded += np.where(judged, np.abs(predicted) * dt, 0.0)
+        self.moved += np.where(judged, measured * np.sign(weakest) * dt, 0.0)
+        self.commanded += np.where(judged, np.abs(weakest) * dt, 0.0)
         low = (self.shares < DEGRADED_SHARE).tolist()  # nan compares False
         degraded = []
         for j, is_low in enumerate(low):

@@ -126,26 +126,12 @@ class PlantIdentification:
                            & (self.model_latency <= lat.max() + LATENCY_MARGIN[1] + 1e-9)
                            & (self.model_response >= low) & (self.model_response <= high))
 
-    def identified(self, min_excitation: float) -> bool:
-        """Whether `min_excitation` s of informative data have replaced the prior."""
-        return self.excitation >= min_excitation and self.weight > 0
-
-    def best_prediction(self, plausible_slopes: np.ndarray,
-                        min_excitation: float) -> np.ndarray | None:
-        """The best model's predicted slopes (rad/s), or None until `identified`.
-
-        `plausible_slopes`: every plausible model's, one row each in `plausible_models` order.
-        """
-        if not self.identified(min_excitation):
-            return None
-        return plausible_slopes[int(np.searchsorted(self.plausible_models, self.best))]
-
     def estimate(self, min_excitation: float) -> PlantEstimate:
         """The identified model (the prior's ranges until `min_excitation` s of data)."""
         best = self.best if self.weight > 0 else 0
         lat = self.model_latency[self.plausible]
         rt = self.model_response[self.plausible]
-        identified = self.identified(min_excitation)
+        identified = self.excitation >= min_excitation and self.weight > 0
         return PlantEstimate(
             latency=float(self.model_latency[best]) if identified else math.nan,
             response_time=float(self.model_response[best]) if identified else math.nan,
