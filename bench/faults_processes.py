@@ -32,7 +32,7 @@ force at the sim (this probe's last command sent `LATENCY` s before) after the i
 that command taken as 0 within `LIMIT_MARGIN` of the limit it points into (a healthy joint
 stops there too: a lock at a limit shows once the command turns away from it). And each
 joint's least share of its command while watched, and for the faulty joint when it first
-slowed below half of it (`SHARE_MEMORY`, `SLOWED`): the degraded target counts from then.
+slowed below half of it (`RESPONSE_TIME`): the degraded target counts from then.
 Writes `<out>/faults_processes.md` and `.json` (`_loaded` with `--loaded`), the processes'
 logs under `<out>/faults_processes_logs/`. DDS domain `FT_BENCH_DOMAIN_FAULTS` (default 64).
 """
@@ -54,6 +54,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from engine_cycle import machine, report
 from ft_core import robots
 from ft_core.detection import DetectorConfig
+from ft_core.detection.follow import PERSISTENCE, FollowMeter
 from ft_core.faults import Fault, FaultKind
 from ft_core.health import Health
 from ft_msgs_py import faults as fault_messages
@@ -92,17 +93,12 @@ LATENCY = float(PLANTS["physics"]["sim"]["command_latency"])
 #: s, the sim's servo response time: a healthy joint's velocity follows the command in
 #: force as the physics plant's critically damped servo makes it (`ft_core.physics`).
 RESPONSE_TIME = float(PLANTS["physics"]["sim"]["response_time"])
-#: A joint's share of its command: its measured motion along that healthy joint's
-#: velocity, against the healthy joint's motion, both forgotten with time constant
-#: `SHARE_MEMORY` s, once the latter is at least `SHARE_MOTION` rad (as
-#: `ft_core.detection.follow` measures it, but against the plant's own servo). A
-#: degraded joint has slowed (the target's "below half of its command") from when its
-#: share falls below `SLOWED` to stay there `SLOWED_FOR` s: a healthy panda_joint1, its
-#: drive at its torque limit as the command turns, dips below half for about 20 ms.
-SHARE_MEMORY = 0.3
-SHARE_MOTION = 0.02
-SLOWED = 0.5
-SLOWED_FOR = 0.1
+#: A joint's share of its command is `ft_core.detection.follow`'s, measured against that
+#: healthy joint's velocity (the plant's own servo) instead of the monitor's predictions.
+#: A degraded joint has slowed (the target's "below half of its command") from when its
+#: share falls below `DEGRADED_SHARE` to stay there `PERSISTENCE` s (a healthy
+#: panda_joint1, its drive at its torque limit as the command turns, dips below half for
+#: about 20 ms): `FollowMeter` names it then, `PERSISTENCE` s later (within a joint state).
 #: rad, the detector's `limit_margin`: this close to a limit, a joint commanded into it
 #: stops there, healthy or not.
 LIMIT_MARGIN = DetectorConfig().limit_margin
@@ -141,7 +137,7 @@ class Outcome:
     others: list[str] = field(default_factory=list)  #: healthy joints declared
     least_share: float = math.nan  #: the faulty joint's least share while watched
     others_least_share: float = math.nan  #: the other joints' least share (healthy: ~1)
-    #: s from the faulty joint's share first falling below `SLOWED` to its declaration
+    #: s from the faulty joint's share first falling below half to its declaration
     #: (0 when declared before; nan when it never slowed)
     slowed_delay: float = math.nan
     held: float = math.nan  #: m, a contact's tool from its goal as the wall was removed
@@ -168,14 +164,17 @@ class FaultProbe(Probe):
         self._sent_since: deque[tuple[float, np.ndarray]] = deque(maxlen=1000)
         #: joint -> when its fault showed (monotonic s; inf: not yet), for the faulty joints
         self.shown: dict[int, float] = {}
-        #: joint -> when its share first fell below `SLOWED` (inf: not yet), the same joints
+        #: joint -> when its share first fell below half (inf: not yet), the same joints
         self.slowed: dict[int, float] = {}
+        self._init_share(time.monotonic())
+
+    def _init_share(self, now: float) -> None:
+        """The healthy servo at rest and no share yet, at `now` (monotonic s)."""
         #: each joint's least share since `inject` (inf: too little commanded)
         self.least = np.full(7, math.inf)
-        self._share_at = time.monotonic()
+        self._share_at = now
         self._ref, self._healthy_q, self._healthy_qd = np.zeros(7), np.zeros(7), np.zeros(7)
-        self._moved, self._commanded = np.zeros(7), np.zeros(7)
-        self._below_since: dict[int, float] = {}  # joint -> when its share fell below half
+        self._meter = FollowMeter(7)
 
     def _on_health(self, msg: DiagnosticArray) -> None:
         arrival = time.monotonic()
@@ -203,7 +202,7 @@ class FaultProbe(Probe):
                     self.shown[joint] = now
 
     def _share(self, followable: np.ndarray, now: float) -> None:
-        """Update each joint's share of its command: see `SHARE_MEMORY`."""
+        """Update each joint's share of its command: see `RESPONSE_TIME`."""
         dt = min(now - self._share_at, 0.1)
         self._share_at = now
         w = 1.0 / RESPONSE_TIME
@@ -214,18 +213,11 @@ class FaultProbe(Probe):
                                      + 2 * w * (followable - self._healthy_qd))
             self._healthy_q += self._healthy_qd * h
             self._ref = np.clip(self._ref, self._healthy_q - 0.1, self._healthy_q + 0.1)
-        decay = math.exp(-dt / SHARE_MEMORY)
-        self._moved = decay * self._moved + self.qd * np.sign(self._healthy_qd) * dt
-        self._commanded = decay * self._commanded + np.abs(self._healthy_qd) * dt
-        known = self._commanded >= SHARE_MOTION
-        share = np.divide(self._moved, self._commanded, out=np.ones(7), where=known)
-        self.least = np.minimum(self.least, np.where(known, share, np.inf))
-        for joint, slowed in self.slowed.items():
-            below = known[joint] and share[joint] < SLOWED
-            since = self._below_since.get(joint, math.inf)
-            self._below_since[joint] = min(since, now) if below else math.inf
-            if math.isinf(slowed) and below and now - since >= SLOWED_FOR:
-                self.slowed[joint] = since
+        slowed = self._meter.update(now, dt, self.qd, self._healthy_qd, np.ones(7, bool))
+        self.least = np.fmin(self.least, self._meter.shares)
+        for joint in slowed:
+            if math.isinf(self.slowed.get(joint, -math.inf)):
+                self.slowed[joint] = now - PERSISTENCE
 
     def _on_sent(self, msg: JointState) -> None:
         index = {name: k for k, name in enumerate(msg.name)}
@@ -274,7 +266,7 @@ class FaultProbe(Probe):
         for client in (self._sim_reset, self._reset):
             future = client.call_async(Trigger.Request())
             spin(self, executor, 5.0, future.done)
-        self.states, self.shown, self.slowed, self._below_since = {}, {}, {}, {}
+        self.states, self.shown, self.slowed = {}, {}, {}
 
 
 def spin(probe: FaultProbe, executor: EventsExecutor, seconds: float,
