@@ -105,6 +105,29 @@ def test_command_pauses_declare_nothing(pause: float, hold: bool) -> None:
     assert detector.not_observing is None  # observing again after the last pause
 
 
+@pytest.mark.parametrize("timeout", [0.03, 0.1])
+def test_a_hole_shorter_than_a_window_goes_on_observing(timeout: float) -> None:
+    """Holes of 0.07 s in the commands (a monitor descheduled on a busy machine).
+
+    No restart: the detector keeps observing through them. A driver whose watchdog
+    (0.03 s) stops the arm inside the hole stalls every joint together: nothing declared.
+    """
+    plant = PlantConfig(latency=0.03, response_time=0.02, timeout=timeout)
+    data = record(sweeping, 9.0, plant, pauses=tuple((t, t + 0.07) for t in (3.0, 5.0, 7.0)))
+    detector = LockDetector(PANDA.lower, PANDA.upper)
+    blind = []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        update = detector.measure(t, values)
+        assert update.locked == () and update.swinging == (), (t, update)
+        if t >= 2.5 and detector.not_observing is not None:
+            blind.append(t)
+    assert detector.not_observing is None
+    assert len(blind) < 50, (len(blind), blind[:5])
+
+
 def test_pauses_lock_joints_without_the_gap_rule() -> None:
     """The same pauses with the old detector: every moving joint is declared locked."""
     plant = PlantConfig(timeout=0.1)

@@ -280,6 +280,9 @@ def test_no_decision_without_evidence() -> None:
     assert _reason() is None
     assert _reason(last_command=-math.inf) == "no command yet"
     assert _reason(last_command=0.9) == "command stream paused for 0.100 s"
+    # A hole shorter than a window (the monitor descheduled on a busy machine): the driver
+    # holds the last command, and the detector goes on.
+    assert _reason(last_command=0.95) is None
     assert _reason(resumed_at=0.8) == "settling after the command stream (re)started"
     assert _reason(times=np.array([0.97, 0.98, 0.99, 1.0])) == (
         "too few joint states in the window")

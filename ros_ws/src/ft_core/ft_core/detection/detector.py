@@ -193,7 +193,7 @@ class LockDetector:
         last = self.history.last_time  # -inf before any command
         if time < last:
             return  # out of order: ignored
-        if time - last > self.config.window / 2:
+        if time - last > self.config.window:
             self._resumed_at = time  # the first command, or the first after a gap
             self._seen_following = 0.0
         # Floats and contiguous arrays: the types `compile_ahead` compiled for.

@@ -377,14 +377,14 @@ def not_observing(now: float, last_command: float, resumed_at: float, settling: 
         min_samples: fewest measurements in the window.
 
     Returns:
-        The reason: no command yet, a command gap longer than half a window, the
+        The reason: no command yet, a command gap longer than a window, the
         settling time after commands (re)started, too few measurements over less than
         half a window, or a gap between measurements longer than half a window.
     """
     if last_command == -math.inf:
         return "no command yet"
     gap = now - last_command
-    if gap > window / 2:
+    if gap > window:
         return f"command stream paused for {gap:.3f} s"
     if now < resumed_at + settling:
         return "settling after the command stream (re)started"
