@@ -438,6 +438,32 @@ def _braking(residual: np.ndarray, along: np.ndarray) -> np.ndarray:
                       velocity, REVERSING, along)
 
 
+def test_friction_resisting_a_joint_leaves_a_push_beyond_free_motion() -> None:
+    """A residual of 30 % of the effort limit (and 5 N m) along the command: resisted.
+
+    A wrist (12 N m) whose saturated drive spends 11 N m against viscous friction is
+    resisted, one spending 3 N m (a brake's bar, more than a healthy wrist leaves) is
+    not, nor a shoulder (87 N m) spending 20 N m, under its 26.1; a residual against
+    the command is a push by something else, not a resistance.
+    """
+    velocity, along = np.full(PANDA.n, 0.1), np.full(PANDA.n, 0.3)
+    inertia, nonlinear = PANDA.dynamics(REVERSING_Q, velocity)
+    gravity = PANDA.gravity(REVERSING_Q)
+
+    def resisted(residual: float) -> np.ndarray:
+        effort = inertia @ REVERSING + nonlinear + residual
+        return Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool), effort - gravity,
+                      np.abs(gravity), PANDA, REVERSING_Q, effort).resisted(
+                          velocity, REVERSING, along)
+
+    assert resisted(11.0)[4:].all() and not resisted(11.0)[:4].any()
+    assert not resisted(3.0).any()
+    assert resisted(27.0).all()
+    assert not resisted(-27.0).any()
+    assert not Drives(np.zeros(PANDA.n, bool), np.zeros(PANDA.n, bool)).resisted(
+        velocity, REVERSING, along).any()
+
+
 def test_a_brake_holding_a_slowly_commanded_joint_leaves_its_drives_push() -> None:
     """A residual of 2 % of the effort limit (and 1 N m) along the command: braking.
 

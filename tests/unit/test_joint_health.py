@@ -16,7 +16,13 @@ import pytest
 from builtin_interfaces.msg import Time
 from ft_core import robots
 from ft_core.detection import DetectorConfig, LockDetector
-from ft_core.detection.follow import DEGRADED_SHARE, MIN_MOTION, PERSISTENCE, FollowMeter
+from ft_core.detection.follow import (
+    DEGRADED_SHARE,
+    MIN_MOTION,
+    PERSISTENCE,
+    RESISTED_SHARE,
+    FollowMeter,
+)
 from ft_core.health import Health, HealthBoard, JointCondition, JointHealth
 from ft_core.monitor import Monitor, MonitorConfig
 from ft_core.plant import PlantConfig
@@ -85,6 +91,19 @@ def test_a_share_below_half_must_last_before_a_joint_is_degraded() -> None:
     # The share falls below DEGRADED_SHARE within about a memory, then PERSISTENCE holds.
     assert 0.5 + PERSISTENCE < found < 1.5, found
     assert meter.shares[0] < DEGRADED_SHARE
+
+
+def test_a_resisted_joint_is_degraded_below_a_higher_share() -> None:
+    """Making 60 % of its command: degraded only while something resists it hard."""
+    for resisted in (False, True):
+        meter, found = FollowMeter(1), None
+        for k in range(400):
+            if meter.update(k * 0.0025, 0.0025, np.array([0.12]), np.array([0.2]),
+                            np.array([True]), np.array([resisted])) and found is None:
+                found = k * 0.0025
+        assert meter.shares[0] == pytest.approx(0.6)
+        assert DEGRADED_SHARE < meter.shares[0] < RESISTED_SHARE
+        assert (found is not None) == resisted, found
 
 
 @pytest.mark.parametrize(("latency", "response"), GRID[::3])

@@ -461,7 +461,9 @@ class LockDetector:
         if newly or swinging:
             self._declared_at = now
         judged = observable & ~pushing & ~on_its_own & (not disturbance.settling)
-        degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged)
+        resisted = (drives.resisted(measured, acceleration, weakest)
+                    if drives is not None and acceleration is not None else None)
+        degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged, resisted)
                     if joints[j].degraded_at is None and joints[j].locked_at is None]
         if degraded and veto is not None:  # slowed by a force on the tool: not degraded
             slowed = veto(degraded, now - MEMORY)

@@ -220,6 +220,23 @@ class Drives:
                            BRAKE_TORQUE)
         return np.sign(along) * residual >= least
 
+    def resisted(self, velocity: np.ndarray, acceleration: np.ndarray,
+                 along: np.ndarray) -> np.ndarray:
+        """Whether something resists each joint's motion along `along` hard (n,) bool.
+
+        As `braking`, with the bar of a push (`PUSH_SHARE` of the effort limit and
+        `PUSH_TORQUE`): the residual tau - M qdd - C qd - g along the commanded velocity
+        (rad/s) is a drive's torque spent on an external resistance, friction in the
+        joint or a force on the tool (De Luca & Mattone 2003). A healthy joint in free
+        motion leaves less (the module). False everywhere without efforts.
+        """
+        if self.robot is None or self.q is None or self.effort is None:
+            return np.zeros(velocity.size, bool)
+        _, residual = self._residual(self.robot, self.q, self.effort, velocity, acceleration)
+        least = np.maximum(PUSH_SHARE * np.asarray(self.robot.effort_limits, float),
+                           PUSH_TORQUE)
+        return np.sign(along) * residual >= least
+
     def unanswered(self, departure: np.ndarray, response: float) -> np.ndarray:
         """Whether each drive leaves its joint's departure unanswered (n,) bool.
 

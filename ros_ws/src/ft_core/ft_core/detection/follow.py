@@ -16,7 +16,10 @@ memory, while a joint that follows half its command loses half of it steadily. T
 weakest plausible prediction is what the slowest plausible healthy plant would have
 done, so a healthy joint's share is about 1 or more. A joint is **degraded** once its
 share, over at least `MIN_MOTION` of commanded motion, has stayed below
-`DEGRADED_SHARE` for `PERSISTENCE`.
+`DEGRADED_SHARE` for `PERSISTENCE`, or below `RESISTED_SHARE` where its drive's
+efforts show something resisting its motion hard (`drives.Drives.resisted`): a friction
+that saturates the drive slows the joint to about `DEGRADED_SHARE` of the weakest
+prediction, where the share alone would wait on it.
 """
 
 from __future__ import annotations
@@ -29,6 +32,9 @@ import numpy as np
 MEMORY = 0.3
 #: Share of its command below which a joint is degraded.
 DEGRADED_SHARE = 0.5
+#: Share below which a joint whose motion something resists hard is degraded
+#: (`drives.Drives.resisted`): its drive's torque is spent, not its servo slow.
+RESISTED_SHARE = 0.7
 #: rad of commanded motion (forgotten as the shares) before a share says anything.
 MIN_MOTION = 0.02
 #: s a share must stay below `DEGRADED_SHARE`.
@@ -65,7 +71,7 @@ class FollowMeter:
         return np.where(known, np.clip(share, 0.0, 1.0), math.nan)
 
     def update(self, now: float, dt: float, measured: np.ndarray, weakest: np.ndarray,
-               judged: np.ndarray) -> list[int]:
+               judged: np.ndarray, resisted: np.ndarray | None = None) -> list[int]:
         """One decision's slopes (rad/s) over `dt` s; the joints degraded now, in order.
 
         Args:
@@ -74,6 +80,8 @@ class FollowMeter:
             measured: (n,) measured window slopes v.
             weakest: (n,) weakest plausible predictions c.
             judged: (n,) joints whose motion counts at this decision.
+            resisted: (n,) joints whose motion something resists hard now, judged
+                against `RESISTED_SHARE` (None: none).
 
         Returns:
             The joints whose share has stayed below `DEGRADED_SHARE` for `PERSISTENCE`
@@ -84,7 +92,9 @@ class FollowMeter:
         self.commanded *= decay
         self.moved += np.where(judged, measured * np.sign(weakest) * dt, 0.0)
         self.commanded += np.where(judged, np.abs(weakest) * dt, 0.0)
-        low = (self.shares < DEGRADED_SHARE).tolist()  # nan compares False
+        bar = (DEGRADED_SHARE if resisted is None
+               else np.where(resisted, RESISTED_SHARE, DEGRADED_SHARE))
+        low = (self.shares < bar).tolist()  # nan compares False
         degraded = []
         for j, is_low in enumerate(low):
             if not is_low:
