@@ -213,12 +213,7 @@ class Drives:
         a healthy joint a few mrad behind a slow command is held by torques the dynamics
         explain. False everywhere without efforts.
         """
-        if self.robot is None or self.q is None or self.effort is None:
-            return np.zeros(velocity.size, bool)
-        _, residual = self._residual(self.robot, self.q, self.effort, velocity, acceleration)
-        least = np.maximum(BRAKE_SHARE * np.asarray(self.robot.effort_limits, float),
-                           BRAKE_TORQUE)
-        return np.sign(along) * residual >= least
+        return self._spent_along(velocity, acceleration, along, BRAKE_SHARE, BRAKE_TORQUE)
 
     def resisted(self, velocity: np.ndarray, acceleration: np.ndarray,
                  along: np.ndarray) -> np.ndarray:
@@ -230,11 +225,15 @@ class Drives:
         joint or a force on the tool (De Luca & Mattone 2003). A healthy joint in free
         motion leaves less (the module). False everywhere without efforts.
         """
+        return self._spent_along(velocity, acceleration, along, PUSH_SHARE, PUSH_TORQUE)
+
+    def _spent_along(self, velocity: np.ndarray, acceleration: np.ndarray,
+                     along: np.ndarray, share: float, torque: float) -> np.ndarray:
+        """Whether the residual along `along` is at least `share` of the limit and `torque`."""
         if self.robot is None or self.q is None or self.effort is None:
             return np.zeros(velocity.size, bool)
         _, residual = self._residual(self.robot, self.q, self.effort, velocity, acceleration)
-        least = np.maximum(PUSH_SHARE * np.asarray(self.robot.effort_limits, float),
-                           PUSH_TORQUE)
+        least = np.maximum(share * np.asarray(self.robot.effort_limits, float), torque)
         return np.sign(along) * residual >= least
 
     def unanswered(self, departure: np.ndarray, response: float) -> np.ndarray:
