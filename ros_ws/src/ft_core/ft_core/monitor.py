@@ -27,11 +27,11 @@ converts messages, runs the watchdog and publishes; everything between is here.
 - **Declared failures and reset** (`declare`, `reset`).
 - **Persist, then announce, without waiting for the disk** (docs/monitor.md). A change
   of the locked set takes effect at once in the command filter, and is written to its
-  file (`ft_core.locked_set`) by a writer thread. The `Change` a call returns holds only
-  what is on disk by then (`settled` hands over the rest once written); the set to
-  publish is `announced`, the set last written. `reset` is answered at once and its
-  empty set published once written; a crash in between restores the released joints as
-  locked, the safe side.
+  file (`ft_core.locked_set`) by a writer thread (`ft_core.announcements`). The `Change`
+  a call returns holds only what is on disk by then (`settled` hands over the rest once
+  written); the set to publish is `announced`, the set last written. `reset` is
+  answered at once and its empty set published once written; a crash in between
+  restores the released joints as locked, the safe side.
 
 Each `Change` says whether the announced set changed (`Change.changed`) and carries
 the lines to log (`Change.events`, errors, about the arm); problems with the state
@@ -41,13 +41,14 @@ file go to `report` as with the controller's core.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ft_core import limits, locked_set, remap, swing
+from ft_core.announcements import Announcements, Change
 from ft_core.command_limits import LimitsConfig
 from ft_core.detection import (
     Confirmation,
@@ -96,28 +97,6 @@ class MonitorConfig:
             raise ValueError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}")
 
 
-@dataclass
-class Change:
-    """What a call did to the locked set.
-
-    Attributes:
-        changed: the locked set changed (and is on disk unless `report` said otherwise).
-        events: what happened to the arm, one line each, for the error log.
-        time: s, when the newest of its decisions was taken (the stamp to announce it
-            with; nan when nothing was decided).
-    """
-
-    changed: bool = False
-    events: list[str] = field(default_factory=list)
-    time: float = math.nan
-
-    @staticmethod
-    def of(changes: Sequence[Change]) -> Change:
-        """Several changes as one, in order."""
-        return Change(any(c.changed for c in changes), [e for c in changes for e in c.events],
-                      changes[-1].time if changes else math.nan)
-
-
 class Monitor:
     """The monitor's logic; see the module docstring.
 
@@ -148,11 +127,9 @@ class Monitor:
         self.store = store
         self._report = report
         self.q: np.ndarray | None = None  #: the latest measured configuration (rad)
-        self._writer = (locked_set.Writer(store, robot.name, written) if store is not None
-                        else None)
-        #: (generation, change, the set it leaves) written by the writer, not yet handed over
-        self._held: list[tuple[int, Change, dict[str, float]]] = []
-        self._announced: dict[str, float] = {}
+        self._announcements = Announcements(
+            locked_set.Writer(store, robot.name, written) if store is not None else None,
+            report)
         #: steady or ROS time (s) each joint was last observable (commanded fast enough for
         #: the detector to judge it); None before the first joint state
         self._observed_at: np.ndarray | None = None
@@ -186,14 +163,12 @@ class Monitor:
     @property
     def announced(self) -> dict[str, float]:
         """The locked set as the changes handed over so far leave it: on disk, to publish."""
-        return dict(self._announced)
+        return self._announcements.announced
 
     @property
     def writing(self) -> bool:
         """Whether a change waits for a write of the locked set still under way."""
-        if not self._held or self._writer is None:
-            return False
-        return self._writer.done()[0] < self._held[-1][0]
+        return self._announcements.writing
 
     @property
     def swinging(self) -> list[str]:
@@ -211,8 +186,7 @@ class Monitor:
     def restore(self, now: float) -> Change:
         """Take the locked set kept in the store (at start-up), and have it written back.
 
-        The write back puts the file in the slot format (created if missing, an older
-        version's migrated), so that a lock decided later costs one write in place.
+        The write back puts the file in the slot format (`Announcements.on_disk`).
         """
         if self.store is None:
             return Change()
@@ -226,11 +200,9 @@ class Monitor:
             j = self.robot.joint_names.index(name)
             self.detector.lock(j, position, now)
             self.board.declare(j, Health.LOCKED, now, f"restored from {self.store}")
-        if self._writer is not None:  # the file in the slot format now, not at the first lock
-            self._writer.submit(self.locked)
+        self._announcements.on_disk(self.locked)
         if not stored:
             return Change()
-        self._announced = self.locked  # read from the file: on disk already
         return Change(True, [f"restored locked joints {sorted(stored)} from {self.store} "
                              "(call ~/reset after a repair)"], now)
 
@@ -439,7 +411,7 @@ class Monitor:
         self.detector.reset()
         self._drives.reset()
         self.board.reset()
-        self._held.clear()
+        self._announcements.drop()
         self._hold(Change(True), now)
         return released
 
@@ -465,44 +437,16 @@ class Monitor:
     # ----------------------------------------------------------- persistence
     def settled(self) -> Change:
         """The changes written since the last call, in order (nothing to announce: empty)."""
-        if not self._held:
-            return Change()
-        written, error = self._writer.done() if self._writer is not None else (math.inf, None)
-        ready = [held for held in self._held if held[0] <= written]
-        if not ready:
-            return Change()
-        del self._held[:len(ready)]
-        if self._writer is not None:
-            self._report("state_directory",
-                         None if error is None else f"cannot keep the locked set: {error}")
-        self._announced = ready[-1][2]
-        return Change.of([change for _, change, _ in ready])
+        return self._announcements.settled()
 
     def flush(self, timeout: float) -> Change:
         """Wait up to `timeout` s for the writes under way; then `settled`."""
-        if self._writer is not None:
-            self._writer.flush(timeout)
-        return self.settled()
+        return self._announcements.flush(timeout)
 
     def close(self) -> Change:
         """Finish the last write (at most CLOSE_TIMEOUT s) and end the writer thread."""
-        change = self.flush(CLOSE_TIMEOUT)
-        if self._writer is not None:
-            self._writer.close()
-        return change
+        return self._announcements.close(CLOSE_TIMEOUT)
 
     def _hold(self, change: Change, now: float) -> None:
-        """Queue `change`, decided at `now` s, for `settled` (via the writer if it changed).
-
-        A change that leaves the set as it is waits behind those being written, so the
-        lines to log keep their order.
-        """
-        change.time = now
-        if change.changed:
-            locked = self.locked
-            generation = self._writer.submit(locked) if self._writer is not None else 0
-            self._held.append((generation, change, locked))
-        elif change.events:
-            generation, locked = ((self._held[-1][0], self._held[-1][2]) if self._held
-                                  else (0, self._announced))
-            self._held.append((generation, change, locked))
+        """Queue `change`, decided at `now` s, for `settled` (`Announcements.hold`)."""
+        self._announcements.hold(change, now, self.locked)

@@ -27,8 +27,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from ft_core import locked_set, robots
+from ft_core.announcements import Change
 from ft_core.detection import Decision
-from ft_core.monitor import Change, Monitor
+from ft_core.monitor import Monitor
 from ft_msgs_py import (
     convert,
     diagnostics,

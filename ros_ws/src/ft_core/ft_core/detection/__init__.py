@@ -7,8 +7,9 @@ One concept per module:
     identification: the bank of candidate models, their scores and the plausible set.
     rules: the decision rules (observable, stalled, following, at a limit, on its own,
         lost position, plant fault, no decision without evidence), one function each.
-    evidence: each joint's evidence, and when it becomes a declaration (persistence, the
-        settling time of a disturbed arm).
+    evidence: each joint's evidence, when it becomes a declaration (persistence, the
+        settling time of a disturbed arm), and the detector's answers (`Update`,
+        `Confirmation`).
     follow: the share of its command each joint follows, and degraded joints.
     config: `DetectorConfig`, the detector's parameters.
     detector: `LockDetector`, which applies them to streams of commands and measurements.
@@ -18,13 +19,10 @@ from ft_core.detection.config import DetectorConfig
 from ft_core.detection.detector import (
     DECISION_PERIOD,
     SUSPECT_SPAN,
-    Confirmation,
-    Decision,
-    JointEvidence,
     LockDetector,
-    Update,
     compile_ahead,
 )
+from ft_core.detection.evidence import Confirmation, Decision, JointEvidence, Update
 from ft_core.detection.identification import (
     IDENTIFY_PERIOD,
     LATENCY_GRID,

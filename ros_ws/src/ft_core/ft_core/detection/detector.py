@@ -7,7 +7,6 @@ at each decision (docs/detection.md).
 
 from __future__ import annotations
 
-import enum
 import functools
 import math
 from collections.abc import Callable
@@ -29,8 +28,11 @@ from ft_core.detection.drives import (
     Drives,
 )
 from ft_core.detection.evidence import (
+    Confirmation,
+    Decision,
     Disturbance,
     JointEvidence,
+    Update,
     Veto,
     declare_locks,
     declare_swings,
@@ -53,43 +55,6 @@ DECISION_PERIOD = 0.0025
 #: judged (`LockDetector.confirm`): the task-space channel's window, over which it
 #: suspected the joint.
 SUSPECT_SPAN = 0.5
-
-
-@dataclass(frozen=True)
-class Update:
-    """What one measurement decided: joints newly declared locked, free-swinging, degraded.
-
-    `released`: those of `swinging` that were declared locked (a swing takes the lock back).
-    """
-
-    locked: tuple[int, ...] = ()
-    swinging: tuple[int, ...] = ()
-    released: tuple[int, ...] = ()
-    degraded: tuple[int, ...] = ()
-
-
-class Decision(enum.StrEnum):
-    """The detector's answer to a suspected lock (`Confirmation.decision`)."""
-
-    LOCKED = "locked"  #: declared now
-    KNOWN = "known"  #: already locked
-    REFUSED = "refused"  #: not a lock candidate at the last update
-
-
-@dataclass(frozen=True)
-class Confirmation:
-    """The detector's answer to a suspect from elsewhere (the controller's task channel).
-
-    Attributes:
-        decision: `Decision.LOCKED` (declared now), `KNOWN` (already locked) or
-            `REFUSED` (not a lock candidate at the last update: following, within the
-            noise, moving on its own, or at a limit). A joint declared free-swinging is
-            decided like any other: locked if it has stopped while commanded.
-        evidence: the joint's evidence at the decision (a copy).
-    """
-
-    decision: Decision
-    evidence: JointEvidence
 
 
 @dataclass

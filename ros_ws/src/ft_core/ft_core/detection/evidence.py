@@ -1,4 +1,4 @@
-"""Each joint's evidence, and when evidence becomes a declaration.
+"""Each joint's evidence, when evidence becomes a declaration, and what the detector answers.
 
 Lock evidence (a candidate of the stall rules, vouched for by a joint that follows) is
 declared once it has held for `persistence`; free-swing evidence (motion on its own)
@@ -15,6 +15,7 @@ evidence, still under way, began. Evidence that begins at the same update as ano
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -52,7 +53,41 @@ class JointEvidence:
     swing_late: bool = False
 
 
+@dataclass(frozen=True)
+class Update:
+    """What one measurement decided: joints newly declared locked, free-swinging, degraded.
 
+    `released`: those of `swinging` that were declared locked (a swing takes the lock back).
+    """
+
+    locked: tuple[int, ...] = ()
+    swinging: tuple[int, ...] = ()
+    released: tuple[int, ...] = ()
+    degraded: tuple[int, ...] = ()
+
+
+class Decision(enum.StrEnum):
+    """The detector's answer to a suspected lock (`Confirmation.decision`)."""
+
+    LOCKED = "locked"  #: declared now
+    KNOWN = "known"  #: already locked
+    REFUSED = "refused"  #: not a lock candidate at the last update
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """The detector's answer to a suspect from elsewhere (the controller's task channel).
+
+    Attributes:
+        decision: `Decision.LOCKED` (declared now), `KNOWN` (already locked) or
+            `REFUSED` (not a lock candidate at the last update: following, within the
+            noise, moving on its own, or at a limit). A joint declared free-swinging is
+            decided like any other: locked if it has stopped while commanded.
+        evidence: the joint's evidence at the decision (a copy).
+    """
+
+    decision: Decision
+    evidence: JointEvidence
 
 
 class Disturbance:
