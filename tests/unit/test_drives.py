@@ -189,9 +189,9 @@ def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_o
     still = np.zeros(4)  # rad/s, none moves
     plausible = np.zeros((1, 4))
     everyone = np.ones(4, bool)
-    own = rules.silent_and_on_its_own(silent, still, plausible, np.full(4, 1e-3), everyone,
-                                      everyone, falling, (latest, lower, upper), 0.05, 5.0,
-                                      0.01)
+    own = rules.silent_and_on_its_own(silent, silent, still, plausible, np.full(4, 1e-3),
+                                      everyone, everyone, falling, (latest, lower, upper),
+                                      0.05, 5.0, 0.01)
     # Only joint 0: joint 1's stop is not the one gravity turns it into, joint 2's drive
     # gives torque, joint 3 is nowhere near a stop.
     assert own.tolist() == [True, False, False, False]
@@ -313,6 +313,56 @@ def test_a_joint_gravity_does_not_turn_coasting_without_torque_is_named_as_it_de
     assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [0]
     events, _, monitor, _ = _coasting(driver, np.inf)
     assert monitor.detector.not_observing is None
+    assert events == []
+
+
+def _uphill(driver: str, shoulder: float, fails: bool) -> tuple[list[str], float]:
+    """Panda joint 4 commanded towards - at 0.25 rad/s, losing its torque at 1.5 s if `fails`.
+
+    It is uphill there; joint 2 held at `shoulder` rad, joints 1, 5 and 7 moving
+    (witnesses), the commands varied for the first 1.2 s. Returns the monitor's events
+    and the s from the loss to the first.
+    """
+    fails_at = 1.5
+    q = Q.copy()
+    q[[1, 3]] = shoulder, -2.0 - 0.25 * fails_at  # about where it fails
+    assert swing.falling_directions(PANDA, q)[3] > 0  # uphill is towards -
+    q[3] = -2.0
+
+    def command_at(t: float) -> np.ndarray:
+        command = np.zeros(PANDA.n)
+        command[[0, 3, 4, 6]] = [0.3, -0.25, 0.3, 0.3]
+        if t < 1.2:
+            command[[0, 3, 4, 6]] += 0.1 * math.sin(4 * math.pi * t)
+        return command
+
+    events, first, _, _ = _through_the_monitor(q, driver, 3, fails_at if fails else np.inf,
+                                               command_at, 11)
+    return events, first - fails_at
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))
+@pytest.mark.parametrize(("shoulder", "answer", "within"), [
+    (1.0, "its drive not answering", 0.25),  # gravity on joint 4 under 3 % of its limit
+    (1.2, "its drive giving no torque", 0.1)])  # over it
+def test_a_joint_without_torque_slowing_uphill_is_named_free_swinging_not_locked(
+        driver: str, shoulder: float, answer: str, within: float) -> None:
+    """It slows as gravity alone slows it, its drive giving nothing: not a brake's stall.
+
+    Where gravity turns the elbow weakly (under `GRAVITY_SHARE` of its effort limit), its
+    departure is left unanswered: the drive gives no torque at all, less than the gravity
+    torque it is short of (`Drives.unanswered` reads min(|tau - g|, |tau|)). Where gravity
+    turns it harder, its drive is quiet and it lags its uphill command the way gravity
+    turns it (`rules.silent_and_on_its_own`), before it has fallen. Either way it is
+    named free-swinging, where it stalls as a locked joint would; the same motion with
+    the drive healthy: nothing.
+    """
+    events, after = _uphill(driver, shoulder, True)
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint4 free-swinging"), events[0]
+    assert answer in events[0]
+    assert 0.0 < after <= within
+    events, _ = _uphill(driver, shoulder, False)
     assert events == []
 
 

@@ -310,8 +310,8 @@ class Monitor:
                 continue
             line = (f"joint {names[j]} free-swinging (t = {now:.3f} s): measured "
                     f"{evidence.measured:.4f} rad/s, commanded {evidence.commanded:.4f}"
-                    + (", its drive giving no torque" if self._drives.silent[j] else
-                       ", its drive not answering" if self.detector.unanswered[j] else ""))
+                    + (", its drive not answering" if self.detector.unanswered[j] else
+                       ", its drive giving no torque" if self.detector.torqueless[j] else ""))
             change.events.append(line + ("; declaring it locked where it is (brake)" if brake
                                          else "; it stays locked" if stays else ""))
             board.declare(j, Health.FREE_SWINGING, now, line, braked=brake or stays)

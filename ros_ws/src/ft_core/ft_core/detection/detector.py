@@ -297,13 +297,18 @@ class LockDetector:
                                    *limits)
         weakest, observable, following, stalled, pushing, candidates, on_its_own = flags
         on_its_own = on_its_own & (True if drives is None else drives.let_go(measured))
-        if drives is not None and drives.silent.any():  # what the efforts say (`drives`)
+        # What the efforts say (`drives`): a drive without torque against gravity.
+        silent = np.zeros(self.n, dtype=bool) if drives is None else drives.silent
+        quiet = silent if drives is None or drives.quiet is None else silent | drives.quiet
+        falls = np.zeros(self.n, dtype=bool)  # moving as its drive's silence makes it
+        if quiet.any():
             gravity = directions if directions is not None else falling() if falling else None
             if gravity is not None:
-                on_its_own = on_its_own | rules.silent_and_on_its_own(
-                    drives.silent, measured, plausible, error, unlocked, undeclared,
+                falls = rules.silent_and_on_its_own(
+                    silent, quiet, measured, plausible, error, unlocked, undeclared,
                     np.asarray(gravity, dtype=float), (latest, self.lower, self.upper),
                     cfg.min_command, cfg.confidence, cfg.limit_margin)
+                on_its_own = on_its_own | falls
         # A stalled joint counts while another is seen moving as commanded; a held one alone.
         witnessed = bool(rules.vouching(measured, plausible, error, unlocked, cfg.min_command,
                                         cfg.confidence, cfg.following_ratio).any())
@@ -320,7 +325,7 @@ class LockDetector:
         self.departed_since = departed = np.where(away > 0, np.fmin(self.departed_since, now),
                                                   math.nan)
         on_its_own = on_its_own | unanswered
-        self.torqueless = unanswered | (False if drives is None else drives.silent)
+        self.torqueless = unanswered | falls | silent
         veto = _sparing(veto, self.torqueless)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
@@ -412,7 +417,7 @@ class LockDetector:
         silent_for = ANSWER_SPANS * plant.slowest_response
         swinging, released, pushed = declare_swings(
             joints, own_of, now, disturbance, cfg.persistence, settle,
-            lambda j, since: 0.0 if drives is not None and drives.silent[j] else min(
+            lambda j, since: 0.0 if falls[j] or silent[j] else min(
                 rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
                                  cfg.confidence, cfg.min_command),
                 max(0.0, UNANSWERED_TIME - min(since - departed[j], silent_for))

@@ -17,7 +17,12 @@ fast as gravity does (a Panda's shoulder: its 7.5 rad/s^2 limit is about g / ine
 for 60 ms in 12 minutes of goals and for 200 ms in a remap after a brake, on the physics
 plant. So a silent joint still has to move outside its plausible predictions, but with
 no allowance for a servo's transient and no wait (`LockDetector.measure`), and the
-contact veto does not hold it back. Nor is a drive silent while the tool is or was
+contact veto does not hold it back. A joint moving uphill when its drive goes quiet
+(under `SILENT_SHARE` of its gravity torque for `SILENT_TIME`, `Drives.quiet`) coasts to
+a stop before it can fall: it counts once it lags its uphill predictions the way
+gravity turns it (`rules.silent_and_on_its_own`), where a healthy servo behind an uphill
+command pushes beyond its gravity torque and a brake takes its push. Nor is a drive
+silent while the tool is or was
 lately pushed by an obstacle (`ContactWatch.lately`): the obstacle's force carries part
 of the arm's weight, and a healthy drive whose joint it props up gives none (a Panda's
 shoulder and elbow against a wall, on the physics plant). A joint gravity hardly turns
@@ -69,10 +74,11 @@ noise and `DEPARTURE_SHARE` of `detection.min_command`: a servo answers that dep
 about M_jj(q) |dv| / T for a departure dv (rad/s) and a response time T (the plausible
 set's slowest), and a drive without torque gives none. `Drives.unanswered` names such a
 joint where that answer is at least `ANSWER_TORQUE` and its drive gave under
-`ANSWER_SHARE` of it beyond gravity throughout the last `ANSWER_SPANS` response times,
-the tool not pushed lately (`Drives.carried`); the lock detector takes it as moving on
-its own once the departure has held `UNANSWERED_TIME` s (kept meanwhile by
-`DEPARTURE_KEEP` of its margin), counted from when it began as far back as those
+`ANSWER_SHARE` of it, beyond gravity or at all (a drive without torque gives none,
+whatever gravity's small torque would ask of it), throughout the last `ANSWER_SPANS`
+response times, the tool not pushed lately (`Drives.carried`); the lock detector takes
+it as moving on its own once the departure has held `UNANSWERED_TIME` s (kept meanwhile
+by `DEPARTURE_KEEP` of its margin), counted from when it began as far back as those
 `ANSWER_SPANS` response times reach.
 A healthy servo's torque crosses zero too: as a hard acceleration ends, its velocity
 overshoots the command while its reference term still pushes the joint on, and the two
@@ -170,11 +176,14 @@ class Drives:
     robot: Robot | None = None  #: its inertias; None: unknown
     q: np.ndarray | None = None  #: rad, where the efforts were
     effort: np.ndarray | None = None  #: N m, the drives' torques tau
-    #: the largest |tau - g(q)| (N m, (n,)) each drive gave over the last given s, up to
-    #: this update; None: only this update's is known
+    #: the largest min(|tau - g(q)|, |tau|) (N m, (n,)) each drive gave over the last
+    #: given s, up to this update; None: only this update's is known
     given: Callable[[float], np.ndarray] | None = None
     #: a force on the tool lately, which can carry any joint's weight: no drive unanswered
     carried: bool = False
+    #: bool, no torque against gravity for `SILENT_TIME`, fallen or not (`silent` is
+    #: this and a fall); None: as `silent`
+    quiet: np.ndarray | None = None
 
     def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
                         commanded: np.ndarray, least_lag: float) -> np.ndarray:
@@ -244,8 +253,9 @@ class Drives:
         slowest plausible response time. A servo answers with about M_jj(q) departure /
         `response` (N m); where that is at least `ANSWER_TORQUE`, the joint's gravity
         torque under `GRAVITY_SHARE` of its effort limit (`silent` judges the others) and
-        its drive's torque beyond gravity under `ANSWER_SHARE` of the answer throughout
-        the last `ANSWER_SPANS` `response` (`given`), the drive gives none (the module).
+        its drive's torque, beyond gravity or at all, under `ANSWER_SHARE` of the answer
+        throughout the last `ANSWER_SPANS` `response` (`given`), the drive gives none
+        (the module).
         False everywhere without efforts or inertias, and while `carried`.
         """
         robot = self.robot
@@ -255,8 +265,9 @@ class Drives:
         _, inertia = robot.gravity_dynamics(self.q)
         answer = inertia * departure / response
         limits = np.asarray(robot.effort_limits, float)
-        given = (np.abs(self.external) if self.given is None
-                 else self.given(ANSWER_SPANS * response))
+        given = (self.given(ANSWER_SPANS * response) if self.given is not None
+                 else np.abs(self.external) if self.effort is None
+                 else np.minimum(np.abs(self.external), np.abs(self.effort)))
         return ((answer >= ANSWER_TORQUE) & (self.gravity < GRAVITY_SHARE * limits)
                 & (given < ANSWER_SHARE * answer))
 
@@ -330,7 +341,11 @@ class DriveWatch:
         self._given.clear()
 
     def given(self, span: float) -> np.ndarray:
-        """The largest |tau - g(q)| (N m, (n,)) each drive gave over the last `span` s."""
+        """The largest min(|tau - g(q)|, |tau|) (N m, (n,)) each drive gave over `span` s.
+
+        A servo's answer shows beyond its gravity torque; a drive without torque gives
+        none at all, whatever gravity would ask of it.
+        """
         peak = np.zeros(self._robot.n)
         if not self._given:
             return peak
@@ -358,15 +373,19 @@ class DriveWatch:
             given.clear()
         while given and given[0][0] < now - ANSWER_HORIZON:
             given.popleft()
-        given.append((now, external))
+        given.append((now, np.minimum(external, np.abs(effort))))
         self._pushed_at[external >= self._push] = now
         pushing = now - self._pushed_at <= PUSH_MEMORY
         gravity = np.abs(signed)
-        quiet = (gravity >= self._least) & (np.abs(effort) < SILENT_SHARE * gravity)
+        # Quiet since the drive gave under SILENT_SHARE of its gravity torque, or of the
+        # least that says anything (gravity grows as a joint without torque moves on).
+        quiet = np.abs(effort) < SILENT_SHARE * np.maximum(gravity, self._least)
         started = quiet & np.isnan(self._since)
         self._since[started], self._from[started] = now, q[started]
         self._since[~quiet] = math.nan
+        quiet &= gravity >= self._least
         self.silent[:] = False
+        lasting = quiet & (now - self._since >= SILENT_TIME) & (not carried)
         if quiet.any():
             falling = swing.falling_directions(robot, q)
             if falling is not None:
@@ -374,7 +393,6 @@ class DriveWatch:
                 # joint moving uphill then coasts to a stop first).
                 fallen = (q - self._from) * falling
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
-                self.silent[:] = (quiet & (now - self._since >= SILENT_TIME)
-                                  & (fallen >= FALL) & (not carried))
+                self.silent[:] = lasting & (fallen >= FALL)
         return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort,
-                      self.given, carried)
+                      self.given, carried, lasting)

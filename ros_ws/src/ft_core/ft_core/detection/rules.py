@@ -127,33 +127,47 @@ def moves_on_its_own(v: float, s: float, low: float, high: float, fastest: float
             and not beyond and downhill)
 
 
-def silent_and_on_its_own(silent: np.ndarray, measured: np.ndarray, plausible: np.ndarray,
-                          error: np.ndarray, unlocked: np.ndarray, undeclared: np.ndarray,
-                          falling: np.ndarray, stops: tuple[np.ndarray, np.ndarray, np.ndarray],
+def silent_and_on_its_own(silent: np.ndarray, quiet: np.ndarray, measured: np.ndarray,
+                          plausible: np.ndarray, error: np.ndarray, unlocked: np.ndarray,
+                          undeclared: np.ndarray, falling: np.ndarray,
+                          stops: tuple[np.ndarray, np.ndarray, np.ndarray],
                           min_command: float, confidence: float,
                           limit_margin: float) -> np.ndarray:
-    """`moves_on_its_own` for the joints whose drives are `silent` (no torque against gravity).
+    """`moves_on_its_own` for the joints whose drives give no torque against gravity.
 
-    Without the allowance for a servo's transient (`fastest` 0): a joint faster than its
-    plausible predictions the way gravity turns it, its drive giving no torque, is not
-    overshooting, it is falling. A silent joint within `limit_margin` of the limit gravity
-    turns it into (`stops`: the latest positions, the lower and upper limits, rad) rests
-    on that stop without torque: it counts too, moving or not. A joint falls onto a stop
-    close by before its fall can count as motion (a Panda shoulder 20 mrad from its limit
-    reaches it in 0.1 s), and a healthy drive holding a joint there gives its gravity
-    torque. Arguments as `classify`'s; returns (n,) bool.
+    Without the allowance for a servo's transient (`fastest` 0): a `silent` joint (its
+    drive without torque while it falls) faster than its plausible predictions the way
+    gravity turns it is not overshooting, it is falling. A silent joint within
+    `limit_margin` of the limit gravity turns it into (`stops`: the latest positions, the
+    lower and upper limits, rad) rests on that stop without torque: it counts too, moving
+    or not. A joint falls onto a stop close by before its fall can count as motion (a
+    Panda shoulder 20 mrad from its limit reaches it in 0.1 s), and a healthy drive
+    holding a joint there gives its gravity torque.
+
+    A `quiet` joint (its drive without torque, fallen or not) commanded uphill, every
+    plausible prediction at least `min_command` against gravity, counts once its velocity
+    lies beyond them the way gravity turns it by max(`confidence` `error`, `min_command`):
+    it slows as gravity alone slows it (Maciejewski et al. sec. 2.3), where a healthy
+    servo behind an uphill command pushes beyond the gravity torque and a brake holding
+    it takes its drive's push. It has not fallen yet (it coasts to a stop first), and
+    otherwise reads as a stall. Arguments as `classify`'s; returns (n,) bool.
     """
     latest, lower, upper = stops
     own = np.zeros(measured.size, dtype=np.bool_)
-    for j in np.flatnonzero(silent):
-        if unlocked[j] and undeclared[j] and is_pushing(falling[j], latest[j], lower[j],
-                                                        upper[j], limit_margin):
-            own[j] = True  # resting on the stop gravity turns it into
-            continue
+    for j in np.flatnonzero(silent | quiet):
         column = plausible[:, j]
-        own[j] = moves_on_its_own(measured[j], error[j], column.min(), column.max(), 0.0,
-                                  unlocked[j], undeclared[j], falling[j], True, min_command,
-                                  confidence)
+        low, high = column.min(), column.max()
+        if silent[j]:
+            own[j] = (unlocked[j] and undeclared[j] and is_pushing(
+                falling[j], latest[j], lower[j], upper[j], limit_margin)) or moves_on_its_own(
+                measured[j], error[j], low, high, 0.0, unlocked[j], undeclared[j], falling[j],
+                True, min_command, confidence)
+        if own[j] or not (unlocked[j] and undeclared[j]):
+            continue
+        noise = max(confidence * error[j], min_command)
+        uphill = min(-falling[j] * low, -falling[j] * high) >= min_command
+        own[j] = bool(uphill and falling[j] * measured[j] - max(falling[j] * low,
+                                                              falling[j] * high) > noise)
     return own
 
 
