@@ -17,9 +17,6 @@ from dataclasses import dataclass, field
 
 from ft_core import locked_set
 
-#: Reports a problem of the state file (None: solved), as `ft_core.monitor.Report`.
-Report = Callable[..., None]
-
 
 @dataclass
 class Change:
@@ -49,10 +46,11 @@ class Announcements:
     Args:
         writer: the state file's writer thread; None: kept in memory only (every change
             is handed over at once).
-        report: called with ("state_directory", problem or None) after each write.
+        report: called with ("state_directory", problem or None) after each write
+            (`ft_core.monitor.Report`).
     """
 
-    def __init__(self, writer: locked_set.Writer | None, report: Report):
+    def __init__(self, writer: locked_set.Writer | None, report: Callable[..., None]):
         self._writer = writer
         self._report = report
         #: (generation, change, the set it leaves) submitted, not yet handed over
