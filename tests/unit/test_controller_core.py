@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 from ft_core import robots, selfmotion
+from ft_core.command_limits import DriverCheck
 from ft_core.controller import Controller, ControllerConfig
 from ft_core.engine import EngineConfig
 from ft_core.observability import ObservabilityConfig
@@ -241,3 +242,39 @@ def test_a_joint_state_of_another_clock_is_named_as_such() -> None:
     assert stale_state(0.25) == "no joint state for 0.250 s"
     message = stale_state(1_795_813_467.059)
     assert "another clock" in message and "use_sim_time" in message, message
+
+
+@pytest.mark.parametrize(("lag", "locked"), [(0.05, ()), (0.01, (2, 4, 6))])
+def test_a_joint_driven_at_its_limit_stops_there_behind_a_lagging_plant(
+        lag: float, locked: tuple[int, ...]) -> None:
+    """A twist along panda_joint2's column drives it to its upper limit at 0.5 rad/s.
+
+    The velocity bounds brake within the smoother's limits from where the commands sent
+    take the arm (`limits.velocity_bounds`), and the joint brakes on its own profile: the
+    commands' integral and the lagging plant stop within a millimetre-radian of the limit
+    (Flacco, De Luca & Khatib 2012's position bound). Bounded for one cycle only, they
+    went 15-51 mrad beyond it. `lag` s of latency, then a servo of time constant `lag` s.
+    """
+    c = Controller(PANDA, EngineConfig(dt=DT), ControllerConfig(),
+                   model_source=("panda", (None, None, "position")))
+    check = DriverCheck(c.smoother.limits)
+    c.set_locked(list(locked))
+    q = np.array([0.0, 1.2, 0.0, -1.2, 0.0, 2.0, 0.8])
+    v, sent, delay = np.zeros(7), [], round(lag / DT)
+    integral, beyond, closest = q.copy(), -np.inf, np.inf
+    try:
+        for k in range(round(2.0 / DT)):
+            if k % 50 == 0:
+                c.set_twist(0.5 * PANDA.jacobian(q)[:, 1], k * DT)
+            step = c.step(q, 0.0, k * DT)
+            assert check.check(step.qd, k * DT) is None
+            sent.append(step.qd)
+            integral = integral + DT * step.qd
+            v = v + DT / lag * ((sent[-1 - delay] if len(sent) > delay else 0.0) - v)
+            q = q + DT * v
+            beyond = max(beyond, integral[1] - PANDA.upper[1], q[1] - PANDA.upper[1])
+            closest = min(closest, PANDA.upper[1] - q[1])
+    finally:
+        c.close()
+    assert closest < 5e-3, f"panda_joint2 never reached its limit ({closest:.4f} rad short)"
+    assert beyond < 2e-3, f"panda_joint2 went {beyond * 1e3:.2f} mrad beyond its limit"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from ft_core import limits, measures, robots, velocity_jump
 from ft_core.engine import RESOLUTIONS, EngineConfig, ResolutionEngine, check_config
+from ft_core.engine_config import BRAKING_SHARE
 from ft_core.pseudoinverse import Damping, damped_pinv
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -149,6 +150,47 @@ def test_configuration_exactly_on_a_limit_never_goes_further() -> None:
         assert result.qd[1] <= 1e-12 and result.qd[3] >= -1e-12
         assert in_bounds(robot, q, result.qd, engine.config.dt)
         assert result.at_hard_limit[[1, 3]].all()
+
+
+def test_the_velocity_bounds_leave_room_to_brake_before_a_limit() -> None:
+    """Flacco, De Luca & Khatib 2012 sec. III with a lead: v lead + v^2 / (2 a) = room."""
+    lower, upper = np.full(3, -1.0), np.full(3, 1.0)
+    q, none = np.array([0.99, -0.999, 0.0]), np.zeros(3)
+    lead, deceleration, speed = np.full(3, 0.006), np.full(3, 5.0), np.full(3, 2.0)
+    lo, hi = limits.velocity_bounds(q, none, lower, upper, speed, lead, deceleration)
+    for v, room in ((hi[0], 0.01), (-lo[1], 0.001)):
+        assert 0 < v < room / 0.006  # slower than one lead to the limit
+        assert v * 0.006 + v * v / (2 * 5.0) == pytest.approx(room, rel=1e-12)
+    assert hi[2] == 2.0 and lo[2] == -2.0  # a metre of room: the speed limit
+    assert lo[0] == -2.0 and hi[1] == 2.0
+    # The motion commanded ahead of q: the room from the furthest of the two.
+    lo, hi = limits.velocity_bounds(q, np.array([0.005, -0.002, 0.0]), lower, upper, speed,
+                                    lead, deceleration)
+    v = hi[0]
+    assert v * 0.006 + v * v / (2 * 5.0) == pytest.approx(0.005, rel=1e-12)
+    assert lo[1] == 0.0 and hi[1] == 2.0  # commanded beyond the limit: no further
+    # Without a deceleration limit, one lead to the limit; beyond a limit, only back.
+    lo, hi = limits.velocity_bounds(np.array([0.99, -1.2, 50.0]), none, lower,
+                                    np.array([1.0, 1.0, np.inf]), speed, lead,
+                                    np.full(3, np.inf))
+    assert hi[0] == pytest.approx(0.01 / 0.006) and lo[1] == 0.0 and hi[1] == 2.0
+    assert hi[2] == 2.0
+
+
+def test_with_command_limits_the_bounds_brake_at_a_share_of_them() -> None:
+    """`engine_config.braking`: lead dt + 2 a / j, deceleration `BRAKING_SHARE` a."""
+    robot = ROBOTS["panda"]
+    a, j = np.linspace(5.0, 20.0, 7), np.full(7, 5000.0)
+    engine = ResolutionEngine(robot, EngineConfig(acceleration=tuple(a), jerk=tuple(j)))
+    q = robot.home().copy()
+    q[1] = robot.upper[1] - 0.01
+    hi = engine.velocity_bounds(q, engine.bounds())[1]
+    v, lead, brake = hi[1], 0.004 + 2 * a[1] / j[1], BRAKING_SHARE * a[1]
+    assert v * lead + v * v / (2 * brake) == pytest.approx(0.01, rel=1e-12)
+    result = engine.step(robot.kinematics(q), np.zeros(6))
+    assert result.qd[1] <= v + 1e-12
+    with pytest.raises(ValueError, match="jerk limits need 7"):
+        ResolutionEngine(robot, EngineConfig(acceleration=tuple(a)))
 
 
 def test_fast_task_is_scaled_with_its_direction_kept() -> None:

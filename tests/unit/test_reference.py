@@ -117,7 +117,7 @@ def test_behind_the_slow_driver_the_null_space_does_not_vibrate() -> None:
 
 
 def test_the_ascent_taken_elsewhere_changes_the_null_space_motion_only() -> None:
-    """`ResolutionEngine.step(..., ascent_at=)`: the task velocity stays.
+    """`ResolutionEngine.step(..., commanded=)`: the task velocity stays.
 
     The same snapshot as the cycle's gives the cycle taken at q itself.
     """
@@ -127,9 +127,9 @@ def test_the_ascent_taken_elsewhere_changes_the_null_space_motion_only() -> None
     xd = np.array([0.05, -0.02, 0.03])  # m/s
     here = robot.kinematics(q)
     at_q = engine.step(here, xd).qd
-    assert engine.step(here, xd, ascent_at=robot.kinematics(q)).qd == pytest.approx(at_q)
+    assert engine.step(here, xd, commanded=robot.kinematics(q)).qd == pytest.approx(at_q)
     ahead = q + np.array([0.0, 0.1, 0.0, -0.1, 0.0, 0.1, 0.0])
-    moved = engine.step(here, xd, ascent_at=robot.kinematics(ahead)).qd
+    moved = engine.step(here, xd, commanded=robot.kinematics(ahead)).qd
     assert np.max(np.abs(moved - at_q)) > 1e-3  # the gradient there differs
     jacobian = robot.base_jacobian(q)[:3]
     assert jacobian @ moved == pytest.approx(jacobian @ at_q, abs=1e-9)

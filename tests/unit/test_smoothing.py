@@ -139,6 +139,28 @@ def test_a_smooth_target_passes_unchanged_and_a_step_is_reached_in_minimum_time(
     assert reached == pytest.approx(1.0 / 7.5 + 7.5 / 3750, abs=0.0021)
 
 
+def test_a_joint_profiled_alone_brakes_at_its_own_limit_not_at_the_others_pace() -> None:
+    """A stop of joint 1 from 0.2 rad/s beside a change of 2 rad/s of joint 2.
+
+    Phase-synchronised, it lasts as long as joint 2's change; alone, it takes its own
+    time-optimal 0.2/15 + 15/7500 s, within the limits either way.
+    """
+    start, target = np.array([0.2, -1.0, 0, 0, 0, 0, 0]), np.array([0, 1.0, 0, 0, 0, 0, 0])
+    times = np.arange(1, 301) * 0.001
+    stopped = {}
+    for alone in ((), (0,)):
+        smoother, driver = Smoother(LIMITS), DriverCheck(LIMITS)
+        smoother.reset(start)
+        driver.check(start, 0.0)
+        commands = [smoother.step(target, t, alone=alone) for t in times]
+        assert all(driver.check(c, t) is None for c, t in zip(commands, times, strict=True))
+        stopped[alone] = next(t for t, c in zip(times, commands, strict=True)
+                              if abs(c[0]) < 1e-9)
+        assert commands[-1][1] == 1.0  # joint 2 reaches its target either way
+    assert stopped[(0,)] == pytest.approx(0.2 / 15.0 + 15.0 / 7500.0, abs=0.0021)
+    assert stopped[()] > 0.2  # with joint 2's 2 rad/s at 7.5 rad/s^2
+
+
 def test_a_stop_from_full_speed_comes_to_rest_within_its_bound() -> None:
     smoother = Smoother(LIMITS)
     smoother.reset(PANDA.velocity_limits * np.array([1, -1, 1, -1, 1, -1, 1]))

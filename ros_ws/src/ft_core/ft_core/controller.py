@@ -45,7 +45,7 @@ from functools import partial
 
 import numpy as np
 
-from ft_core import limits, recovery, start_configuration, workers
+from ft_core import recovery, start_configuration, workers
 from ft_core.adaptation import INFEASIBLE, Adaptation
 from ft_core.controller_config import ControllerConfig
 from ft_core.critical_limits import CriticalPointLimits
@@ -72,6 +72,7 @@ from ft_core.task_channel import TaskChannel
 #: How the start-configuration path moves and how long its plan may take: as a recovery
 #: path (`recovery.RecoveryConfig`'s acceleration, jerk, gain and timeout).
 _START = RecoveryConfig()
+_NONE = np.zeros(0, dtype=np.int64)
 #: m and rad: a pose goal this close to a critical point is that point (its traced
 #: configurations seed the recovery's inverse kinematics).
 _SAME_POINT = 1e-6
@@ -132,13 +133,15 @@ class Controller:
         self.config = config
         self._engine_config = engine_config
         self.adaptation = Adaptation(robot)
-        self.engine = ResolutionEngine(robot, self.adaptation.adapt(engine_config))
+        self.smoother = self._smoother(self.config)
+        self.engine = self._engine(engine_config)
         self._model_source = model_source
         self.excursions = self._excursions(self.config)
         self.recovery = self._recovery(self.config)
-        self.smoother = self._smoother(self.config)
-        #: Where the kfm ascent is taken (`reference`).
+        #: Where the commands sent are taking the arm (`reference`).
         self.commanded = CommandedConfiguration(robot.n)
+        self._q: np.ndarray | None = None  # rad, the last configuration measured
+        self._ahead: np.ndarray | None = None  # this cycle's commanded minus measured, rad
         self.start_phase = StartPhase(self._submit_start, _START.gain, _START.timeout)
         self.channel = TaskChannel(robot)
         self.target: Target | None = None
@@ -196,7 +199,19 @@ class Controller:
                 box = (np.maximum(config.soft_lower, box[0]),
                        np.minimum(config.soft_upper, box[1]))
             config = replace(config, soft_lower=tuple(box[0]), soft_upper=tuple(box[1]))
-        self.engine = ResolutionEngine(self.robot, self.adaptation.adapt(config))
+        self.engine = self._engine(config)
+
+    def _engine(self, config: EngineConfig) -> ResolutionEngine:
+        """The engine for `config` adapted to the joints' health (`Adaptation.adapt`).
+
+        Its velocity bounds brake within the smoother's acceleration and jerk limits where
+        `config` gives none of its own.
+        """
+        if self.smoother is not None and not len(config.acceleration):
+            limits = self.smoother.limits
+            config = replace(config, acceleration=tuple(limits.acceleration),
+                             jerk=tuple(limits.jerk))
+        return ResolutionEngine(self.robot, self.adaptation.adapt(config))
 
     # ------------------------------------------------------------------- inputs
     def set_twist(self, velocity: np.ndarray, stamp: float) -> None:
@@ -306,18 +321,39 @@ class Controller:
     def smooth(self, qd: np.ndarray, now: float) -> np.ndarray:
         """The command stamped `now` (s) towards `qd` (rad/s) within the limits.
 
-        Locked and pinned joints get 0 at once. `qd` itself without a smoother.
+        Locked and pinned joints get 0 at once; joints braking for a position limit
+        (`_braking`) are smoothed on their own. `qd` itself without a smoother.
         """
-        qd = qd if self.smoother is None else self.smoother.step(qd, now, self.pinned)
+        if self.smoother is not None:
+            qd = self.smoother.step(qd, now, self.pinned, self._braking(self.smoother.velocity))
         self.commanded.sent(now, qd)
         return qd
 
-    def _ascent_at(self, q: np.ndarray, measured_at: float, now: float) -> Kinematics | None:
-        """Where the kfm gradient is taken (`reference`): None at q itself."""
-        ahead = self.commanded.update(q, measured_at, now, self.pinned)
-        if ahead is None or not self.engine.ascends or not all_finite(ahead):
+    def _braking(self, velocity: np.ndarray) -> np.ndarray:
+        """The joints moving at `velocity` (rad/s) towards a position limit they brake for.
+
+        Those whose velocity bound on that side, at the last configuration measured, is
+        below their speed limit (`ResolutionEngine.velocity_bounds`): within stopping
+        distance of the limit. None before a configuration is measured.
+        """
+        if self._q is None:
+            return _NONE
+        lo, hi = self._velocity_bounds(self._q, self.engine.bounds(self.pinned))
+        speeds = self.engine.speeds
+        return np.flatnonzero(((velocity > 0) & (hi < speeds)) | ((velocity < 0) & (lo > -speeds)))
+
+    def _commanded_at(self, q: np.ndarray, measured_at: float, now: float,
+                      ) -> Kinematics | None:
+        """Where the commands sent are taking the arm (`reference`): None at q itself.
+
+        Keeps the motion q does not show yet for this cycle's velocity bounds.
+        """
+        commanded = self.commanded.update(q, measured_at, now, self.pinned)
+        if commanded is None or not all_finite(commanded):
+            self._ahead = None
             return None
-        return self.robot.kinematics(ahead)
+        self._ahead = commanded - q
+        return self.robot.kinematics(commanded)
 
     def step(self, q: np.ndarray | None, state_age: float, now: float) -> Step:
         """One cycle: the command for joint positions `q` (rad) measured `state_age` s ago.
@@ -340,11 +376,12 @@ class Controller:
         try:
             kinematics = robot.kinematics(q)  # the measured configuration's pass
             xd, idle, task_error = self._task_velocity(kinematics, now)
-            result = self.engine.step(kinematics, xd, locked, self._ascent_at(
+            result = self.engine.step(kinematics, xd, locked, self._commanded_at(
                 q, now - state_age, now))
         except ValueError as problem:  # non-finite or physically absurd state or target
             self.last = None
             return Step(self.smooth(zeros, now), None, {"engine": f"{problem}: commanding zeros"})
+        self._q = kinematics.q
         self.last, infeasible = result, self.adaptation.judge(result, pinned, q, xd, now)
         if infeasible.get(INFEASIBLE):  # the joints left cannot do the task: to rest
             return Step(self.smooth(zeros, now), result, {"engine": None, **infeasible})
@@ -438,8 +475,8 @@ class Controller:
 
     def _velocity_bounds(self, q: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
                          ) -> tuple[np.ndarray, np.ndarray]:
-        """The engine's joint-velocity bounds for one cycle at q within `bounds` (rad/s)."""
-        return limits.velocity_bounds(q, *bounds, self._speeds(), self.engine.config.dt)
+        """The engine's joint-velocity bounds at q within `bounds` (rad/s), this cycle's."""
+        return self.engine.velocity_bounds(q, bounds, self._ahead)
 
     def _submit_plan(self, config: RecoveryConfig, goal: np.ndarray, q: np.ndarray,
                      locked: tuple[int, ...], lower: np.ndarray, upper: np.ndarray) -> Future:

@@ -14,7 +14,7 @@ characteristic length). The null-space preference z sums, by `resolution`:
 - `max_kfm` and `blend`: kfm_gain * grad K (Maciejewski et al. eq 8, soft-min remedy for
   ties, see `measures.kfm_gradient`), or the gradient of the failure-probability
   weighted measure F_w (Xie 2019 eq 3.3) when probabilities are given; taken at the
-  cycle's configuration, or at `step`'s `ascent_at` (the controller's: where its
+  cycle's configuration, or at `step`'s `commanded` (the controller's: where its
   commands are taking the arm, `reference`);
 - `min_jump` and `blend`: jump_gain * sum_i w_i iqd' (Zhao & Li eq 5; gain 1 is
   the exact minimum-jump solution);
@@ -32,7 +32,10 @@ n - |locked| - 1 >= m. Hard limits (URDF positions, narrowed where a joint's usa
 range is: `hard_lower`/`hard_upper`; velocity_scale times URDF velocities, times a
 degraded joint's `velocity_factors`) and, while no joint is locked or when configured
 to keep them, the soft limits are enforced on qd itself by saturation in the null space
-(`limits.saturate_in_null_space`), so q integrated over dt never leaves them;
+(`limits.saturate_in_null_space`), within velocity bounds from which every joint can
+still stop inside them, braking within the commands' acceleration and jerk limits
+(`acceleration`, `jerk`) from where the commands already sent take it
+(`limits.velocity_bounds`); without those limits, q integrated over dt never leaves them;
 the task is scaled down, direction kept, only as a last resort. With fewer
 healthy joints than task coordinates the cycle returns the damped least-squares
 velocity scaled into the bounds and reports the task infeasible.
@@ -53,6 +56,7 @@ from ft_core.engine_config import RESOLUTIONS as RESOLUTIONS  # the engine's pub
 from ft_core.engine_config import (
     EngineConfig,
     Resolution,
+    braking,
     check_config,
     hard_limits,
     velocity_limits,
@@ -75,7 +79,7 @@ class Gains(NamedTuple):
     """The scalar settings of the compiled cycle (`EngineConfig`'s, by name).
 
     The cycle receives them as one float array in this order (numba checks an
-    array's type in a fraction of the time it takes for a tuple of eight).
+    array's type in a fraction of the time it takes for a tuple of seven).
     """
 
     kfm: float
@@ -83,7 +87,6 @@ class Gains(NamedTuple):
     limit: float
     kfm_temperature: float
     limit_buffer: float
-    dt: float
     damping_threshold: float
     max_damping: float
 
@@ -131,7 +134,8 @@ class _LockedSet:
     healthy: np.ndarray  #: indices of the healthy joints
     soft: bool  #: whether the soft box applies
     #: rows of the healthy joints: effective lower and upper limits (rad), velocity
-    #: limits (rad/s), failure weights (`BOX_ROWS`)
+    #: limits (rad/s), failure weights, braking lead (s) and deceleration (rad/s^2)
+    #: (`BOX_ROWS`)
     box: np.ndarray
     use_kfm: bool  #: whether the kfm gradient is part of the preference
     use_jump: bool  #: whether the minimum-jump term is part of the preference
@@ -139,7 +143,7 @@ class _LockedSet:
 
 
 #: The rows of `_LockedSet.box`.
-BOX_ROWS = ("lower", "upper", "velocity", "weights")
+BOX_ROWS = ("lower", "upper", "velocity", "weights", "lead", "deceleration")
 
 
 @njit(cache=True, error_model="numpy")
@@ -159,13 +163,15 @@ def _jump_index(reduced: np.ndarray, qd: np.ndarray, scale: float,
 
 @njit(cache=True, error_model="numpy")
 def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.ndarray,
-           q: np.ndarray, healthy: np.ndarray, task_scale: np.ndarray, box: np.ndarray,
+           q: np.ndarray, ahead: np.ndarray, healthy: np.ndarray, task_scale: np.ndarray,
+           box: np.ndarray,
            gains: np.ndarray, use_kfm: bool, use_jump: bool, probabilities: bool,
            bias: np.ndarray, limit_box: np.ndarray, soft: bool) -> tuple:
     """`ResolutionEngine.step` for m <= healthy joints, compiled in one call.
 
     J6 is the tool point's 6-row Jacobian in the base's axes (`Robot.base_jacobian`),
     `ascent_J6` the one where the kfm gradient is taken (used only when `ascent_apart`),
+    `ahead` (rad) the motion commanded that q does not show yet (`limits.velocity_bounds`),
     `box` the locked set's `BOX_ROWS`, `gains` `Gains` as an array, `bias` (healthy
     joints) is added to z, `limit_box` holds the robot's lower and upper limits and the
     soft box (rows, n). z = avoidance + `limits.edge_yield` x (bias, jump, kfm terms).
@@ -175,8 +181,8 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
     nan): (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump index,
     task scale, soft-limit margin).
     """
-    kfm_gain, jump_gain, limit_gain, temperature, buffer, dt, threshold, max_damping = gains
-    lower, upper, velocity, weights = box[0], box[1], box[2], box[3]
+    kfm_gain, jump_gain, limit_gain, temperature, buffer, threshold, max_damping = gains
+    lower, upper, velocity, weights, lead, deceleration = box
     m, nh, n = task_scale.size, healthy.size, q.size
     if use_kfm:
         J, dJ = robots.task_jacobians(J6, m)
@@ -219,7 +225,8 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
     pinv = postfailure.damped_inverse(columns, L, V, sigma_min, threshold, max_damping)
     z = (limit_gain * limits.avoidance(qh, lower, upper, buffer)
          + limits.edge_yield(z - pinv @ (Js @ z), qh, lower, upper, buffer) * z)
-    lo, hi = limits.velocity_bounds(qh, lower, upper, velocity, dt)
+    lo, hi = limits.velocity_bounds(qh, ahead[healthy], lower, upper, velocity, lead,
+                                    deceleration)
     task = pinv @ x
     null_motion = z - pinv @ (Js @ z)
     qd_h = task + null_motion
@@ -302,11 +309,12 @@ class ResolutionEngine:
         self._probabilities, self._soft = check_config(robot, cfg)
         self._gains = np.array(Gains(
             kfm=cfg.kfm_gain, jump=cfg.jump_gain, limit=cfg.limit_gain,
-            kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer, dt=cfg.dt,
+            kfm_temperature=cfg.kfm_temperature, limit_buffer=cfg.limit_buffer,
             damping_threshold=cfg.damping.threshold, max_damping=cfg.damping.max_damping))
         self._hard = hard_limits(robot, cfg)
         #: The joint speeds the cycle allows (rad/s, `engine_config.velocity_limits`).
         self.speeds = velocity_limits(robot, cfg)
+        self._lead, self._deceleration = braking(robot, cfg)
         self._limit_box = np.array([*self._hard,
                                     *(self._soft if self._soft[0].size else self._hard)])
         self._locked_sets: dict[tuple[int, ...], _LockedSet] = {}
@@ -336,6 +344,16 @@ class ResolutionEngine:
             return np.maximum(lower, self._soft[0]), np.minimum(upper, self._soft[1])
         return lower.copy(), upper.copy()
 
+    def velocity_bounds(self, q: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
+                        ahead: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The cycle's joint-velocity bounds (lo, hi) (rad/s) at q (rad) within `bounds`.
+
+        `bounds`: (lower, upper) position limits (rad, `bounds`); `ahead`: the motion
+        commanded that q does not show yet (rad, `limits.velocity_bounds`), none if None.
+        """
+        return limits.velocity_bounds(q, np.zeros(q.size) if ahead is None else ahead,
+                                      *bounds, self.speeds, self._lead, self._deceleration)
+
     def _locked_set(self, locked: Iterable[int]) -> _LockedSet:
         """The cached view of the robot with `locked` joints (validated on first use)."""
         key = tuple(sorted(set(locked)))
@@ -354,7 +372,8 @@ class ResolutionEngine:
                 locked=bool(key), healthy=np.flatnonzero(healthy), soft=soft,
                 box=np.array([lower[healthy], upper[healthy],
                               self.speeds[healthy],
-                              measures.failure_weights(p, nh) if nh else np.zeros(0)]),
+                              measures.failure_weights(p, nh) if nh else np.zeros(0),
+                              self._lead[healthy], self._deceleration[healthy]]),
                 use_kfm=next_failure and self.ascends,
                 use_jump=(next_failure
                           and cfg.resolution in (Resolution.MIN_JUMP, Resolution.BLEND)),
@@ -399,20 +418,21 @@ class ResolutionEngine:
             return None
         motion = speed * column / column[k]
         qd = np.array(qd, dtype=float)
-        lower, upper, velocity, _ = view.box
-        lo, hi = limits.velocity_bounds(np.asarray(q, dtype=float)[index], lower, upper,
-                                        velocity, self.config.dt)
+        lower, upper, velocity, _, lead, deceleration = view.box
+        lo, hi = limits.velocity_bounds(np.asarray(q, dtype=float)[index], view.zeros, lower,
+                                        upper, velocity, lead, deceleration)
         qd[index] += limits.preference_scale(qd[index], motion, lo, hi) * motion
         return qd
 
     def step(self, kinematics: Kinematics, xd: np.ndarray, locked: Iterable[int] = (),
-             ascent_at: Kinematics | None = None) -> CycleResult:
+             commanded: Kinematics | None = None) -> CycleResult:
         """One cycle: joint velocities (rad/s) for task velocity xd at q with `locked` joints.
 
         `kinematics`: the cycle's snapshot at the configuration q (`Robot.kinematics`).
-        `ascent_at`: a snapshot where the kfm gradient is taken instead (the configuration
-        the commands are taking the arm to, `reference.CommandedConfiguration`); the task
-        and every other term stay at q.
+        `commanded`: a snapshot of the configuration the commands sent are taking the arm
+        to (`reference.CommandedConfiguration`): the kfm gradient is taken there instead,
+        and each joint keeps the room to stop before its limits from the furthest of the
+        two (`velocity_bounds`); the task and every other term stay at q.
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
@@ -434,10 +454,12 @@ class ResolutionEngine:
         index, nh = view.healthy, view.healthy.size
         if nh < m:
             return self._infeasible(q, xd, view)
+        ahead = np.zeros(n) if commanded is None else commanded.q - q
         (qd, saturated, sigmas, at_soft, at_hard, kfm, sigma_min, jump, scale,
          margin) = _cycle(kinematics.base_jacobian,
-                          (kinematics if ascent_at is None else ascent_at).base_jacobian,
-                          ascent_at is not None, xd, q, index, robot.task_scale, view.box,
+                          (kinematics if commanded is None else commanded).base_jacobian,
+                          commanded is not None, xd, q, ahead, index, robot.task_scale,
+                          view.box,
                           self._gains, view.use_kfm, view.use_jump,
                           self._probabilities is not None, self._swing_descent(q, view),
                           self._limit_box, view.soft)
@@ -454,9 +476,10 @@ class ResolutionEngine:
         """Fewer healthy joints than task coordinates: least squares, scaled into the bounds."""
         cfg, robot = self.config, self.robot
         index, nh, n = view.healthy, view.healthy.size, robot.n
-        lower, upper, velocity, _ = view.box
+        lower, upper, velocity, _, lead, deceleration = view.box
         Js, x = robot.scale_task(robot.jacobian(q))[:, index], robot.task_scale * xd
-        lo, hi = limits.velocity_bounds(q[index], lower, upper, velocity, cfg.dt)
+        lo, hi = limits.velocity_bounds(q[index], view.zeros, lower, upper, velocity, lead,
+                                        deceleration)
         qd_h = damped_pinv(Js, cfg.damping) @ x if nh else np.zeros(0)
         scale, _, _ = limits.largest_scale(qd_h, np.zeros(nh), lo, hi, np.ones(nh, bool))
         qd, sigmas = np.zeros(n), np.full(n, np.nan)

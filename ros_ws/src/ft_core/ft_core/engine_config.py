@@ -35,6 +35,8 @@ class Resolution(enum.StrEnum):
 
 #: The resolution names, as plain strings (parameter validation, messages).
 RESOLUTIONS = tuple(r.value for r in Resolution)
+#: The share of the commands' acceleration limit the velocity bounds brake at (`braking`).
+BRAKING_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,10 @@ class EngineConfig:
             -inf / inf for a side not narrowed; empty = the URDF's.
         velocity_factors: one per joint in (0, 1], multiplying its velocity limit on top
             of `velocity_scale` (a degraded joint's, `ft_core.adaptation`); empty = all 1.
+        acceleration, jerk: the commands' limits, one per joint (rad/s^2, rad/s^3; the
+            controller's smoother's, `ft_core.command_limits`): a joint's velocity is
+            bounded so that braking within them it stops before its position limit
+            (`braking`); empty = the commands have none: one cycle to the limit.
         release_soft_limits_on_failure: drop the soft box once a joint is locked.
         dt: control period (s) over which position limits are enforced.
         velocity_scale: fraction of the URDF velocity limits that may be used, in (0, 1].
@@ -73,6 +79,8 @@ class EngineConfig:
     hard_lower: Sequence[float] = ()
     hard_upper: Sequence[float] = ()
     velocity_factors: Sequence[float] = ()
+    acceleration: Sequence[float] = ()
+    jerk: Sequence[float] = ()
     release_soft_limits_on_failure: bool = True
     dt: float = 0.004
     velocity_scale: float = 0.5
@@ -104,7 +112,8 @@ def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
 
     Raises ValueError where the engine would refuse it (a probability per joint; soft
     limits of n finite values each, lower below upper; hard limits of n values each, not
-    nan, lower below upper; n velocity factors in (0, 1]; swing_gain > 0 on a model without
+    nan, lower below upper; n velocity factors in (0, 1]; n finite positive accelerations and
+    jerks, or none of either; swing_gain > 0 on a model without
     inertias, whose swing measure is undefined), without building an engine: the node
     validates parameter changes with it. No probabilities: None; no soft limits: two
     empty arrays.
@@ -129,6 +138,7 @@ def check_config(robot: Robot, config: EngineConfig) -> tuple[np.ndarray | None,
         soft = (lower, upper)
     hard_limits(robot, config)
     velocity_limits(robot, config)
+    braking(robot, config)
     return probabilities, soft
 
 
@@ -162,3 +172,26 @@ def velocity_limits(robot: Robot, config: EngineConfig) -> np.ndarray:
     if factors.shape != (robot.n,) or not np.all((factors > 0) & (factors <= 1)):
         raise ValueError(f"velocity_factors need {robot.n} values in (0, 1]")
     return speeds * factors
+
+
+def braking(robot: Robot, config: EngineConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(lead s, deceleration rad/s^2) per joint, for `limits.velocity_bounds`.
+
+    The lead is the cycle dt plus 2 a / j: the jerk-limited time to turn an acceleration
+    of a towards a limit into a braking of a. The deceleration is `BRAKING_SHARE` a: the commands
+    brake at up to a (`smoothing`, the joint profiled on its own), and the other half
+    covers the error of the plant lag the controller identified (`reference`), by which
+    the configuration the commands take the arm to is known. Without command limits: dt
+    and inf.
+    ValueError: not n finite positive values each, or only one of the two given.
+    """
+    n = robot.n
+    if not len(config.acceleration) and not len(config.jerk):
+        return np.full(n, config.dt), np.full(n, np.inf)
+    acceleration = np.asarray(config.acceleration, dtype=float)
+    jerk = np.asarray(config.jerk, dtype=float)
+    for name, value in (("acceleration", acceleration), ("jerk", jerk)):
+        if value.shape != (n,) or not np.all(np.isfinite(value) & (value > 0)):
+            raise ValueError(f"{name} limits need {n} finite values > 0, got "
+                             f"{value.tolist()}")
+    return config.dt + 2.0 * acceleration / jerk, BRAKING_SHARE * acceleration

@@ -1,8 +1,9 @@
 """Joint limits at velocity level: bounds, soft-limit avoidance, saturation in the null space.
 
-- `velocity_bounds`: the joint velocities that, held for one cycle dt, keep q inside
-  [lower, upper] and within the velocity limits. A joint already outside (or on)
-  a limit may stay or move back, never further out, so 0 is always allowed.
+- `velocity_bounds`: the joint velocities from which each joint, braking within its
+  deceleration limit after a lead time, stops inside [lower, upper], within the velocity
+  limits. A joint already outside (or on) a limit may stay or move back, never further
+  out, so 0 is always allowed.
 - `avoidance`: a null-space preference pushing joints away from the edges of a box
   (the bounding-box soft limits of Lewis & Maciejewski 1997 sec. III, smooth functions): exactly 0
   more than `buffer` away from an edge, growing quadratically (C1) inside it.
@@ -73,14 +74,43 @@ def absurd_position(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                    velocity_limits: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-joint (lo, hi) velocity bounds for one cycle of dt seconds, lo <= 0 <= hi.
+def _stoppable(distance: float, lead: float, deceleration: float) -> float:
+    """The speed (rad/s) from which a joint stops within `distance` (rad, > 0).
 
-    q must be finite (infinite position limits give the velocity limit).
+    Moving on at that speed for `lead` s, then braking at `deceleration` (rad/s^2):
+    v lead + v^2 / (2 deceleration) = distance, so v = 2 distance / (lead + sqrt(lead^2 +
+    2 distance / deceleration)); distance / lead with no deceleration limit (inf); inf
+    for an infinite distance.
     """
-    lo = np.minimum(np.maximum((lower - q) / dt, -velocity_limits), 0.0)
-    hi = np.maximum(np.minimum((upper - q) / dt, velocity_limits), 0.0)
+    if distance == np.inf:
+        return np.inf
+    return 2.0 * distance / (lead + np.sqrt(lead * lead + 2.0 * distance / deceleration))
+
+
+@njit(cache=True, error_model="numpy")
+def velocity_bounds(q: np.ndarray, ahead: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                    velocity_limits: np.ndarray, lead: np.ndarray,
+                    deceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-joint (lo, hi) velocity bounds (rad/s) from which a joint stops inside its limits.
+
+    Towards each limit, the speed of `_stoppable` over the distance left (rad) from the
+    furthest of q and q + `ahead` (the motion already commanded that the measurement does
+    not show yet, `reference.CommandedConfiguration`), within the velocity limits: the
+    position-limit side of the velocity bounds of Flacco, De Luca and Khatib (ICRA 2012,
+    sec. III), with a latency. `lead` (s, > 0): the cycle plus the time the commands take
+    to start braking; `deceleration` (rad/s^2, inf for none: one cycle to the limit at
+    lead = the cycle). lo <= 0 <= hi: a joint on or beyond a limit may stay or move back,
+    never further out. q must be finite (infinite position limits give the velocity limit).
+    """
+    n = q.size
+    lo, hi = np.zeros(n), np.zeros(n)
+    for j in range(n):
+        room_up = upper[j] - max(q[j], q[j] + ahead[j])
+        room_down = min(q[j], q[j] + ahead[j]) - lower[j]
+        if room_up > 0:
+            hi[j] = min(velocity_limits[j], _stoppable(room_up, lead[j], deceleration[j]))
+        if room_down > 0:
+            lo[j] = -min(velocity_limits[j], _stoppable(room_down, lead[j], deceleration[j]))
     return lo, hi
 
 

@@ -447,8 +447,8 @@ class Recovery:
         """The command (rad/s) while a path is followed; None: the task controller's.
 
         `error`: the goal's error norm; `descent`: J^T e (`pressed`); `bounds`: the joint
-        bounds in force (rad); `velocity_bounds`: the engine's (lo, hi) at q for one
-        cycle (rad/s).
+        bounds in force (rad); `velocity_bounds`: the engine's (lo, hi) at q this
+        cycle (rad/s, `ResolutionEngine.velocity_bounds`).
         """
         if self._job is not None:
             self._take(self._job, now, locked)

@@ -17,7 +17,9 @@ the spacing of the commands' stamps:
   phase-synchronised: where Ruckig can, their velocities move together along the
   straight line to the target, so a null-space motion stays in the null space (a
   joint-by-joint profile turned the tool off a held goal); otherwise time-synchronised.
-  The joints pass, or are smoothed, all together.
+  A caller may name joints to profile on their own: a joint braking for a position
+  limit, which synchronised would brake only at the pace of the joint with the longest
+  way to its target. The joints pass, or are smoothed, all together.
 
 The velocity a joint would reach if its acceleration were brought to 0 at once at the
 jerk limit, v + a|a|/(2J), stays within the velocity limit: the profiles land on
@@ -96,10 +98,14 @@ class Smoother:
         return float(np.max(np.abs(self.velocity) / limits.acceleration
                             + (np.abs(self.acceleration) + 2 * limits.acceleration) / limits.jerk))
 
-    def step(self, target: np.ndarray, t: float, stopped: Iterable[int] = ()) -> np.ndarray:
+    def step(self, target: np.ndarray, t: float, stopped: Iterable[int] = (),
+             alone: Iterable[int] = ()) -> np.ndarray:
         """The command (rad/s, a new array) stamped `t` (s) towards `target` (rad/s).
 
-        The target is clipped into the velocity limits; a non-finite one counts as 0.
+        `alone`: joints whose profile is not synchronised with the others' (a joint braking
+        for a position limit brakes at its own acceleration limit, not at the pace of a
+        joint with further to go). The target is clipped into the velocity limits; a
+        non-finite one counts as 0.
         A stamp not after the last command's repeats that command. The first command
         after `reset` is reached from the velocity held over `FIRST_INTERVAL`.
         """
@@ -117,7 +123,7 @@ class Smoother:
         if not dt > 0:
             return self.velocity.copy()
         if not passed:
-            velocity, self.acceleration = self._profile(target, dt)
+            velocity, self.acceleration = self._profile(target, dt, alone)
             self._mean = (velocity - self.velocity) / dt
             self.velocity, self._target = velocity, target
         self._interval, self.time = dt, t
@@ -142,9 +148,11 @@ class Smoother:
         self._interval, self.time = dt, t
         return True
 
-    def _profile(self, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def _profile(self, target: np.ndarray, dt: float,
+                 alone: Iterable[int]) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration dt s along the time-optimal profile to `target`.
 
+        Phase-synchronised, but for the joints `alone` (Ruckig's per-joint synchronisation).
         A start exactly on the boundary of what the limits allow (an acceleration at its
         limit whose stop lands exactly on the target) can have no profile in floating
         point: it is planned again from an acceleration smaller by a millionth. Should
@@ -156,6 +164,10 @@ class Smoother:
         limits = self.limits
         parameters.current_velocity = self.velocity.tolist()
         parameters.target_velocity = target.tolist()
+        alone = set(alone)
+        parameters.per_dof_synchronization = [
+            Synchronization.No if j in alone else Synchronization.Phase
+            for j in range(target.size)] if alone else None
         acceleration = np.clip(self.acceleration, -limits.acceleration, limits.acceleration)
         for shrink in (1.0, 1.0 - 1e-6):
             parameters.current_acceleration = (shrink * acceleration).tolist()
