@@ -117,14 +117,14 @@ def test_critical_points_become_soft_limits_from_a_worker_process() -> None:
         assert np.any(upper - lower < PANDA.upper - PANDA.lower - 0.1)  # a box, not the limits
         # A recovery towards a critical point is seeded with its traced configurations.
         submitted: list[tuple] = []
-        c._submit = lambda *args: submitted.append(args)  # type: ignore[method-assign]
+        c.worker.submit = lambda *args: submitted.append(args)  # type: ignore[method-assign]
         for goal in ([0.45, -0.15, 0.35], [0.45, -0.15, 0.36]):
             c._submit_plan(RecoveryConfig(), np.array(goal), Q, (3,), PANDA.lower, PANDA.upper)
         traced = submitted[0][-1]
         assert traced.shape[1] == 7 and len(traced) > 10
         assert max(np.linalg.norm(PANDA.forward(q) - [0.45, -0.15, 0.35]) for q in traced) < 1e-4
         assert submitted[1][-1] is None  # not a critical point
-        del c._submit
+        del c.worker.submit
         c.set_critical_points([1.5, 0.0, 0.3])  # out of reach
         c.step(Q, 0.0, 0.0)
         wait_for_the_worker()

@@ -37,7 +37,6 @@ bad state or target: it commands zeros (reached on a ramp) and says why (`Step.p
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -131,6 +130,8 @@ class Controller:
                  background: ProcessPoolExecutor | None = None):
         self.robot = robot
         self.config = config
+        #: The worker process of the boxes and the plans (`background`, if given).
+        self.worker = workers.Worker(background)
         self._engine_config = engine_config
         self.adaptation = Adaptation(robot)
         self.smoother = self._smoother(self.config)
@@ -151,10 +152,8 @@ class Controller:
         self.last: CycleResult | None = None
         self.suspect: int | None = None
         self._suspect_sent = -math.inf
-        self._background = background
-        self._owns_background = background is None  # a pool given is its giver's to stop
         #: Soft limits from critical points, computed in the worker process.
-        self.critical = CriticalPointLimits(self._submit, model_source, report, log)
+        self.critical = CriticalPointLimits(self.worker.submit, model_source, report, log)
 
     # ------------------------------------------------------------ configuration
     def _excursions(self, config: ControllerConfig) -> Excursions | None:
@@ -277,9 +276,9 @@ class Controller:
 
     def _submit_start(self, q: np.ndarray) -> Future:
         """Plan the start configuration in the worker process."""
-        return self._submit(start_configuration.plan_for_model, *self._model_source, q,
-                            self._speeds(), self.engine.config.dt, _START.acceleration,
-                            _START.jerk)
+        return self.worker.submit(start_configuration.plan_for_model, *self._model_source, q,
+                                  self.engine.speeds, self.engine.config.dt,
+                                  _START.acceleration, _START.jerk)
 
     def set_critical_points(self, flat: Sequence[float]) -> None:
         """Task points (`selfmotion.targets_from_flat`) whose boxes become soft limits.
@@ -469,10 +468,6 @@ class Controller:
         command = self.start_phase.step(now, q, self._velocity_bounds(q, self.engine.bounds([])))
         return qd if command is None else command
 
-    def _speeds(self) -> np.ndarray:
-        """The joint speeds the engine allows (rad/s, `ResolutionEngine.speeds`)."""
-        return self.engine.speeds
-
     def _velocity_bounds(self, q: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
                          ) -> tuple[np.ndarray, np.ndarray]:
         """The engine's joint-velocity bounds at q within `bounds` (rad/s), this cycle's."""
@@ -488,34 +483,14 @@ class Controller:
         traced = None if critical is None else next(
             (samples for target, samples in zip(critical.targets, critical.traced, strict=True)
              if max(recovery.mismatch(self.robot, goal, target)) < _SAME_POINT), None)
-        return self._submit(recovery.plan_for_model, *self._model_source, goal, q, locked,
-                            lower, upper, self._speeds(), self.engine.config.dt, config, 0,
-                            traced)
+        return self.worker.submit(recovery.plan_for_model, *self._model_source, goal, q,
+                                  locked, lower, upper, self.engine.speeds,
+                                  self.engine.config.dt, config, 0, traced)
 
     def start_worker(self) -> Future | None:
-        """Start the worker process now, off the control loop (a node does at model load).
-
-        Otherwise the first plan or boxes start it inside a cycle: some ms of spawning.
-        Returns the future of a first, empty job (done once the worker runs), or None
-        where no process can start (inside a daemon process): the plan and the boxes
-        report that when they need the worker.
-        """
-        try:
-            return self._submit(os.getpid)
-        except (AssertionError, RuntimeError, OSError):
-            return None
-
-    def _submit(self, fn: Callable, *args) -> Future:
-        """Run fn(*args) in the worker process, started on first use (`workers.pool`).
-
-        Submitted `workers.lowered`: the worker starts here, never at the loop's priority.
-        """
-        if self._background is None:
-            self._background = workers.pool()
-        with workers.lowered():
-            return self._background.submit(fn, *args)
+        """Start the worker process now (`workers.Worker.start`)."""
+        return self.worker.start()
 
     def close(self) -> None:
         """Stop the background work."""
-        if self._background is not None and self._owns_background:
-            workers.stop(self._background)
+        self.worker.close()

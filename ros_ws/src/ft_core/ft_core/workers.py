@@ -13,6 +13,7 @@ worker of `SPAWN` (every pool of the suite's) then ends at once and quietly, exi
 130 (a node's worker, `pool`, ignores it: the node stops it), and its parent says what was
 interrupted, instead of each worker printing a
 KeyboardInterrupt traceback (also one still importing its modules when Ctrl-C came).
+A `Worker` holds a loop's pool, started on first use.
 A `Job` is a computation submitted to such a pool that the control cycle polls (never
 waits on), with one set of failures (`JOB_FAILURES`).
 """
@@ -24,7 +25,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
@@ -128,6 +129,42 @@ def stop(pool: ProcessPoolExecutor) -> None:
         process.terminate()
     if manager is not None:
         manager.join(STOP_TIMEOUT)
+
+
+class Worker:
+    """A control loop's worker process (`pool`), started on first use.
+
+    Args:
+        shared: a pool to use instead of one of its own; its giver's to stop (a harness
+            running many loops in turn shares one), so `close` leaves it running.
+    """
+
+    def __init__(self, shared: ProcessPoolExecutor | None = None):
+        self._pool, self._owned = shared, shared is None
+
+    def start(self) -> Future | None:
+        """Start the process now, off the control loop (a node does at model load).
+
+        Otherwise the first job starts it inside a cycle: some ms of spawning. Returns
+        the future of a first, empty job (done once the worker runs), or None where no
+        process can start (inside a daemon process): the jobs report that when submitted.
+        """
+        try:
+            return self.submit(os.getpid)
+        except (AssertionError, RuntimeError, OSError):
+            return None
+
+    def submit(self, fn: Callable, *args: Any) -> Future:
+        """Run fn(*args) in the worker process (started `lowered`: never at the loop's)."""
+        if self._pool is None:
+            self._pool = pool()
+        with lowered():
+            return self._pool.submit(fn, *args)
+
+    def close(self) -> None:
+        """Stop the process (`stop`), unless the pool was given."""
+        if self._pool is not None and self._owned:
+            stop(self._pool)
 
 
 @contextmanager
