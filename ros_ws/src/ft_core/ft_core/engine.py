@@ -21,7 +21,8 @@ characteristic length). The null-space preference z sums, by `resolution`:
 - always, when a box applies: limit_gain * `limits.avoidance` away from the edges
   of the effective box (soft limits intersected with the URDF limits), with every other
   term scaled by `limits.edge_yield` first: near an edge a preference that moves a joint
-  towards it yields, so no preference holds a joint on an edge;
+  towards it yields, so no preference holds a joint on an edge; both taken where the
+  commands are taking the arm (`step`'s `commanded`), like the ascent;
 - in every mode, when swing_gain > 0: -swing_gain * grad h, descent on the swing
   measure of free-swinging failures (`swing`, Maciejewski et al. eq 14 used in eq 3 as the
   paper proposes; zero for a URDF without inertias). About 0.6 ms a cycle on 7
@@ -223,8 +224,9 @@ def _cycle(J6: np.ndarray, ascent_J6: np.ndarray, ascent_apart: bool, xd: np.nda
             z += kfm_gain * postfailure.weighted_sigma_gradient(Ja, dJs, sigmas_a, vectors_a,
                                                                 ascent)
     pinv = postfailure.damped_inverse(columns, L, V, sigma_min, threshold, max_damping)
-    z = (limit_gain * limits.avoidance(qh, lower, upper, buffer)
-         + limits.edge_yield(z - pinv @ (Js @ z), qh, lower, upper, buffer) * z)
+    qc = qh + ahead[healthy]  # where the commands sent take the healthy joints
+    z = (limit_gain * limits.avoidance(qc, lower, upper, buffer)
+         + limits.edge_yield(z - pinv @ (Js @ z), qc, lower, upper, buffer) * z)
     lo, hi = limits.velocity_bounds(qh, ahead[healthy], lower, upper, velocity, lead,
                                     deceleration)
     task = pinv @ x
@@ -430,9 +432,10 @@ class ResolutionEngine:
 
         `kinematics`: the cycle's snapshot at the configuration q (`Robot.kinematics`).
         `commanded`: a snapshot of the configuration the commands sent are taking the arm
-        to (`reference.CommandedConfiguration`): the kfm gradient is taken there instead,
-        and each joint keeps the room to stop before its limits from the furthest of the
-        two (`velocity_bounds`); the task and every other term stay at q.
+        to (`reference.CommandedConfiguration`): the kfm gradient and the limit avoidance
+        are taken there instead, and each joint keeps the room to stop before its limits
+        from the furthest of the two (`velocity_bounds`); the task and every other term
+        stay at q.
 
         Raises ValueError (before any arithmetic) for wrong lengths, non-finite q or
         xd, physically absurd ones (q more than `limits.ABSURD_POSITION` outside the joint
