@@ -7,6 +7,7 @@ import re
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -437,7 +438,11 @@ def test_default_parameters_are_the_cores_defaults_written_once() -> None:
             Parameter("robot_model", value="panda")])
         try:
             assert node.robot is not None
-            assert node.core.engine.config == EngineConfig()
+            config, limits = node.core.engine.config, node.core.smoother.limits
+            # The core adds its smoother's limits, which the engine brakes within.
+            assert config.acceleration == tuple(limits.acceleration)
+            assert config.jerk == tuple(limits.jerk)
+            assert replace(config, acceleration=(), jerk=()) == EngineConfig()
             assert node.core.config == ControllerConfig()
             assert sim.plant.path.config == PlantConfig()
         finally:
