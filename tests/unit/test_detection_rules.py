@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from ft_core.detection import DetectorConfig, evidence, rules
+from ft_core.detection import DetectorConfig, rules
 
 pytestmark = pytest.mark.unit  # (tests/conftest.py marks the folder's tests as well)
 
@@ -299,29 +299,3 @@ def test_a_plant_fault_is_more_odd_joints_than_following_ones() -> None:
     assert rules.plant_fault([True, True, False, False, False], [False, False, True, True, True],
                              [False] * 5) is None
     assert rules.plant_fault([True, False], [False, False], [False, False]) is None
-
-
-def test_lock_evidence_begun_while_the_tool_was_pushed_lately_outlasts_the_settling_time() -> None:
-    """`evidence.Disturbance` of an arm whose tool was pushed lately.
-
-    A servo wound up against an obstacle turns round as the tool leaves it, and its joint
-    lags its command meanwhile as a locked one does. The detector passes no end of the
-    settling while the drives are `carried` (the tool pushed lately); lock evidence that
-    begins then must hold `persistence` plus the settling time, where otherwise
-    `persistence` alone.
-    """
-    persistence, settle = 0.03, 0.2
-    declared_after = {}
-    for case, settled_at in (("calm", -math.inf), ("pushed lately", math.inf)):
-        joints = [evidence.JointEvidence() for _ in range(3)]
-        for k in range(100):
-            now = 1.0 + 0.01 * k
-            newly, _ = evidence.declare_locks(
-                joints, [False, True, False], [0.0, 0.5, 0.0], now,
-                evidence.Disturbance(joints, now, settled_at), persistence, settle)
-            if newly:
-                assert newly == [1]
-                declared_after[case] = now - 1.0
-                break
-    assert declared_after["calm"] == pytest.approx(persistence, abs=0.011)
-    assert declared_after["pushed lately"] == pytest.approx(persistence + settle, abs=0.011)

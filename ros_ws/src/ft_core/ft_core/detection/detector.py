@@ -411,9 +411,7 @@ class LockDetector:
             self._clear_evidence()
             return Update()
         settle = plant.settling_time(best)
-        carried = drives is not None and drives.carried  # pushed lately: disturbed
-        disturbance = Disturbance(joints, now, math.inf if carried else
-                                  self._declared_at + settle)
+        disturbance = Disturbance(joints, now, self._declared_at + settle)
         # An unanswered departure's time counts from when it began, as far back as the
         # drive's torques show it giving nothing (`drives.ANSWER_SPANS` response times).
         silent_for = ANSWER_SPANS * plant.slowest_response
