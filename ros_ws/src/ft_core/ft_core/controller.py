@@ -333,7 +333,7 @@ class Controller:
 
         Those whose velocity bound on that side, at the last configuration measured, is
         below their speed limit (`ResolutionEngine.velocity_bounds`): within stopping
-        distance of the limit. None before a configuration is measured.
+        distance of the limit. No joint before a configuration is measured.
         """
         if self._q is None:
             return _NONE
