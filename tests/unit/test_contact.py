@@ -16,6 +16,8 @@ from ft_core import robots
 from ft_core.detection import drives
 from ft_core.detection.contact import (
     AFTER_CONTACT,
+    CONTACT_PERIOD,
+    HELD_CONTACT,
     MIN_TORQUE,
     PUSH_ANGLE,
     ContactWatch,
@@ -199,6 +201,31 @@ def test_a_joint_on_its_stop_is_left_out_like_a_braked_one() -> None:
     assert watch.explains(PANDA, free, effort, [0, 1, 5], 0.0, joints) is None
 
 
+def test_the_tool_has_left_an_obstacle_only_after_a_contact_that_held() -> None:
+    """`ContactWatch.left`: a contact held `HELD_CONTACT` s, then a look that finds none.
+
+    Pressed for 0.5 s, then free: the tool has left the obstacle for `AFTER_CONTACT` s
+    after the last look that found it. Pressed for 40 ms (a brake's push read as a
+    contact for a moment, under reversing commands on the physics plant): it has not.
+    """
+    J = PANDA.base_jacobian(Q)[:3]
+    down = np.array([0.0, 0.0, -1.0])
+    into = [JointEvidence(commanded=v) for v in np.linalg.pinv(J) @ (0.1 * down)]
+    pressed = PANDA.gravity(Q) + J.T @ (80.0 * down)
+    free = PANDA.gravity(Q)
+    for held, expected in ((0.5, True), (0.04, False)):
+        watch = ContactWatch(PANDA)
+        looks = np.arange(0.0, held + 1e-9, CONTACT_PERIOD)
+        for now in looks:
+            assert watch.lately(PANDA, Q, pressed, now, into)
+            assert not watch.left(now)
+        end = looks[-1] + CONTACT_PERIOD
+        watch.lately(PANDA, Q, free, end, into)
+        assert watch.left(end) is expected, held
+        assert not watch.left(looks[-1] + AFTER_CONTACT)
+    assert 0.04 < HELD_CONTACT < 0.5
+
+
 def _push(driver: str, seed: int) -> ClosedLoop:
     """A loop whose tool has just met a wall across its way to a fresh goal."""
     loop = ClosedLoop("position", DRIVERS[driver], seed=seed)
@@ -265,6 +292,48 @@ def test_a_wall_between_two_goals_declares_no_joint_while_pushed_or_after(
         assert _declared(loop) == {} and loop.declared == []
         loop.plant.remove_obstacle()
         loop.run(3.0)
+        assert _declared(loop) == {} and loop.declared == []
+        assert loop.tool_error() < 0.01
+    finally:
+        loop.close()
+
+
+def test_a_tool_sent_back_off_a_wall_still_there_declares_no_joint(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pushed into a wall 2.5 s behind the slow driver, then sent back with the wall in place.
+
+    The servos wound up against the wall turn round as the tool leaves it, and a joint
+    lags its command meanwhile as a locked one does, with little external torque left
+    (panda_joint3 was named here, 0.76 s after the tool was sent back). The arm is
+    disturbed once the tool has left an obstacle (`ContactWatch.left`): lock evidence
+    must then outlast the plant's settling time.
+    """
+    start, goal = (0.4, 0.05, 0.55), (0.5, 0.1, 0.4)
+    monkeypatch.setattr(closed_loop, "GOALS", (start, goal, start))
+    loop = ClosedLoop("position", DRIVERS["slow"], seed=1)
+    try:
+        loop.run(1.5)
+        loop.goal_period = math.inf
+        loop.run(2.0)
+        tool = loop.robot.transform(loop.plant.q)[:3, 3]
+        loop.plant.place_obstacle(wall_across(tool, np.array(goal), 0.5), np.array(WALL))
+        loop.run(0.5)
+        loop.send_goal()
+        loop.run(2.5)
+        assert loop.tool_error() > 0.05, "the wall did not hold the tool"
+        left: list[float] = []  # when the monitor saw the tool leave the wall
+        seen = ContactWatch.left
+
+        def watched(watch: ContactWatch, now: float) -> bool:
+            if seen(watch, now):
+                left.append(now)
+                return True
+            return False
+
+        monkeypatch.setattr(ContactWatch, "left", watched)
+        loop.send_goal()  # back where it came from, away from the wall
+        loop.run(3.0)
+        assert left, "the tool was never seen leaving the wall"
         assert _declared(loop) == {} and loop.declared == []
         assert loop.tool_error() < 0.01
     finally:

@@ -287,7 +287,8 @@ class Monitor:
             if touching:
                 self.detector.follow.forget(list(range(self.robot.n)))  # says nothing
         change = Change(self.detector.fill_unknown_positions(q))
-        drives = None if effort is None else self._drives.update(now, q, effort, touching)
+        drives = None if effort is None else self._drives.update(
+            now, q, effort, touching, touching and self._touch.left(now))
         update = self.detector.measure(now, q, blind,
                                        lambda: swing.falling_directions(self.robot, q),
                                        self._contact if self.robot.has_inertias

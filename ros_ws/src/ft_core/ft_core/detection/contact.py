@@ -78,6 +78,12 @@ CONTACT_PERIOD = 0.02
 #: s after a contact during which the joints' motion still says nothing of their drives
 #: (the arm leaving the obstacle, its servos catching up).
 AFTER_CONTACT = 1.0
+#: s, the longest gap between two looks that found contact within one contact.
+CONTACT_GAP = 0.1
+#: s a contact must have lasted for the tool's leaving it to disturb the arm
+#: (`ContactWatch.left`): on the physics plant a wall held the tool 0.5-5.9 s, while a
+#: brake's push under reversing commands read as a contact for 40 ms at a time.
+HELD_CONTACT = 0.3
 #: Least external torque, as a share of the effort limits (norm over the joints), for
 #: `ContactWatch` to see contact with no joint stalled: above what the servos' transients
 #: give in free motion (at most 0.13 of the Panda's limits on the physics plant, against
@@ -187,6 +193,8 @@ class ContactWatch:
                       else math.inf)
         self._looked = -math.inf  # s, when `lately` last looked
         self._touched = -math.inf  # s, when `lately` last found the tool in contact
+        self._found = False  # whether its latest look found the tool in contact
+        self._began = -math.inf  # s, when the latest contact began (`CONTACT_GAP`)
 
     def explains(self, robot: Robot, q: np.ndarray, effort: np.ndarray, stalled: list[int],
                  now: float, joints: Sequence[JointEvidence], least: float = MIN_TORQUE,
@@ -228,7 +236,22 @@ class ContactWatch:
         """
         if now - self._looked >= CONTACT_PERIOD and math.isfinite(self.least):
             self._looked = now
-            if self.explains(robot, q, effort, [], now, joints, self.least,
-                             acceleration) is not None:
+            self._found = self.explains(robot, q, effort, [], now, joints, self.least,
+                                        acceleration) is not None
+            if self._found:
+                if now - self._touched > CONTACT_GAP:
+                    self._began = now
                 self._touched = now
         return now - self._touched < AFTER_CONTACT
+
+    def left(self, now: float) -> bool:
+        """Whether the tool came off an obstacle lately, at `now` (s), as of `lately`'s looks.
+
+        The last look found no contact, and one within `AFTER_CONTACT` s ended a contact
+        that lasted `HELD_CONTACT` s or more (looks that found it no more than
+        `CONTACT_GAP` s apart): the servos wound up against the obstacle are turning round,
+        and a joint lags its command meanwhile as a locked one does
+        (`evidence.Disturbance`). A brake's push read as a contact for a moment is none.
+        """
+        return bool(not self._found and now - self._touched < AFTER_CONTACT
+                    and self._touched - self._began >= HELD_CONTACT)

@@ -411,7 +411,9 @@ class LockDetector:
             self._clear_evidence()
             return Update()
         settle = plant.settling_time(best)
-        disturbance = Disturbance(joints, now, self._declared_at + settle)
+        # Disturbed too once the tool came off an obstacle: its servos turn round.
+        disturbance = Disturbance(joints, now, math.inf if drives is not None and drives.left
+                                  else self._declared_at + settle)
         # An unanswered departure's time counts from when it began, as far back as the
         # drive's torques show it giving nothing (`drives.ANSWER_SPANS` response times).
         silent_for = ANSWER_SPANS * plant.slowest_response

@@ -181,6 +181,9 @@ class Drives:
     given: Callable[[float], np.ndarray] | None = None
     #: a force on the tool lately, which can carry any joint's weight: no drive unanswered
     carried: bool = False
+    #: the tool came off an obstacle lately (`ContactWatch.left`): servos wound up
+    #: against it are turning round
+    left: bool = False
     #: bool, no torque against gravity for `SILENT_TIME`, fallen or not (`silent` is
     #: this and a fall); None: as `silent`
     quiet: np.ndarray | None = None
@@ -357,11 +360,12 @@ class DriveWatch:
         return peak
 
     def update(self, now: float, q: np.ndarray, effort: np.ndarray,
-               carried: bool = False) -> Drives:
+               carried: bool = False, left: bool = False) -> Drives:
         """What the `effort` (N m) says of each joint at `now` (s) and q (rad).
 
         `carried`: the tool is or was lately pushed by an obstacle (`detection.contact`),
         whose force can carry any joint's weight: no drive is silent or unanswered.
+        `left`: the tool came off it lately (`ContactWatch.left`), passed on as is.
         """
         robot = self._robot
         if not robot.has_inertias or not np.isfinite(self._least).any():
@@ -395,4 +399,4 @@ class DriveWatch:
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
                 self.silent[:] = lasting & (fallen >= FALL)
         return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort,
-                      self.given, carried, lasting)
+                      self.given, carried, left, lasting)

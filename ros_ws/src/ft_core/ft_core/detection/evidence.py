@@ -8,9 +8,10 @@ three response times): a joint losing its torque or stopping at a lock pushes th
 others through the links' coupling, and the remap's new commands are a step of their
 own, so the joints around a failure stall or move on their own for a moment (docs/
 detection.md, "After a declaration"). The arm is disturbed within the settling time
-after a declaration, and for a joint whose evidence begins after another joint's
-evidence, still under way, began. Evidence that begins at the same update as another's
-(two joints failing at once) is not delayed.
+after a declaration, once the tool has come off an obstacle it was held at (its servos,
+wound up against it, turn round: `ContactWatch.left`), and for a joint whose evidence
+begins after another joint's evidence, still under way, began. Evidence that begins at
+the same update as another's (two joints failing at once) is not delayed.
 """
 
 from __future__ import annotations
@@ -96,7 +97,8 @@ class Disturbance:
     Args:
         joints: every joint's evidence before this update's.
         now: the update's time (s).
-        settled_at: s, when the settling time after the latest declaration ends.
+        settled_at: s, when the settling time after the latest declaration ends (inf
+            once the tool has come off an obstacle, `ContactWatch.left`).
     """
 
     def __init__(self, joints: list[JointEvidence], now: float, settled_at: float):
@@ -105,7 +107,7 @@ class Disturbance:
                         for e in joints]
         self._ordered = sorted(self._starts)
         self.now = now
-        #: within the settling time after a declaration
+        #: within the settling time after a declaration, or the tool off an obstacle
         self.settling = now < settled_at
 
     def late(self, joint: int) -> bool:
