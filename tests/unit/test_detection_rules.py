@@ -299,3 +299,16 @@ def test_a_plant_fault_is_more_odd_joints_than_following_ones() -> None:
     assert rules.plant_fault([True, True, False, False, False], [False, False, True, True, True],
                              [False] * 5) is None
     assert rules.plant_fault([True, False], [False, False], [False, False]) is None
+
+
+def test_a_joint_moving_on_its_own_without_torque_is_no_plant_fault() -> None:
+    """A drive that gives no torque explains its own joint's motion, not the plant's.
+
+    Two joints moving on their own, none following, is a stopped plant; where one of them
+    is a drive without torque (a shoulder falling onto its stop, its neighbour pushed by
+    the fall, on the physics plant) only one joint is left to say so.
+    """
+    own, following, stalled = [True, False, False, True], [False] * 4, [False] * 4
+    assert rules.plant_fault(stalled, following, own) == own
+    assert rules.plant_fault(stalled, following, own, [True, False, False, False]) is None
+    assert rules.plant_fault(stalled, following, own, [False, True, True, False]) == own

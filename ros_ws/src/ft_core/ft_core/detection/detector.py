@@ -383,9 +383,10 @@ class LockDetector:
             plant.identify(now, measured, slopes, error, unlocked & ~pushing,
                            window=cfg.window, min_command=cfg.min_command,
                            memory=cfg.memory, min_excitation=cfg.min_excitation)
-        # A joint held against its drive's push is no sign of a stopped plant (it pushes nothing).
+        # A joint held against its drive's push is no sign of a stopped plant (it pushes
+        # nothing), nor is one moving on its own whose drive gives no torque (its own).
         unheld = [c and not h for c, h in zip(candidate_of, held.tolist(), strict=True)]
-        odd = rules.plant_fault(unheld, following_of, own_of)
+        odd = rules.plant_fault(unheld, following_of, own_of, self.torqueless.tolist())
         if odd is not None:
             self.plant_fault = "plant not following commands: " + ", ".join(
                 f"joint {j} measured {measured_of[j]:.3f} rad/s, expected {weakest_of[j]:.3f}"

@@ -23,9 +23,10 @@ a stop before it can fall: it counts once it lags its uphill predictions the way
 gravity turns it (`rules.silent_and_on_its_own`), where a healthy servo behind an uphill
 command pushes beyond its gravity torque and a brake takes its push. Nor is a drive
 silent while the tool is or was
-lately pushed by an obstacle (`ContactWatch.lately`): the obstacle's force carries part
-of the arm's weight, and a healthy drive whose joint it props up gives none (a Panda's
-shoulder and elbow against a wall, on the physics plant). A joint gravity hardly turns
+lately pushed by an obstacle (`ContactWatch.lately`) before its joint has fallen
+`CARRIED_FALL`: the obstacle's force carries part of the arm's weight, and a healthy
+drive whose joint it props up gives none (a Panda's shoulder and elbow against a wall,
+on the physics plant), but it holds that joint up. A joint gravity hardly turns
 (a vertical axis) is never silent: its free swing is told by its motion alone. Without
 efforts, inertias or effort limits nothing is silent.
 
@@ -107,6 +108,9 @@ GRAVITY_SHARE = 0.03
 SILENT_TIME = 0.05
 #: rad the joint must have fallen meanwhile (five times the sim's position noise).
 FALL = 0.005
+#: rad, as `FALL` while the tool is or was lately pushed (`Drives.carried`): an obstacle
+#: that carries a joint's weight holds it up, and a joint falling this far is not held.
+CARRIED_FALL = 0.03
 #: Least external torque, as a share of the joint's effort limit, of a pushing drive.
 PUSH_SHARE = 0.3
 #: N m, and at least this (a wrist's model errors are a large share of its small limit).
@@ -184,8 +188,8 @@ class Drives:
     #: the tool came off an obstacle lately (`ContactWatch.left`): servos wound up
     #: against it are turning round
     left: bool = False
-    #: bool, no torque against gravity for `SILENT_TIME`, fallen or not (`silent` is
-    #: this and a fall); None: as `silent`
+    #: bool, no torque against gravity for `SILENT_TIME`, fallen or not, the tool not
+    #: pushed lately (`silent` is this and a fall); None: as `silent`
     quiet: np.ndarray | None = None
 
     def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
@@ -364,7 +368,8 @@ class DriveWatch:
         """What the `effort` (N m) says of each joint at `now` (s) and q (rad).
 
         `carried`: the tool is or was lately pushed by an obstacle (`detection.contact`),
-        whose force can carry any joint's weight: no drive is silent or unanswered.
+        whose force can carry any joint's weight: no drive is unanswered, nor silent
+        before its joint has fallen `CARRIED_FALL`.
         `left`: the tool came off it lately (`ContactWatch.left`), passed on as is.
         """
         robot = self._robot
@@ -389,7 +394,8 @@ class DriveWatch:
         self._since[~quiet] = math.nan
         quiet &= gravity >= self._least
         self.silent[:] = False
-        lasting = quiet & (now - self._since >= SILENT_TIME) & (not carried)
+        held = quiet & (now - self._since >= SILENT_TIME)
+        lasting = held & (not carried)
         if quiet.any():
             falling = swing.falling_directions(robot, q)
             if falling is not None:
@@ -397,6 +403,6 @@ class DriveWatch:
                 # joint moving uphill then coasts to a stop first).
                 fallen = (q - self._from) * falling
                 self._from = np.where(quiet & (fallen < 0), q, self._from)
-                self.silent[:] = lasting & (fallen >= FALL)
+                self.silent[:] = held & (fallen >= (CARRIED_FALL if carried else FALL))
         return Drives(self.silent.copy(), pushing, effort - signed, gravity, robot, q, effort,
                       self.given, carried, left, lasting)

@@ -409,14 +409,20 @@ def not_observing(now: float, last_command: float, resumed_at: float, settling: 
     return None
 
 
-def plant_fault(candidate: list[bool], following: list[bool],
-                on_its_own: list[bool]) -> list[bool] | None:
+def plant_fault(candidate: list[bool], following: list[bool], on_its_own: list[bool],
+                torqueless: list[bool] | None = None) -> list[bool] | None:
     """The joints that show the plant as a whole not following, or None.
 
     A plant fault (a stopped driver, an emergency stop, a lost command path) when two
     or more joints are lock candidates and they outnumber the joints following (those
-    are named), or else when two or more move on their own and outnumber them.
+    are named), or else when two or more move on their own and outnumber them. A joint
+    moving on its own whose drive gives no torque (`torqueless[j]`, from the efforts:
+    `detection.drives`) shows its own drive's fault, not the plant's, and is not counted
+    (a Panda shoulder falling onto its stop during a pause, a neighbour pushed by its
+    fall: two joints on their own, none following).
     """
+    if torqueless is not None:
+        on_its_own = [o and not t for o, t in zip(on_its_own, torqueless, strict=True)]
     n_stalled, n_following, n_own = sum(candidate), sum(following), sum(on_its_own)
     if n_stalled >= 2 and n_stalled > n_following:
         return candidate
