@@ -141,8 +141,9 @@ BRAKE_TORQUE = 1.0
 #: under which a drive leaves it unanswered (`Drives.unanswered`).
 ANSWER_SHARE = 0.1
 #: N m, the least answer a departure must call for to say anything (below it, a drive's
-#: torque is mostly its model's error).
-ANSWER_TORQUE = 0.25
+#: torque is mostly its model's error): a Panda wrist (M_55 about 0.056 kg m^2) departing
+#: 0.13 rad/s behind a 75 ms response asks this much.
+ANSWER_TORQUE = 0.1
 #: Share of `detection.min_command` (rad/s) a joint's velocity must lie beyond every
 #: plausible prediction, and beyond the noise, for its drive's answer to be asked
 #: (`rules.departure`): `ANSWER_TORQUE` bounds it from below as well (a Panda shoulder's
