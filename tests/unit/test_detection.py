@@ -650,6 +650,39 @@ def test_a_suspect_explained_by_contact_is_refused_unless_its_drive_gives_no_tor
     assert asked == [[1]] and detector.locked == {1: -0.3}
 
 
+def test_a_torqueless_joint_joining_joints_stalled_in_contact_leaves_their_veto_standing(
+        ) -> None:
+    """Contact explains nothing of a drive without torque, and still explains the others.
+
+    A tool pushed along a wall: panda_joint1 and panda_joint5 stalled by it for 30 ms
+    (vetoed), then panda_joint2, its weight carried by the wall and its drive silent
+    (`torqueless`), stalls too. The veto is asked about the first two only and keeps them
+    undeclared; the silent one is declared once its own evidence has lasted.
+    """
+    from ft_core.detection.evidence import Disturbance, JointEvidence, declare_locks
+
+    joints = [JointEvidence() for _ in range(7)]
+    asked: list[list[int]] = []
+
+    def wall(stalled: list[int], _since: float) -> str:
+        asked.append(stalled)
+        return "the tool against a wall"
+
+    spared = [False, True] + [False] * 5
+    declared = []
+    for k in range(40):  # 4 ms updates; persistence 20 ms, no settling time
+        now = 0.004 * k
+        supported = [j in ((0, 4) if now < 0.03 else (0, 1, 4)) and joints[j].locked_at is None
+                     for j in range(7)]
+        newly, reason = declare_locks(joints, supported, np.zeros(7), now,
+                                      Disturbance(joints, now, -1.0), 0.02, 0.0, wall,
+                                      spared)
+        assert reason == "the tool against a wall"
+        declared += [(round(now, 3), j) for j in newly]
+    assert declared == [(0.052, 1)]  # evidence from 0.032 s; nothing else, ever
+    assert asked and all(stalled == [0, 4] for stalled in asked)
+
+
 def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:
     detector = LockDetector(PANDA.lower, PANDA.upper)
     detector.command(0.0, np.full(7, 0.5))

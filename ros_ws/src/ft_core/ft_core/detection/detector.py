@@ -241,8 +241,7 @@ class LockDetector:
         evidence = self.joints[joint]
         if evidence.locked_at is not None:
             return Confirmation(Decision.KNOWN, replace(evidence))
-        veto = _sparing(veto, self.torqueless)
-        if veto is not None and veto([joint], time) is not None:
+        if veto is not None and not self.torqueless[joint] and veto([joint], time) is not None:
             return Confirmation(Decision.REFUSED, replace(evidence))
         if not evidence.candidate:
             slow = None if (self.not_observing is not None or self.plant_fault is not None
@@ -325,8 +324,7 @@ class LockDetector:
         self.departed_since = departed = np.where(away > 0, np.fmin(self.departed_since, now),
                                                   math.nan)
         on_its_own = on_its_own | unanswered
-        self.torqueless = unanswered | falls | silent
-        veto = _sparing(veto, self.torqueless)
+        self.torqueless = torqueless = unanswered | falls | silent
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
             deficit, lost = self._spans.lost_position(cfg, now, weakest, error, times,
@@ -424,10 +422,10 @@ class LockDetector:
                 rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
                                  cfg.confidence, cfg.min_command),
                 max(0.0, UNANSWERED_TIME - min(since - departed[j], silent_for))
-                if unanswered[j] else math.inf), veto)
+                if unanswered[j] else math.inf), veto, torqueless)
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
-                                       cfg.persistence, settle, veto)
+                                       cfg.persistence, settle, veto, torqueless)
         contact = contact or pushed
         if contact is not None or not (any(supported) or any(own_of)):
             self.contact = contact
@@ -438,25 +436,15 @@ class LockDetector:
                     if drives is not None and acceleration is not None else None)
         degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged, resisted)
                     if joints[j].degraded_at is None and joints[j].locked_at is None]
-        if degraded and veto is not None:  # slowed by a force on the tool: not degraded
-            slowed = veto(degraded, now - MEMORY)
+        asked = [j for j in degraded if not torqueless[j]]
+        if asked and veto is not None:  # slowed by a force on the tool: not degraded
+            slowed = veto(asked, now - MEMORY)
             if slowed is not None:  # the stall in contact says nothing of the drive
-                self.follow.forget(degraded)
-                self.contact, degraded = slowed, []
+                self.follow.forget(asked)
+                self.contact, degraded = slowed, [j for j in degraded if torqueless[j]]
         for j in degraded:
             joints[j].degraded_at = now
         return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
-
-
-def _sparing(veto: Veto | None, torqueless: np.ndarray) -> Veto | None:
-    """`veto`, but giving no reason where any of the joints asked about is `torqueless`.
-
-    A drive without torque pushes against nothing: contact cannot explain its joint's
-    motion (`detection.drives`).
-    """
-    if veto is None or not torqueless.any():
-        return veto
-    return lambda joints, since: None if torqueless[joints].any() else veto(joints, since)
 
 
 @functools.cache

@@ -126,15 +126,15 @@ Veto = Callable[[list[int], float], str | None]
 def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
                    disturbance: Disturbance, persistence: float, settle: float,
                    wait: Callable[[int, float], float], veto: Veto | None = None,
-                   ) -> tuple[list[int], list[int], str | None]:
+                   spared: Sequence[bool] = ()) -> tuple[list[int], list[int], str | None]:
     """Joints newly declared free-swinging at `now` (s), those of them that were locked.
 
     `own[j]`: joint j moves on its own at this update; `wait(j, since)`: how long (s)
     beyond `persistence` it must go on doing so, having done so since `since` (s);
     `settle`: the plant's settling time (s). A joint declared locked that moves was never
     locked: it swings, and its lock is taken back. When `veto` gives a reason for the
-    joints ready to be declared, none is, their evidence starts anew, and the reason is
-    returned last.
+    joints ready to be declared, none of them is, their evidence starts anew, and the
+    reason is returned last; it is not asked about the `spared` ones (`_vetoed`).
     """
     ready = []
     for j, evidence in enumerate(joints):
@@ -150,24 +150,24 @@ def declare_swings(joints: list[JointEvidence], own: list[bool], now: float,
             needed = max(needed, persistence + settle)
         if now - evidence.swing_since >= needed:
             ready.append(j)
-    reason = _vetoed(joints, ready, veto, "swing_since", now)
-    if reason is not None:
-        return [], [], reason
+    reason, ready = _vetoed(joints, ready, veto, "swing_since", now, spared)
     released = [j for j in ready if joints[j].locked_at is not None]
     for j in ready:
         joints[j].swinging_at, joints[j].locked_at = now, None
-    return ready, released, None
+    return ready, released, reason
 
 
 def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Sequence[float],
                   now: float, disturbance: Disturbance, persistence: float,
-                  settle: float, veto: Veto | None = None) -> tuple[list[int], str | None]:
+                  settle: float, veto: Veto | None = None, spared: Sequence[bool] = (),
+                  ) -> tuple[list[int], str | None]:
     """Joints newly declared locked at `now` (s), where they are (`latest`, rad).
 
     `supported[j]`: joint j is a lock candidate and another joint is seen moving as
     commanded (`rules.vouching`). `veto` is asked at every update with a supported
-    joint; when it gives a reason, none is declared, every supported joint's evidence
-    starts anew, and the reason is returned with no joint. So a stall must last
+    joint; when it gives a reason, none of them is declared, their evidence starts anew,
+    and the reason is returned (with the `spared` joints declared, about which it is not
+    asked: `_vetoed`). So a stall must last
     `persistence` after the last moment a veto explained it: a joint stalled by a wall
     that was just removed, still catching up on what it was commanded meanwhile, is
     judged only from the removal on.
@@ -182,24 +182,30 @@ def declare_locks(joints: list[JointEvidence], supported: list[bool], latest: Se
         if now - evidence.evidence_since >= persistence + settle * evidence.evidence_late:
             ready.append(j)
     under_way = [j for j, s in enumerate(supported) if s]
-    reason = _vetoed(joints, under_way, veto, "evidence_since", now)
-    if reason is not None:
-        return [], reason
+    reason, left = _vetoed(joints, under_way, veto, "evidence_since", now, spared)
+    ready = [j for j in ready if j in left]
     for j in ready:
         evidence = joints[j]
         evidence.locked_at, evidence.position = now, float(latest[j])
         # Seen swinging before: should it move on its own again, it swings again.
         evidence.swinging_at = None
-    return ready, None
+    return ready, reason
 
 
 def _vetoed(joints: list[JointEvidence], ready: list[int], veto: Veto | None, since: str,
-            now: float) -> str | None:
-    """`veto`'s reason for the `ready` joints, whose evidence (field `since`) then starts anew."""
-    if not ready or veto is None:
-        return None
-    reason = veto(ready, min(getattr(joints[j], since) or now for j in ready))
-    if reason is not None:
-        for j in ready:
-            setattr(joints[j], since, now)
-    return reason
+            now: float, spared: Sequence[bool] = ()) -> tuple[str | None, list[int]]:
+    """`veto`'s reason for the `ready` joints, and those of them it leaves to be declared.
+
+    It is asked about the joints not `spared` (`spared[j]`: a drive that gives no torque,
+    which pushes against nothing, so that contact explains nothing of its joint); given
+    a reason, their evidence (field `since`) starts anew and only the spared are left.
+    """
+    asked = [j for j in ready if not (j < len(spared) and spared[j])]
+    if not asked or veto is None:
+        return None, ready
+    reason = veto(asked, min(getattr(joints[j], since) or now for j in asked))
+    if reason is None:
+        return None, ready
+    for j in asked:
+        setattr(joints[j], since, now)
+    return reason, [j for j in ready if j not in asked]
