@@ -344,9 +344,9 @@ def test_a_wall_that_carries_a_joints_weight_leaves_no_drive_torqueless() -> Non
     """Pushed into a wall behind the slow driver, Panda joints 2 and 4 let the wall hold them.
 
     Their efforts fall under a tenth of their gravity torques (`drives.SILENT_SHARE`),
-    which alone would name their drives silent, and a silent drive would keep the contact
-    test from being asked about any group of held joints that holds it. While the tool is
-    in contact no drive counts as giving no torque, and no joint is declared.
+    which alone would name their drives silent, and the contact test is not asked about a
+    drive without torque. While the tool is in contact no drive counts as giving no
+    torque before its joint has fallen 30 mrad, and no joint is declared.
     """
     loop = _push("slow", 2)
     idle: set[int] = set()

@@ -645,7 +645,7 @@ def test_a_suspect_explained_by_contact_is_refused_unless_its_drive_gives_no_tor
     assert detector.joints[1].candidate
     assert detector.confirm(1, -0.3, 3.0, wall).decision == "refused"
     assert asked == [[1]] and detector.locked == {}
-    detector.torqueless[1] = True  # its drive silent at the last update (`Drives`)
+    detector.beyond_contact[1] = True  # its drive silent at the last update (`Drives`)
     assert detector.confirm(1, -0.3, 3.0, wall).decision == "locked"
     assert asked == [[1]] and detector.locked == {1: -0.3}
 
@@ -681,6 +681,45 @@ def test_a_torqueless_joint_joining_joints_stalled_in_contact_leaves_their_veto_
         declared += [(round(now, 3), j) for j in newly]
     assert declared == [(0.052, 1)]  # evidence from 0.032 s; nothing else, ever
     assert asked and all(stalled == [0, 4] for stalled in asked)
+
+
+@pytest.mark.parametrize("carried", [True, False], ids=["carried", "not carried"])
+def test_a_silent_drive_is_left_to_the_contact_test_while_the_tool_is_pushed(
+        carried: bool) -> None:
+    """A drive idle while an obstacle carries its joint's weight is asked about as any other.
+
+    Panda joints 1, 2 and 5 held still at 0.2 rad/s commanded, their drives pushing, the
+    drive of joint 2 silent (under a tenth of its gravity torque). While the tool is pushed
+    (`Drives.carried`) the obstacle may carry that weight: the contact test is asked about
+    all three and, explaining them, keeps them undeclared. With no push on the tool the
+    silent drive gives no torque, which no contact explains: joint 2 alone is declared.
+    """
+    from ft_core.detection.drives import Drives
+
+    still = (0, 1, 4)
+    data = record(lambda t: np.full(7, 0.2), 1.5, lock=(still, 0.5))
+    silent = np.zeros(7, bool)
+    silent[1] = True
+    pushing = np.zeros(7, bool)
+    pushing[list(still)] = True
+    drives = Drives(silent, pushing, carried=carried)
+    asked: list[list[int]] = []
+
+    def wall(stalled: list[int], _since: float) -> str:
+        asked.append(stalled)
+        return "the tool against a wall"
+
+    detector, declared = LockDetector(PANDA.lower, PANDA.upper), []
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+        else:
+            declared += detector.measure(t, values, veto=wall, drives=drives).locked
+    assert asked, "the stalls never came to the contact test"
+    if carried:
+        assert declared == [] and [0, 1, 4] in asked
+    else:
+        assert declared == [1] and all(1 not in stalled for stalled in asked)
 
 
 def test_joint_state_gaps_and_out_of_order_data_give_no_decision() -> None:

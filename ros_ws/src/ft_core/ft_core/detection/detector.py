@@ -100,9 +100,12 @@ class LockDetector:
         #: s, since when each joint's velocity has lain beyond its predictions
         #: (`rules.departure`); NaN: not now
         self.departed_since = np.full(self.n, math.nan)
-        #: joints whose drives gave no torque at the last update (silent or unanswered):
-        #: never explained by contact, since such a drive pushes against nothing
+        #: joints whose drives gave no torque at the last update (silent or unanswered)
         self.torqueless = np.zeros(self.n, dtype=bool)
+        #: those of them contact cannot explain, since such a drive pushes against nothing:
+        #: all, but while the tool is pushed (`Drives.carried`) only those falling off their
+        #: predictions (an obstacle can carry a healthy joint's weight, its drive idle)
+        self.beyond_contact = np.zeros(self.n, dtype=bool)
 
     def configure(self, config: DetectorConfig) -> None:
         """New parameters; a change of the model grid restarts identification (locks kept)."""
@@ -178,7 +181,7 @@ class LockDetector:
         it is called only when a joint moves on its own by the other tests (gravity's
         test can only clear a joint), so a healthy cycle pays nothing for it. `veto`
         (`evidence.Veto`) is asked before joints are declared locked (contact), never
-        about a joint whose drive gives no torque (`torqueless`).
+        about a joint whose drive gives no torque (`beyond_contact`).
         `drives` (`drives.DriveWatch`, from the efforts): a joint whose drive is silent
         (no torque while gravity turns it) outside its plausible predictions, the way
         gravity turns it, moves on its own at once, with no allowance for a servo's
@@ -228,7 +231,7 @@ class LockDetector:
         """Decide on a suspected lock of `joint` (at `position` rad, `time` s) from elsewhere.
 
         Refused when `veto` explains the joint's stall (contact), unless its drive gave
-        no torque at the last update (`torqueless`).
+        no torque at the last update (`beyond_contact`).
 
         Locked when the joint is a candidate of the detector's own stall test at the
         last update, without the witness of another joint seen following (a suspect
@@ -241,7 +244,8 @@ class LockDetector:
         evidence = self.joints[joint]
         if evidence.locked_at is not None:
             return Confirmation(Decision.KNOWN, replace(evidence))
-        if veto is not None and not self.torqueless[joint] and veto([joint], time) is not None:
+        if (veto is not None and not self.beyond_contact[joint]
+                and veto([joint], time) is not None):
             return Confirmation(Decision.REFUSED, replace(evidence))
         if not evidence.candidate:
             slow = None if (self.not_observing is not None or self.plant_fault is not None
@@ -324,7 +328,9 @@ class LockDetector:
         self.departed_since = departed = np.where(away > 0, np.fmin(self.departed_since, now),
                                                   math.nan)
         on_its_own = on_its_own | unanswered
-        self.torqueless = torqueless = unanswered | falls | silent
+        self.torqueless = unanswered | falls | silent
+        self.beyond_contact = beyond = (unanswered | falls if drives is not None
+                                        and drives.carried else self.torqueless)
         deficit = np.zeros(self.n)
         if (candidates & undeclared).any():  # (a swung joint's test: stopping)
             deficit, lost = self._spans.lost_position(cfg, now, weakest, error, times,
@@ -422,10 +428,10 @@ class LockDetector:
                 rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
                                  cfg.confidence, cfg.min_command),
                 max(0.0, UNANSWERED_TIME - min(since - departed[j], silent_for))
-                if unanswered[j] else math.inf), veto, torqueless)
+                if unanswered[j] else math.inf), veto, beyond)
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
-                                       cfg.persistence, settle, veto, torqueless)
+                                       cfg.persistence, settle, veto, beyond)
         contact = contact or pushed
         if contact is not None or not (any(supported) or any(own_of)):
             self.contact = contact
@@ -436,12 +442,12 @@ class LockDetector:
                     if drives is not None and acceleration is not None else None)
         degraded = [j for j in self.follow.update(now, dt, measured, weakest, judged, resisted)
                     if joints[j].degraded_at is None and joints[j].locked_at is None]
-        asked = [j for j in degraded if not torqueless[j]]
+        asked = [j for j in degraded if not beyond[j]]
         if asked and veto is not None:  # slowed by a force on the tool: not degraded
             slowed = veto(asked, now - MEMORY)
             if slowed is not None:  # the stall in contact says nothing of the drive
                 self.follow.forget(asked)
-                self.contact, degraded = slowed, [j for j in degraded if torqueless[j]]
+                self.contact, degraded = slowed, [j for j in degraded if beyond[j]]
         for j in degraded:
             joints[j].degraded_at = now
         return Update(tuple(newly), tuple(swinging), tuple(released), tuple(degraded))
