@@ -428,10 +428,10 @@ class LockDetector:
                 rules.swing_wait(measured_of[j], error_of[j], plausible, settle,
                                  cfg.confidence, cfg.min_command),
                 max(0.0, UNANSWERED_TIME - min(since - departed[j], silent_for))
-                if unanswered[j] else math.inf), veto, beyond)
+                if unanswered[j] else math.inf), veto, beyond.tolist())
         supported = (held_long | (candidates & witnessed)).tolist()
         newly, contact = declare_locks(joints, supported, latest, now, disturbance,
-                                       cfg.persistence, settle, veto, beyond)
+                                       cfg.persistence, settle, veto, beyond.tolist())
         contact = contact or pushed
         if contact is not None or not (any(supported) or any(own_of)):
             self.contact = contact
