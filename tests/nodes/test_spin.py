@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+import os
 import signal
 from pathlib import Path
 
@@ -29,10 +30,15 @@ def test_run_node_freezes_start_up_objects_and_stops_cleanly_on_sigint() -> None
             seen["stopped"] = True
 
     previous = signal.getsignal(signal.SIGINT)
+    # run_node sets the process's Fast DDS transport (`ft_msgs_py.transport`) in os.environ:
+    # restored afterwards, or every process the later tests of this worker start inherits it.
+    environment = dict(os.environ)
     try:
         spin.run_node(Probe, [])
     finally:
         gc.unfreeze()
+        os.environ.clear()
+        os.environ.update(environment)
     # The start-up objects (modules, rclpy's entities, the node) are out of the
     # collector's sight; the node's stop() ran; our SIGINT handler is back.
     assert seen["frozen"] > 10_000
