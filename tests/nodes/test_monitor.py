@@ -15,7 +15,7 @@ from ft_core import robots
 from ft_core.command_limits import DriverCheck, command_limits
 from ft_core.health import Health
 from ft_core.smoothing import Smoother
-from ft_monitor.handover import HANDOVER, LISTEN, Handover
+from ft_monitor.handover import ABSENT, HANDOVER, LISTEN, Handover
 from ft_monitor.monitor_node import MonitorNode
 from ft_msgs_py import convert, diagnostics, health, names, qos, wire
 from ft_msgs_py.monitor_guard import ECHO_PERIOD
@@ -369,7 +369,8 @@ def test_a_monitor_that_was_away_listens_before_it_commands_where_a_guard_is() -
     steady = [k * 0.004 for k in range(10)]
     assert not any(h.held_off(t) for t in steady) and len(taken) == 10
     back = steady[-1] + 0.1  # the process stopped for 0.1 s
-    assert h.held_off(back) and h.held_off(back + LISTEN - 1e-4)
+    listening = [back + k * 0.004 for k in range(math.ceil(LISTEN / 0.004))]
+    assert all(h.held_off(t) for t in listening)
     assert not h.held_off(back + LISTEN + 1e-4)
     h.guarded(back + 0.012)  # then commands every 4 ms, as before
     after = [back + 0.012 + k * 0.004 for k in range(1, 12)]
@@ -378,9 +379,87 @@ def test_a_monitor_that_was_away_listens_before_it_commands_where_a_guard_is() -
     h, _ = handover()
     held = [h.held_off(k * 0.1) for k in range(10)]
     assert held[1] and not any(held[3:]), held
-    # No guard matched, or simulated time: never held off after a gap.
+    # A command held up past ABSENT between its take and its send: not sent, and the
+    # monitor listens from then on, as after a gap.
+    h, _ = handover()
+    assert not any(h.held_off(k * 0.004) for k in range(10))
+    assert not h.late(ABSENT - 1e-4, 0.037)
+    assert h.late(ABSENT + 1e-4, 0.04)
+    after = 0.04 + np.arange(0.0, 2 * LISTEN, 0.004)
+    assert [h.held_off(t) for t in after] == list(after - after[0] < LISTEN)
+    # No guard matched, or simulated time: never held off after a gap, nor late.
     for h, _ in (handover(guards=0), handover(wall_time=False)):
         assert not h.held_off(0.0) and not h.held_off(1.0)
+        assert not h.late(1.0, 1.0)
+
+
+def test_a_command_held_up_in_the_monitor_is_not_sent_where_a_guard_may_have_fired() -> None:
+    """A monitor stopped between taking a command and sending it sends nothing late.
+
+    Its command would carry the stamp of its take, before any the guard sent meanwhile:
+    a driver reading stamps refuses it. Its stamp older than `ABSENT` at the moment
+    before the publish, it is not sent, the next commands are held off for `LISTEN`
+    (echoed alone), then the monitor commands again. Without a guard's publisher the
+    same command goes out.
+    """
+    with loop() as lp:
+        echoes: list[JointState] = []
+        lp.node.create_subscription(JointState, names.COMMAND_ECHO, echoes.append,
+                                    QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        for _ in range(20):
+            lp.step(constant(np.full(7, 0.3)))
+        sends: list[bool] = []  # what `Outputs.send` said of each command it was given
+        send = lp.monitor.outputs.send
+        lp.monitor.outputs.send = lambda *args, **kwargs: sends.append(
+            send(*args, **kwargs)) or sends[-1]
+
+        def answer() -> bool:
+            """A command in; whether it went out (else held off: echoed alone; or late)."""
+            given = len(sends)
+            time.sleep(ECHO_PERIOD)  # echoes go out at most once per period
+            lp.sim.step()
+            stamp = lp.stamp()
+            lp.send(np.full(7, 0.3))
+            assert spin_until(lp.executor, lambda: len(sends) > given or any(
+                e.header.stamp == stamp for e in echoes[-3:]), 5.0), "no answer"
+            return len(sends) > given and sends[-1]
+
+        path = lp.monitor.commands
+        path.handover.wall_time = True
+        # The loop's clock is the sim's, stepped by hand: held up, a command sees it run on.
+        clock, held = path.clock, [0.0]
+        path.clock = lambda: clock() + held[0]
+        core = lp.monitor.core
+        command = core.command
+
+        def held_up(qd: np.ndarray, now: float) -> np.ndarray:
+            held[0] = ABSENT + 0.01
+            return command(qd, now)
+
+        core.command = held_up
+        assert answer(), "no guard: the command goes out however long it took"
+        held[0] = 0.0
+        lp.node.create_publisher(JointState, names.COMMAND_GUARD, qos.RELIABLE)
+        assert spin_until(lp.executor, lambda: path.handover.guards.count == 1, 10.0)
+        late = "held up"
+        for _ in range(10):  # after regular commands (a wait is an absence: held off)
+            core.command = command
+            assert spin_until(lp.executor, lambda: all(answer() for _ in range(3)), 10.0)
+            core.command = held_up
+            given = len(sends)
+            assert not answer(), "the late command went out"
+            core.command, held[0] = command, 0.0
+            if late in lp.monitor.problems.active.get("guard", ""):
+                break
+            assert len(sends) == given  # held off after a pause of the test: again
+        else:
+            pytest.fail("no held-up command was taken while the monitor was not held off")
+        assert sends[-1] is False
+        refused = time.monotonic()
+        assert not answer(), "a command went out while listening"
+        assert spin_until(lp.executor, answer, 5.0), "the monitor never commanded again"
+        assert time.monotonic() - refused > LISTEN
+        assert "guard" not in lp.monitor.problems.active
 
 
 def test_the_locked_set_survives_a_monitor_restart(tmp_path) -> None:

@@ -7,7 +7,9 @@ malformed, stamped ahead of the clock or older than `timeout`, or physically abs
 the limits); a good one goes through `Monitor.command` to `Outputs.send`.
 
 Before a command goes to the plant, `Handover` says whether the controller's guard
-commands it instead (`ft_monitor.handover`); a command held off is echoed alone.
+commands it instead (`ft_monitor.handover`); a command held off is echoed alone, and
+one held up in this process past `handover.ABSENT` between its take and its send is
+not sent (`Handover.late`).
 """
 
 from __future__ import annotations
@@ -35,12 +37,17 @@ class CommandPath:
         timeout: s; an older command is stale (refused).
         last: node time (s) of the last command forwarded (-inf: none yet).
         last_steady: steady time (s) of the last command forwarded (the watchdog's).
+        clock: the node clock (s), which stamps the commands.
     """
 
     def __init__(self, outputs: Outputs, problems: Episodes, timeout: float,
-                 commanded: Callable[[], None]):
-        """`commanded()` is called with each command forwarded (the node ends a stop ramp)."""
+                 commanded: Callable[[], None], clock: Callable[[], float]):
+        """A command path sending through `outputs`.
+
+        `commanded()` is called with each command forwarded (the node ends a stop ramp).
+        """
         self._outputs, self._problems, self._commanded = outputs, problems, commanded
+        self.clock = clock
         self.timeout = timeout
         self.last, self.last_steady = -math.inf, time.monotonic()
         #: Whether the guard commands the plant; its `take_guard` is the node's.
@@ -82,13 +89,13 @@ class CommandPath:
         """A malformed command: reported, and replaced by zeros (reached on a ramp)."""
         self._problems.report(topic, f"{error}: commanding zeros")
         if not self._held_off(core, wiring, stamp):
-            self._outputs.send(wiring, core.zeros(now), now, stamp)
+            self._send(wiring, core.zeros(now), now, stamp)
 
     def stop_step(self, core: Monitor, wiring: Wiring, now: float) -> bool:
         """The next command of a stop ramp at node time `now` (s); whether at rest."""
         if self.handover.stop_held_off(time.monotonic()):
             return False
-        self._outputs.send(wiring, core.zeros(now), now)
+        self._send(wiring, core.zeros(now), now)
         return not core.stopping
 
     def _held_off(self, core: Monitor, wiring: Wiring, stamp: Time | wire.Stamp) -> bool:
@@ -98,6 +105,19 @@ class CommandPath:
             return False
         self._outputs.echo(wiring, core.sent, stamp)
         return True
+
+    def _send(self, wiring: Wiring, qd_chain: np.ndarray, now: float,
+              answered: Time | wire.Stamp | None = None) -> None:
+        """`Outputs.send` of the command stamped `now` (s), unless it is late by then.
+
+        Detection and the smoother go on from a command not sent as from one sent: the
+        next one continues the same ramp within the limits, one step further.
+        """
+        if not self._outputs.send(wiring, qd_chain, now, answered, lambda: self.handover.late(
+                self.clock() - now, time.monotonic())):
+            self._problems.report("guard", f"a command held up {self.clock() - now:.3f} s "
+                                  "in this process is not sent: the guard may command the "
+                                  "plant meanwhile", warning=True)
 
     def forward(self, core: Monitor, wiring: Wiring, source: str, qd: np.ndarray,
                 stamp: Time | wire.Stamp, now: float) -> None:
@@ -110,4 +130,4 @@ class CommandPath:
         self.last, self.last_steady = now, time.monotonic()
         self._commanded()
         if not self._held_off(core, wiring, stamp):
-            self._outputs.send(wiring, core.command(qd, now), now, stamp)
+            self._send(wiring, core.command(qd, now), now, stamp)

@@ -13,19 +13,26 @@ one refuses, so the monitor commands the plant only when the guard does not:
 - a monitor that was away (its process stopped or starved: a gap between two commands
   taken of more than `ABSENT` s and `ABSENT_INTERVALS` times their usual interval) may
   find the guard's commands still on their way to it, behind the commands it takes
-  first: it sends nothing for `LISTEN` s, time for them to arrive. Only where a guard
-  is there to fire (a publisher of `ft/command_guard` matched), and not with simulated
-  time (`use_sim_time`): a sim stepped by hand waits for each command before its clock
-  goes on, and a command held off would stop it.
+  first: it sends nothing for `LISTEN` s, time for them to arrive;
+- a monitor away within one command (its stamp, read as the command was taken, more
+  than `ABSENT` s old by the moment before its publish: the guard may have fired
+  meanwhile) does not send that command, stamped before the guard's, and listens
+  likewise (`late`).
+
+Both only where a guard is there to fire (a publisher of `ft/command_guard` matched),
+and not with simulated time (`use_sim_time`): a sim stepped by hand waits for each
+command before its clock goes on, and a command held off would stop it.
 
 Each command held off is echoed alone on `ft/command_echo` with the plant's last
 command: the guard, answered, stops, and the monitor's next command continues from the
 guard's last within the limits. A guard command stamped before the monitor's own last
 is too late to take over from (`Smoother.adopt`); the monitor still holds off.
 
-The one case left is the guard firing on a monitor that was not away (its echoes lost
-or late on the controller's side): then both publish until the monitor takes the
-guard's first command, a command or two.
+Two cases are left: a monitor stopped inside the publish call itself, after the last
+look at the clock (its command goes out late, stamped before the guard's); and the
+guard firing on a monitor that was not away (its echoes lost or late on the
+controller's side): then both publish until the monitor takes the guard's first
+command, a command or two.
 """
 
 from __future__ import annotations
@@ -47,8 +54,10 @@ HANDOVER = 0.03
 ABSENT = 0.02
 ABSENT_INTERVALS = 3.0
 INTERVALS = 5
-#: s (steady) the monitor sends nothing after it was away.
-LISTEN = 0.01
+#: s (steady) the monitor sends nothing after it was away: time for the guard's commands,
+#: sent while it was away, to reach it from a controller as starved of the CPU as it
+#: was (several of the guard's periods).
+LISTEN = 0.03
 
 
 class Handover:
@@ -70,6 +79,11 @@ class Handover:
         self._gaps: deque[float] = deque(maxlen=INTERVALS)  # s between commands taken
         self._listen_until = -math.inf  # steady s
 
+    @property
+    def _guard_may_fire(self) -> bool:
+        """Whether a guard's publisher is matched and the node runs on wall time."""
+        return self.wall_time and bool(self.guards.count)
+
     def guarded(self, steady: float) -> None:
         """A command of the guard was taken at `steady` (s)."""
         self._guard_heard = steady
@@ -83,12 +97,22 @@ class Handover:
         gap = steady - self._taken
         usual = sorted(self._gaps)[len(self._gaps) // 2] if self._gaps else 0.0
         if math.isfinite(gap):
-            if (self.wall_time and self.guards.count
-                    and gap > max(ABSENT, ABSENT_INTERVALS * usual)):
+            if self._guard_may_fire and gap > max(ABSENT, ABSENT_INTERVALS * usual):
                 self._listen_until = steady + LISTEN
             self._gaps.append(gap)
         self._taken = steady
         return self.stop_held_off(steady)
+
+    def late(self, age: float, steady: float) -> bool:
+        """Whether a command must not go out at `steady` (s): its stamp `age` s old.
+
+        Older than `ABSENT`, where a guard may fire: the monitor was away within the
+        command; it listens from `steady` on, as after a gap.
+        """
+        if not (self._guard_may_fire and age > ABSENT):
+            return False
+        self._listen_until = steady + LISTEN
+        return True
 
     def stop_held_off(self, steady: float) -> bool:
         """Whether a step of a stop ramp at `steady` (s) must not go to the plant."""

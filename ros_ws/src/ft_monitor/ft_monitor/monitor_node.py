@@ -88,7 +88,7 @@ class MonitorNode(SuiteNode):
                                         functools.partial(self._on_malformed, topic))
         self.create_service(Trigger, names.RESET, self._on_reset)
         self.commands = CommandPath(self.outputs, self.problems, self.param("command_timeout"),
-                                    self.stop_ramp)
+                                    self.stop_ramp, self.now)
         handover = self.commands.handover
         handover.take_guard = self.take_on_demand(self.subscribe_joint_states(
             names.COMMAND_GUARD, self._on_guard, qos.RELIABLE, publishers=handover.guards))

@@ -75,11 +75,20 @@ class Outputs:
                     or self.array_audience.count)
 
     def send(self, wiring: Wiring, qd_chain: np.ndarray, now: float,
-             answered: Time | wire.Stamp | None = None) -> None:
-        """The command (chain order, rad/s) stamped `now` (s), echoed as `answered`."""
+             answered: Time | wire.Stamp | None = None,
+             late: Callable[[], bool] = lambda: False) -> bool:
+        """The command (chain order, rad/s) stamped `now` (s), echoed as `answered`.
+
+        Nothing goes out if `late()`, asked once the message is ready (the last moment
+        before the publishers); returns whether the command went out.
+        """
         ordered = qd_chain if wiring.reorder is None else qd_chain[wiring.reorder]
         stamp = wire.Stamp.of(round(now * 1e9))
         serialized = wiring.writer.serialize(stamp.sec, stamp.nanosec, ordered)
+        if self.array_audience.count:
+            wiring.array.data = ordered.tolist()
+        if late():
+            return False
         if self.taker is None or self.command_audience.count:
             self.command.publish(serialized)
             if answered is not None:
@@ -87,8 +96,8 @@ class Outputs:
         if self.taker is not None:
             self.taker(self._taker_reader.read(serialized))
         if self.array_audience.count:
-            wiring.array.data = ordered.tolist()
             self.array.publish(wiring.array)
+        return True
 
     def echo(self, wiring: Wiring, qd_chain: np.ndarray, answered: Time | wire.Stamp) -> None:
         """The echo alone: the command stamped `answered` came, the plant holds `qd_chain`."""
