@@ -717,3 +717,38 @@ def test_the_process_loop_can_tick_the_cycles_instead_of_a_timer(
         node.cycle_on_loop_ticks()
         assert math.isinf(node.cycles.next_tick()) and timer in node.timers
         assert len(list(node.subscriptions)) == len(node._subscriptions)
+
+
+def test_the_guard_takes_the_echoes_waiting_before_it_judges_the_monitor() -> None:
+    """The watchdog's check of the monitor sees the echoes that came while no tick ran.
+
+    With the loop ticking the cycles, the monitor's echoes wait in their queue for the
+    next tick. After a stall of the controller's process, the executor can run the
+    watchdog's timer before that tick; its check must take them first, or it counts a
+    monitor that answered as silent and the guard commands the plant beside it.
+    """
+    with controller(EventsExecutor, use_sim_time=False, control_rate=250.0) as (node, plant):
+        node.cycle_on_loop_ticks()
+        echo = plant.node.create_publisher(JointState, "ft/command_echo", qos.RELIABLE)
+        assert spin_until(plant.executor, lambda: echo.get_subscription_count() == 1, 10.0)
+        plant.t_ns = node.now_ns()
+        plant.publish_state()
+
+        def command_answered() -> None:
+            """A tick (its command goes out), and the monitor's echo of that command."""
+            sent = len(plant.commands)
+            node.cycles.tick(node.cycles.next_tick())
+            assert spin_until(plant.executor, lambda: len(plant.commands) > sent, 5.0)
+            last = plant.commands[-1]
+            echo.publish(JointState(header=last.header, name=last.name, velocity=last.velocity))
+
+        command_answered()
+        time.sleep(0.02)  # the echo on its way
+        command_answered()  # the tick takes the first echo: a monitor known to answer
+        assert node._watch.guard.last_echo is not None
+        timeout = node.get_parameter("monitor_timeout").value
+        start = time.monotonic()
+        while time.monotonic() - start < 2 * timeout:  # no tick; the watchdog's checks
+            time.sleep(timeout / 4)
+            node._check_watchdog()
+            assert "monitor" not in node.problems.active, "the guard fired on an answer"

@@ -15,6 +15,7 @@ Topics, parameters and reactions: docs/controller.md.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -75,6 +76,9 @@ class ControllerNode(SuiteNode):
                                    self.now_ns)
         self._echo_subscription = self.subscribe_joint_states(
             names.COMMAND_ECHO, self._on_echo, qos.SENSOR_INPUT)
+        #: Takes the echoes waiting, where the loop's ticks take them (else the executor
+        #: hands them over as they come): before the guard asks how long the monitor is quiet.
+        self._take_echoes: Callable[[], None] = lambda: None
         self._state_subscription = self.subscribe_joint_states(
             names.JOINT_STATES, self._on_state, qos.SENSOR_INPUT)
         self._target_subscriptions = (
@@ -204,9 +208,11 @@ class ControllerNode(SuiteNode):
     def cycle_on_loop_ticks(self) -> None:
         """Cycles on the loop's ticks, inputs taken first; with `use_sim_time`, the timer's."""
         if not self.param("use_sim_time"):
-            self.cycles.drive_by_loop([self.take_on_demand(subscription) for subscription in (
-                self._state_subscription, self._echo_subscription,
-                *self._target_subscriptions)])
+            self._take_echoes = self.take_on_demand(self._echo_subscription)
+            self.cycles.drive_by_loop([
+                self.take_on_demand(self._state_subscription), self._take_echoes,
+                *(self.take_on_demand(subscription) for subscription in
+                  self._target_subscriptions)])
 
     def use_shared_joint_states(self) -> StateListener:
         """Stop taking `joint_states`; returns what to call with each one and its reading."""
@@ -293,8 +299,13 @@ class ControllerNode(SuiteNode):
             self.outputs.send_metrics(self.loaded, result)
 
     def _check_monitor(self) -> None:
-        """The guard of a dead monitor (`MonitorWatch.check`), unless it is in-process."""
+        """The guard of a dead monitor (`MonitorWatch.check`), unless it is in-process.
+
+        The echoes that came are taken first: the watchdog's timer asks too, and after a
+        stall of this process it may run before the loop's next tick would take them.
+        """
         if self.outputs.taker is None:
+            self._take_echoes()
             stop = self._watch.check(self.loaded)
             if stop is not None:
                 self.outputs.send_to_plant(*stop)

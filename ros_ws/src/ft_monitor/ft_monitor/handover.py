@@ -54,10 +54,8 @@ HANDOVER = 0.03
 ABSENT = 0.02
 ABSENT_INTERVALS = 3.0
 INTERVALS = 5
-#: s (steady) the monitor sends nothing after it was away: time for the guard's commands,
-#: sent while it was away, to reach it from a controller as starved of the CPU as it
-#: was (several of the guard's periods).
-LISTEN = 0.03
+#: s (steady) the monitor sends nothing after it was away.
+LISTEN = 0.01
 
 
 class Handover:

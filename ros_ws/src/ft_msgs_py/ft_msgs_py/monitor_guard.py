@@ -16,8 +16,9 @@ each also on `ft/command_guard` for a monitor that comes back to go on from
 Times are steady seconds. The controller asks (`silent`) every cycle; a longer gap
 between two questions than `timeout` is the controller's own stall (stopped, starved of
 the CPU), not the monitor's: echoes that arrived meanwhile may still wait in its queue
-behind the question, so the wait starts again: a pause of the controller alone never
-fires the guard on a live monitor.
+behind the question, so the wait starts again; and the caller takes the echoes waiting
+before each question: a pause of the controller alone never fires the guard on a live
+monitor.
 
 The echoes also say which joints the monitor holds locked, in a way no other node can
 forge by merely publishing: it zeros them on the command path (`zeroed`). The controller
