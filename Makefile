@@ -8,9 +8,9 @@ BIN := $(VENV)/bin
 PACKAGES := ft_core ft_msgs_py ft_controller ft_monitor ft_sim
 SETUPS := $(foreach p,$(PACKAGES),ros_ws/src/$(p)/setup.py ros_ws/src/$(p)/setup.cfg)
 STAMP := $(VENV)/.installed
-WARM_UP := from ft_core import detection, engine, robots, smoothing; engine.ResolutionEngine(robots.load('panda')); \
+WARM_UP := from ft_core import detection, engine, remap, robots, smoothing; engine.ResolutionEngine(robots.load('panda')); \
 	engine.ResolutionEngine(robots.load('panda'), engine.EngineConfig(resolution='least_norm')); \
-	detection.compile_ahead(); smoothing.compile_ahead()
+	detection.compile_ahead(); smoothing.compile_ahead(); remap.compile_ahead()
 
 PYTEST := $(BIN)/python -m pytest
 #: The ft_core sources whose compiled functions numba caches (see `build`).

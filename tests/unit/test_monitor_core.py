@@ -78,6 +78,41 @@ def test_a_lock_is_announced_once_it_is_on_disk(tmp_path: Path) -> None:
         sent, remap.remap(PANDA, lp.monitor.q, qd, [3], PANDA.velocity_limits))
 
 
+
+@pytest.mark.parametrize("bounded", [True, False], ids=["bounded", "without bounds"])
+def test_the_remap_brings_a_healthy_joint_to_rest_at_its_position_limit(
+        bounded: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Behind a commander that knows nothing of a lock, a healthy joint reaches its limit.
+
+    panda_joint3 locked and commanded 0.8 rad/s on its own: the healthy joints make up
+    for it and panda_joint1 turns to its upper limit. The remap's commands keep it within
+    the speeds from which it stops there (`Monitor._position_bounds`): it arrives at
+    rest and is commanded (nearly) 0 there. Without those bounds (the remap as it was) it
+    runs into the limit at full speed and is still commanded into it.
+    """
+    if not bounded:
+        unbounded = remap.remap
+        monkeypatch.setattr(remap, "remap", lambda *args, bounds=None, **kwargs: unbounded(
+            *args, **kwargs))
+    lp = Loop(None, MonitorConfig())
+    lp.step(np.zeros(7))
+    lp.monitor.declare([2], lp.t)
+    qd, arrival = np.array([0.0, 0.0, 0.8, 0.0, 0.0, 0.0, 0.0]), None
+    before = lp.plant.q.copy()
+    for _ in range(round(5.0 / DT)):
+        sent, _ = lp.step(qd)
+        if arrival is None and PANDA.upper[0] - lp.plant.q[0] < 1e-3:
+            arrival = (lp.plant.q[0] - before[0]) / DT
+        before = lp.plant.q.copy()
+    assert arrival is not None, "panda_joint1 never reached its limit"
+    assert list(lp.monitor.locked) == ["panda_joint3"]
+    if bounded:
+        assert arrival < 0.1, f"arrived at {arrival:.3f} rad/s"
+        assert sent[0] < 0.01  # the measurement's noise: 1e-4 rad
+    else:
+        assert arrival > 0.3 and sent[0] > 0.5
+
+
 def test_without_remapping_locked_joints_are_only_zeroed_and_all_is_scaled(tmp_path) -> None:
     lp = Loop(None, MonitorConfig(remap_commands=False, velocity_scale=0.5, limits=None))
     lp.monitor.declare([0], 0.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from ft_core import remap, robots
 
 PANDA = robots.load("panda")
@@ -57,3 +58,37 @@ def test_velocity_limits_scale_the_whole_command() -> None:
 
 def test_every_joint_locked_gives_zeros() -> None:
     np.testing.assert_array_equal(remap.remap(PANDA, Q, QD, range(7)), np.zeros(7))
+
+
+def test_bounds_hold_a_healthy_joint_and_the_others_keep_the_task() -> None:
+    """Velocity bounds (position limits) saturate a joint; the task is solved without it.
+
+    Bounds the remap does not reach change nothing. One that a healthy joint's remapped
+    command breaks holds it at the bound, and the other healthy joints (five for a
+    position task: redundant) still give the tool velocity the command meant.
+    """
+    arm = robots.load("panda", task_space="position")
+    J = arm.scale_task(arm.jacobian(Q))
+    free = remap.remap(arm, Q, QD, [2])
+    wide = (np.full(7, -10.0), np.full(7, 10.0))
+    np.testing.assert_array_equal(remap.remap(arm, Q, QD, [2], bounds=wide), free)
+    j = int(np.argmax(np.abs(np.delete(free, 2))))
+    j += j >= 2  # back to chain order
+    lo, hi = wide[0].copy(), wide[1].copy()
+    if free[j] > 0:
+        hi[j] = 0.3 * free[j]
+    else:
+        lo[j] = 0.3 * free[j]
+    out = remap.remap(arm, Q, QD, [2], bounds=(lo, hi))
+    assert out[2] == 0.0
+    assert out[j] == pytest.approx(0.3 * free[j])
+    assert np.all((lo - 1e-9 <= out) & (out <= hi + 1e-9))
+    np.testing.assert_allclose(J @ out, J @ QD, atol=1e-6)
+
+
+def test_bounds_leave_a_command_that_holds_the_locked_joints_to_its_sender() -> None:
+    """A command the remap does not change passes as it is, whatever the bounds say."""
+    knowing = QD.copy()
+    knowing[2] = 0.0
+    tight = (np.full(7, -1e-3), np.full(7, 1e-3))
+    np.testing.assert_array_equal(remap.remap(PANDA, Q, knowing, [2], bounds=tight), knowing)

@@ -194,4 +194,10 @@ def braking(robot: Robot, config: EngineConfig) -> tuple[np.ndarray, np.ndarray]
         if value.shape != (n,) or not np.all(np.isfinite(value) & (value > 0)):
             raise ValueError(f"{name} limits need {n} finite values > 0, got "
                              f"{value.tolist()}")
-    return config.dt + 2.0 * acceleration / jerk, BRAKING_SHARE * acceleration
+    return braking_from(config.dt, acceleration, jerk)
+
+
+def braking_from(lead: float, acceleration: np.ndarray, jerk: np.ndarray,
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(`lead` + 2 a / j s, `BRAKING_SHARE` a rad/s^2) per joint: see `braking`."""
+    return lead + 2.0 * acceleration / jerk, BRAKING_SHARE * acceleration

@@ -6,7 +6,9 @@ converts messages, runs the watchdog and publishes; everything between is here.
 
 - **Commands** (`command`, `zeros`): the locked joints get exactly 0 and, with
   `remap_commands`, the rest is remapped through the reduced Jacobian so the tool
-  velocity J qd is kept (`ft_core.remap`); every command is scaled, direction kept,
+  velocity J qd is kept (`ft_core.remap`; where that changes the command, each healthy
+  joint within the speeds from which it still stops inside its position limits,
+  `_position_bounds`); every command is scaled, direction kept,
   into `velocity_scale` times the URDF velocity limits, then smoothed into the arm's
   acceleration and jerk limits (`ft_core.smoothing`; locked joints get 0 at once, and
   zeros are reached on a ramp: `stopping` says one is under way), and is recorded by
@@ -60,6 +62,7 @@ from ft_core.detection import (
 )
 from ft_core.detection.contact import ContactWatch, driven
 from ft_core.detection.drives import DriveWatch
+from ft_core.engine_config import braking_from
 from ft_core.health import Health, HealthBoard, JointHealth, JointReport
 from ft_core.input_checks import all_finite
 from ft_core.robots import Robot
@@ -119,6 +122,7 @@ class Monitor:
                  written: Callable[[], object] | None = None):
         self.robot = robot
         compile_ahead()  # the detector's compiled functions, loaded now, not in a callback
+        remap.compile_ahead()  # and the bounded remap's
         self.detector = LockDetector(robot.lower, robot.upper, detection)
         self.board = HealthBoard(robot.n)  #: each joint's declared state (`ft_core.health`)
         self.effort: np.ndarray | None = None  #: the latest efforts reported (N m)
@@ -216,7 +220,8 @@ class Monitor:
         """The command to send, stamped `now` (s), for `qd` (rad/s, chain order)."""
         locked = sorted(self.detector.locked)
         if locked and self.config.remap_commands and self.q is not None:
-            qd = remap.remap(self.robot, self.q, qd, locked, self._limits)
+            qd = remap.remap(self.robot, self.q, qd, locked, self._limits,
+                             bounds=self._position_bounds(self.q))
         else:
             qd = np.array(qd, dtype=float)
             if locked:
@@ -228,6 +233,25 @@ class Monitor:
             qd = self.smoother.step(qd, now, locked)
         self.detector.command(now, qd)
         return qd
+
+    def _position_bounds(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity bounds (rad/s) from which each joint stops inside its position limits.
+
+        `limits.velocity_bounds` at the configuration `q` measured, with the lead of the
+        slowest plant model still plausible (its latency and response time, the
+        detector's `estimate`) and, with command limits, the braking of
+        `engine_config.braking_from`; without them, no deceleration limit.
+        """
+        estimate = self.detector.estimate()
+        lead = estimate.latency_range[1] + estimate.response_time_range[1]
+        n = self.robot.n
+        if self.smoother is None:
+            leads, deceleration = np.full(n, lead), np.full(n, np.inf)
+        else:
+            leads, deceleration = braking_from(lead, self.smoother.limits.acceleration,
+                                               self.smoother.limits.jerk)
+        return limits.velocity_bounds(q, np.zeros(n), self.robot.lower, self.robot.upper,
+                                      self._limits, leads, deceleration)
 
     def zeros(self, now: float) -> np.ndarray:
         """Zeros, or the next command towards them within the limits, stamped `now` (s).
