@@ -853,3 +853,42 @@ def test_odd_input_types_compile_nothing_in_the_control_loop() -> None:
     feed(detector, [2, 3], [strided[:, 1] + 0.1, strided[:, 1]], [strided[:, 2]] * 2)
     assert {kernel: len(kernel.signatures) for kernel in compiled} == compiled
     assert detector.latest_time == 3.5
+
+
+@pytest.mark.parametrize("brake", [3.0, 0.0], ids=["braked", "explained"])
+def test_a_stall_its_drives_torque_explains_is_no_lock(brake: float) -> None:
+    """Panda joint 2 stops at 1 s while commanded 0.2 rad/s, the others moving on.
+
+    The efforts are those the measured motion needs (tau = M qdd + C qd + g at the
+    detector's own velocities and accelerations of the update before: a healthy servo
+    that fell behind, as one undershooting a falling command does), plus `brake` N m
+    along the command on joint 2 once stopped: the push a brake takes. Only a drive
+    pushing against something is held by a lock (`Drives.braking`: 1.74 N m for this
+    shoulder); without that rule the explained stall is declared as the braked one is.
+    """
+    from ft_core import robots
+    from ft_core.detection.drives import Drives
+
+    inertial = robots.load("panda_inertial")
+    data = record(lambda t: np.full(7, 0.2), 2.0, lock=((1,), 1.0))
+    detector, declared = LockDetector(PANDA.lower, PANDA.upper), []
+    velocity, acceleration = np.zeros(7), np.zeros(7)
+    for kind, t, values in data.events:
+        if kind == "command":
+            detector.command(t, values)
+            continue
+        inertia, nonlinear = inertial.dynamics(values, velocity)
+        effort = inertia @ acceleration + nonlinear
+        effort[1] += brake if t > 1.0 else 0.0
+        gravity = inertial.gravity(values)
+        drives = Drives(np.zeros(7, bool), np.zeros(7, bool), effort - gravity,
+                        np.abs(gravity), inertial, values, effort)
+        declared += [(round(t, 3), j) for j in detector.measure(t, values, drives=drives).locked]
+        velocity = np.array([e.measured for e in detector.joints])
+        if detector.acceleration is not None:
+            acceleration = detector.acceleration
+    if brake:
+        assert [j for _, j in declared] == [1]
+        assert 1.0 < declared[0][0] < 1.2
+    else:
+        assert declared == []

@@ -190,7 +190,8 @@ class LockDetector:
         for it (`Drives.unanswered`), another joint moving as commanded, moves on its
         own once it has been off them `UNANSWERED_TIME` (`departed_since`); one whose
         drive pushes, still within `STILL_SPAN` over the window while a plausible model
-        commands it and another joint moves, is a lock candidate.
+        commands it and another joint moves, is a lock candidate; one stalled whose
+        drive's torque the dynamics explain is not (`Drives.braking`).
         """
         if time <= self.latest_time:
             return Update()  # out of order or repeated: ignored
@@ -336,11 +337,18 @@ class LockDetector:
             deficit, lost = self._spans.lost_position(cfg, now, weakest, error, times,
                                                       cfg.window)
             candidates = candidates & (lost | ~undeclared)
+        self.acceleration = acceleration = self._accelerations.update(now, measured)
+        if drives is not None and (drives.weighed or drives.carried) and candidates.any():
+            # A brake holds its joint against its drive's push; a healthy servo that falls
+            # behind its command for a moment (undershooting a falling command, the lurch
+            # as an obstacle goes) is held by torques the dynamics explain (`drives`).
+            braked = (np.zeros(self.n, dtype=bool) if acceleration is None
+                      else drives.braking(measured, acceleration, weakest))
+            candidates = candidates & (braked | ~undeclared)
         # Commanded too slowly for the window: judged over the slow span, behind where
         # it stood before the span's second half (a servo that ran ahead and pauses until
         # its reference catches up is not), and held there by a torque the dynamics do
         # not explain (`Drives.braking`; without efforts, not judged).
-        self.acceleration = acceleration = self._accelerations.update(now, measured)
         slow = unlocked & undeclared & ~observable & ~on_its_own & ~candidates
         stalls = (self._spans.slow_stalls(cfg, self._resumed_at, error)
                   if slow.any() and drives is not None else None)
@@ -359,9 +367,6 @@ class LockDetector:
             # Stalled or held by the other links' accelerations, not by a brake.
             moved = drives.moved_by_others(measured, acceleration, weakest, cfg.min_command)
             candidates, held = candidates & ~moved, held & ~moved
-        if drives is not None and drives.carried and candidates.any():  # pushed lately:
-            candidates = candidates & (False if acceleration is None else drives.braking(
-                measured, acceleration, weakest))  # only a brake's push tells (`drives`)
         since = np.array([math.nan if e.held_since is None else e.held_since for e in joints])
         held_long = held & (now - np.fmin(since, now) >= HELD_TIME)
         candidates = candidates | held_long

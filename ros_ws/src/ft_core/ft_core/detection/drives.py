@@ -193,6 +193,11 @@ class Drives:
     #: pushed lately (`silent` is this and a fall); None: as `silent`
     quiet: np.ndarray | None = None
 
+    @property
+    def weighed(self) -> bool:
+        """Whether the efforts can be weighed against the arm's dynamics (`braking`)."""
+        return self.robot is not None and self.q is not None and self.effort is not None
+
     def moved_by_others(self, velocity: np.ndarray, acceleration: np.ndarray,
                         commanded: np.ndarray, least_lag: float) -> np.ndarray:
         """Whether each joint is held back by the other links' accelerations (n,) bool.
