@@ -338,7 +338,7 @@ class LockDetector:
                                                       cfg.window)
             candidates = candidates & (lost | ~undeclared)
         self.acceleration = acceleration = self._accelerations.update(now, measured)
-        if drives is not None and (drives.weighed or drives.carried) and candidates.any():
+        if drives is not None and drives.weighed and candidates.any():
             # A brake holds its joint against its drive's push; a healthy servo that falls
             # behind its command for a moment (undershooting a falling command, the lurch
             # as an obstacle goes) is held by torques the dynamics explain (`drives`).
