@@ -204,12 +204,13 @@ def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_o
 
 def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float,
                          command_at: Callable[[float], np.ndarray], seed: int,
+                         paused: tuple[float, float] = (math.inf, math.inf),
                          ) -> tuple[list[str], float, Monitor, list[tuple[float, float, float]]]:
     """3 s of the physics plant from `q` behind `driver`, commanded through a monitor.
 
-    `command_at(t)`: the controller's command at t (rad/s); `joint` loses its torque at
-    `fails_at` s; 1e-3 rad of noise (`seed`) on the positions, the drives' torques as
-    efforts. Returns the monitor's events, when (s) the first came, the monitor, and per
+    `command_at(t)`: the controller's command at t (rad/s), none sent within `paused`
+    (from, to; s); `joint` loses its torque at `fails_at` s; 1e-3 rad of noise (`seed`)
+    on the positions, the drives' torques as efforts. Returns the monitor's events, when (s) the first came, the monitor, and per
     step (t, |command in force at the plant - velocity| of `joint`, rad/s, since when (s)
     the detector has seen `joint` depart where its drive leaves that unanswered, NaN
     elsewhere).
@@ -229,7 +230,8 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
         if change.events and not events:
             first = t
         events += change.events
-        plant.command(t, monitor.command(command_at(t), t))
+        if not paused[0] <= t < paused[1]:
+            plant.command(t, monitor.command(command_at(t), t))
         t += DT
         plant.step(t)
         detector = monitor.detector
@@ -237,6 +239,38 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
                     detector.departed_since[joint] if detector.unanswered[joint] else np.nan))
     monitor.close()
     return events, first, monitor, off
+
+
+@pytest.mark.parametrize("driver", list(DRIVERS))  # stops on the pause; holds the command
+@pytest.mark.parametrize("fails", [True, False])
+def test_a_free_swing_while_the_command_stream_is_paused_is_named_within_200_ms(
+        driver: str, fails: bool) -> None:
+    """Panda joint 6 loses its torque 20 ms into a 0.5 s pause of the monitor's commands.
+
+    The detector predicts nothing then (`rules.not_observing`), nor while it settles
+    after the stream restarts; a drive silent while its joint falls faster than every
+    command and than rest is named all the same (`rules.falls_past_every_command`),
+    while the stream is still paused. With the same pause and no fault, nothing.
+    """
+    q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.2, 0.8])
+    joint, pause = 5, (1.5, 2.0)
+    assert swing.falling_directions(PANDA, q)[joint] != 0  # gravity turns it
+
+    def command_at(t: float) -> np.ndarray:
+        w = 0.2 * math.sin(2 * math.pi * t / 0.8)
+        return np.array([w, 0.0, -w, 0.1 * w, -w, w, 0.0])
+
+    fails_at = pause[0] + 0.02 if fails else math.inf
+    events, first, monitor, _ = _through_the_monitor(q, driver, joint, fails_at, command_at,
+                                                     4, pause)
+    if not fails:
+        assert events == []
+        return
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint6 free-swinging")
+    assert first - fails_at <= 0.2
+    assert first < pause[1]  # named while the commands were away
+    assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [joint]
 
 
 def _onto_the_stop(driver: str, fails_at: float) -> tuple[list[str], float, Monitor]:

@@ -206,9 +206,53 @@ class LockDetector:
         self.not_observing = reason
         if reason is not None:
             self.plant_fault = None  # no evidence either way
+            if blind is None:
+                return self._falls_while_blind(time, falling, drives)
             self._clear_evidence()
             return Update()
         return self._update(time, dt, falling, veto, drives)
+
+    def _falls_while_blind(self, now: float, falling: Callable[[], np.ndarray | None] | None,
+                           drives: Drives | None) -> Update:
+        """The one decision while the commands predict nothing: a silent drive's fall.
+
+        A joint whose drive is silent, falling faster than every command kept and than
+        rest (`rules.falls_past_every_command`), swings whatever the plant does with the
+        commands; declared after `persistence`, as any free swing.
+        """
+        joints, cfg, plant = self.joints, self.config, self._plant
+        kept = [e.swing_since for e in joints]
+        self._clear_evidence()
+        samples = self._samples
+        times = samples.window()[0]
+        if (drives is None or not drives.silent.any() or falling is None
+                or times.size < cfg.min_samples or times[-1] - times[0] < cfg.window / 2):
+            return Update()
+        gravity = falling()
+        if gravity is None:
+            return Update()
+        measured, _, error = _window_fit(*samples.window(), samples.predicted_sum,
+                                         samples.timed_sum, samples.base,
+                                         plant.plausible_models, plant.best)
+        history = self.history
+        commands = history.values[history.start:history.end]
+        direction = np.asarray(gravity, dtype=float)
+        free = np.array([e.locked_at is None and e.swinging_at is None for e in joints])
+        own = rules.falls_past_every_command(drives.silent, measured, error, commands,
+                                             direction, free, cfg.min_command, cfg.confidence)
+        fastest = np.maximum((direction * commands).max(axis=0, initial=0.0), 0.0)
+        for j in np.flatnonzero(own).tolist():
+            joints[j].swing_since = kept[j]
+            joints[j].measured = float(measured[j])
+            joints[j].commanded = float(direction[j] * fastest[j])
+        self.torqueless, self.beyond_contact = drives.silent.copy(), drives.silent.copy()
+        settle = plant.settling_time(plant.best)
+        swinging, released, _ = declare_swings(
+            joints, own.tolist(), now, Disturbance(joints, now, self._declared_at + settle),
+            cfg.persistence, settle, lambda j, since: 0.0)
+        if swinging:
+            self._declared_at = now
+        return Update((), tuple(swinging), tuple(released))
 
     def _into_window(self, time: float, position: np.ndarray) -> None:
         """The measurement into the window, its offsets kept (`_ingest`, compiled)."""

@@ -171,6 +171,26 @@ def silent_and_on_its_own(silent: np.ndarray, quiet: np.ndarray, measured: np.nd
     return own
 
 
+def falls_past_every_command(silent: np.ndarray, measured: np.ndarray, error: np.ndarray,
+                             commands: np.ndarray, falling: np.ndarray, free: np.ndarray,
+                             min_command: float, confidence: float) -> np.ndarray:
+    """Silent joints falling faster than any command moves them, predictions or none.
+
+    Used while the commands predict nothing (their stream paused, settling after it
+    restarted, the plant not yet seen following): the plant holds a command it was sent
+    lately, answers one before it, or stops. A healthy joint that moves the way gravity
+    turns it faster than every such command (`commands`, k x n rad/s) and than rest is
+    held back by its servo with more than its gravity torque; a `silent` drive
+    (`drives.Drives.silent`) gives none, so its joint falls (Maciejewski et al. sec. 2.3).
+    Counts where the velocity `measured` lies beyond them the way gravity turns it
+    (`falling`, the signs) by max(`confidence` `error`, `min_command`), for the `free`
+    joints. Returns (n,) bool.
+    """
+    fastest = np.maximum((falling * commands).max(axis=0, initial=0.0), 0.0)
+    noise = np.maximum(confidence * error, min_command)
+    return silent & free & (falling != 0) & (falling * measured - fastest > noise)
+
+
 def departure(measured: np.ndarray, plausible: np.ndarray, error: np.ndarray,
               free: np.ndarray, floor: float, confidence: float,
               kept: np.ndarray | None = None, keep: float = 1.0) -> np.ndarray:
