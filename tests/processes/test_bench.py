@@ -205,12 +205,16 @@ def test_fault_grid_benchmark_names_a_lock_and_holds_a_contact(tmp_path: Path) -
 
 @pytest.mark.slow
 def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
-    """`bench/faults_processes.py`: two locks and a contact into the installed executables."""
+    """`bench/faults_processes.py`: two locks and a contact into the installed executables.
+
+    Recorded, and the recording replayed through the monitor's core (`bench/replay.py`):
+    the replay names the same joints locked as the live monitor, and no other.
+    """
     env = {**os.environ, "FT_BENCH_DOMAIN_FAULTS": os.environ["ROS_DOMAIN_ID"]}
     result = subprocess.run(
         [sys.executable, str(REPO / "bench" / "faults_processes.py"), "--out", str(tmp_path),
-         "--faults", "2", "--contacts", "1"], capture_output=True, text=True, timeout=300,
-        check=False, env=env)
+         "--faults", "2", "--contacts", "1", "--record"], capture_output=True, text=True,
+        timeout=300, check=False, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     outcomes = json.loads((tmp_path / "faults_processes.json").read_text())["outcomes"]
     assert [(o["kind"], o["joint"]) for o in outcomes] == [("lock", 0), ("lock", 1),
@@ -226,3 +230,9 @@ def test_deployed_fault_series_names_its_locks(tmp_path: Path) -> None:
     table = (tmp_path / "faults_processes.md").read_text()
     assert "| lock | 2 | 2 | locked 2 |" in table
     assert "| contact 6 s | 1 | - | held " in table and "reached after the wall 1 |" in table
+    seen = _bench_module("replay").replay(tmp_path / "faults_processes_bag")
+    assert [joint for _, joint, _ in seen.injected] == ["panda_joint1", "panda_joint2"]
+    live = [names for _, names in seen.announced if names]
+    assert live == [["panda_joint1"], ["panda_joint2"]], seen.announced
+    declared = [line.split()[1:3] for _, line in seen.declared]
+    assert declared == [["panda_joint1", "locked"], ["panda_joint2", "locked"]], seen.declared

@@ -210,10 +210,10 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
 
     `command_at(t)`: the controller's command at t (rad/s), none sent within `paused`
     (from, to; s); `joint` loses its torque at `fails_at` s; 1e-3 rad of noise (`seed`)
-    on the positions, the drives' torques as efforts. Returns the monitor's events, when (s) the first came, the monitor, and per
-    step (t, |command in force at the plant - velocity| of `joint`, rad/s, since when (s)
-    the detector has seen `joint` depart where its drive leaves that unanswered, NaN
-    elsewhere).
+    on the positions, the drives' torques as efforts. Returns the monitor's events, when
+    (s) the first came, the monitor, and per step (t, |command in force at the plant -
+    velocity| of `joint`, rad/s, since when (s) the detector has seen `joint` depart where
+    its drive leaves that unanswered, NaN elsewhere).
     """
     monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
     plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
