@@ -174,7 +174,9 @@ class LockDetector:
                 veto: Veto | None = None, drives: Drives | None = None) -> Update:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
-        `blind` (a reason) forbids decisions and identification at this update.
+        `blind` (a reason) forbids decisions and identification at this update; while
+        the detector's own reasons hold (`rules.not_observing`), only a silent drive's
+        fall is judged (`rules.falls_past_every_command`).
         `falling` returns (n,) the sign of the acceleration gravity gives each joint at
         `position` were its torque lost, 0 where it is too weak to move it
         (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
