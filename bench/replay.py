@@ -10,9 +10,11 @@ probe resets the monitor between faults). The bag's arrival stamps are this mach
 monotonic clock (s below).
 
 Prints what the replay declares and when, what the live monitor announced on
-`ft/locked_joints`, each fault injected, and every *near miss*: a lock candidate on a
-joint no fault was injected into since the last reset (how long, its velocity against its
-weakest plausible prediction, its deficit). Replayed with the sources of the version that
+`ft/locked_joints`, each fault injected and obstacle placed or removed, and every *near
+miss*: a lock candidate on a joint no fault was injected into since the last reset (how
+long, its velocity against its weakest plausible prediction, its deficit), marked where
+it began with an obstacle placed or removed within `WALL_MEMORY` s (the contact test's
+to hold back). Replayed with the sources of the version that
 ran live, the declarations come out as the live monitor's; with another, they say what a
 change would have done to the same inputs. `--start` and `--end` replay a part (the
 monitor then starts afresh at `--start`).
@@ -36,7 +38,11 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore
 from soak_processes import PLANTS
 
-TOPICS = {names.JOINT_STATES, names.COMMAND, names.LOCKED_JOINTS, names.INJECT_FAULT}
+TOPICS = {names.JOINT_STATES, names.COMMAND, names.LOCKED_JOINTS, names.INJECT_FAULT,
+          names.OBSTACLE}
+#: s after an obstacle is removed that a near miss still counts as at the wall (the
+#: contact watch's memory of a force on the tool, `ft_core.detection.contact`).
+WALL_MEMORY = 1.0
 
 
 @dataclass
@@ -49,6 +55,7 @@ class NearMiss:
     measured: float  #: rad/s, its velocity when it began
     commanded: float  #: rad/s, its weakest plausible prediction then
     deficit: float  #: rad, its lost position then
+    at_wall: bool  #: began with an obstacle placed, or removed within `WALL_MEMORY` s
 
 
 @dataclass
@@ -58,6 +65,7 @@ class Replay:
     declared: list[tuple[float, str]] = field(default_factory=list)  #: the replay's lines
     announced: list[tuple[float, list[str]]] = field(default_factory=list)  #: live locked sets
     injected: list[tuple[float, str, str]] = field(default_factory=list)  #: (joint, kind)
+    walls: list[tuple[float, bool]] = field(default_factory=list)  #: placed (True) or removed
     near: list[NearMiss] = field(default_factory=list)
 
 
@@ -86,6 +94,8 @@ def _events(bag: Path, chain: list[str]) -> tuple[list[tuple[float, str, object]
                     events.append((arrival, topic, np.asarray(msg.velocity)[order]))
             elif topic == names.LOCKED_JOINTS:
                 events.append((arrival, topic, list(msg.name)))
+            elif topic == names.OBSTACLE:
+                events.append((arrival, topic, msg.action != msg.DELETE))
             else:
                 events.append((arrival, topic, [(s.name, s.message) for s in msg.status]))
     events.sort(key=lambda e: e[0])
@@ -102,6 +112,7 @@ def replay(bag: Path, start: float = -math.inf, end: float = math.inf) -> Replay
     core = Monitor(robot, DetectorConfig(), MonitorConfig(), None)
     seen = Replay()
     faulty: set[int] = set()
+    wall_until = -math.inf  # arrival (s) until which a near miss counts as at the wall
     under_way: dict[int, tuple[NearMiss, float]] = {}  # joint -> (near miss, its first stamp)
     for arrival, topic, payload in events:
         if not start <= arrival <= end:
@@ -116,7 +127,8 @@ def replay(bag: Path, start: float = -math.inf, end: float = math.inf) -> Replay
                 if evidence.candidate and evidence.locked_at is None and j not in faulty:
                     if j not in under_way:
                         under_way[j] = (NearMiss(arrival, chain[j], 0.0, evidence.measured,
-                                                 evidence.commanded, evidence.deficit), stamp)
+                                                 evidence.commanded, evidence.deficit,
+                                                 arrival <= wall_until), stamp)
                     under_way[j][0].duration = stamp - under_way[j][1]
                 elif j in under_way:
                     seen.near.append(under_way.pop(j)[0])
@@ -125,6 +137,9 @@ def replay(bag: Path, start: float = -math.inf, end: float = math.inf) -> Replay
             if not payload:  # the probe's reset
                 core.reset(arrival + offset)
                 faulty.clear()
+        elif topic == names.OBSTACLE:
+            seen.walls.append((arrival, payload))
+            wall_until = math.inf if payload else arrival + WALL_MEMORY
         else:
             for name, kind in payload:
                 if name in chain:
@@ -145,9 +160,11 @@ def main(argv: list[str] | None = None) -> int:
     lines = ([(a, f"injected {joint} {kind}") for a, joint, kind in seen.injected]
              + [(a, f"live locked set {names_}") for a, names_ in seen.announced]
              + [(a, f"replay: {line}") for a, line in seen.declared]
-             + [(m.arrival, f"near miss {m.joint} for {1e3 * m.duration:.0f} ms: measured "
-                 f"{m.measured:.4f} rad/s against {m.commanded:.4f}, "
-                 f"{1e3 * m.deficit:.1f} mrad behind") for m in seen.near])
+             + [(a, "obstacle placed" if placed else "obstacle removed")
+                for a, placed in seen.walls]
+             + [(m.arrival, f"near miss{' at the wall' if m.at_wall else ''} {m.joint} for "
+                 f"{1e3 * m.duration:.0f} ms: measured {m.measured:.4f} rad/s against "
+                 f"{m.commanded:.4f}, {1e3 * m.deficit:.1f} mrad behind") for m in seen.near])
     for arrival, line in sorted(lines, key=lambda x: x[0]):
         print(f"{arrival:.3f} {line}")
     return 0
