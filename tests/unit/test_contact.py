@@ -254,6 +254,8 @@ def test_a_tool_pushing_into_a_wall_declares_no_joint(driver: str, seed: int) ->
     assert _declared(loop) == {} and loop.declared == []
 
 
+#: s more the loop may take to reach a goal once the wall is gone.
+REACH = 6.0
 #: Walls across the way between two goals where healthy joints were once declared, behind
 #: the slow driver: (from, to (m), the wall's share of the way, s pushed, the loop's seed).
 WALLS = {
@@ -293,7 +295,11 @@ def test_a_wall_between_two_goals_declares_no_joint_while_pushed_or_after(
         loop.plant.remove_obstacle()
         loop.run(3.0)
         assert _declared(loop) == {} and loop.declared == []
-        assert loop.tool_error() < 0.01
+        # The goal is reached: how soon depends on when the controller's worker process
+        # (niced, on a busy machine slow in the loop's time) answers its recovery.
+        loop.run(REACH, stop=lambda: loop.tool_error() < 0.01)
+        assert loop.tool_error() < 0.01, "the goal was not reached after the wall"
+        assert _declared(loop) == {} and loop.declared == []
     finally:
         loop.close()
 
@@ -335,7 +341,9 @@ def test_a_tool_sent_back_off_a_wall_still_there_declares_no_joint(
         loop.run(3.0)
         assert left, "the tool was never seen leaving the wall"
         assert _declared(loop) == {} and loop.declared == []
-        assert loop.tool_error() < 0.01
+        loop.run(REACH, stop=lambda: loop.tool_error() < 0.01)  # as above
+        assert loop.tool_error() < 0.01, "the goal was not reached after the wall"
+        assert _declared(loop) == {} and loop.declared == []
     finally:
         loop.close()
 
