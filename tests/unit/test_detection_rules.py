@@ -320,22 +320,26 @@ def test_a_silent_joint_falling_past_every_command_and_rest_falls() -> None:
     measured = np.array([0.3 + MIN + 0.01, 0.3 + MIN - 0.01, 0.6, 0.6])
     silent = np.array([True, True, False, True])
     everyone, falling = np.ones(4, bool), np.ones(4)
-    own = rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), commands, falling,
+    fastest = rules.fastest_fall(commands, falling)
+    assert fastest.tolist() == [0.3, 0.3, 0.3, 0.3]
+    own = rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), fastest, falling,
                                          everyone, MIN, Z)
     # Joint 1 is within min_command of the fastest command; joint 2's drive gives torque.
     assert own.tolist() == [True, False, False, True]
     # Falling the other way than gravity turns it, past the commands: no fall.
-    assert not rules.falls_past_every_command(silent, -measured, np.full(4, 1e-3), commands,
+    assert not rules.falls_past_every_command(silent, -measured, np.full(4, 1e-3), fastest,
                                               falling, everyone, MIN, Z).any()
     # With no command kept, or only uphill ones, rest is the bound; the noise widens it.
-    uphill = -np.abs(commands)
+    rest = rules.fastest_fall(-np.abs(commands), falling)
+    assert rest.tolist() == [0.0] * 4
+    assert rules.fastest_fall(np.zeros((0, 4)), falling).tolist() == [0.0] * 4
     slow = np.full(4, 0.2)
-    assert rules.falls_past_every_command(silent, slow, np.full(4, 1e-3), uphill, falling,
+    assert rules.falls_past_every_command(silent, slow, np.full(4, 1e-3), rest, falling,
                                           everyone, MIN, Z).tolist() == [True, True, False, True]
-    assert not rules.falls_past_every_command(silent, slow, np.full(4, 0.05), np.zeros((0, 4)),
+    assert not rules.falls_past_every_command(silent, slow, np.full(4, 0.05), rest,
                                               falling, everyone, MIN, Z).any()
     # Neither a joint gravity does not turn, nor one declared already.
-    assert not rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), commands,
+    assert not rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), fastest,
                                               np.zeros(4), everyone, MIN, Z).any()
-    assert not rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), commands,
+    assert not rules.falls_past_every_command(silent, measured, np.full(4, 1e-3), fastest,
                                               falling, np.zeros(4, bool), MIN, Z).any()

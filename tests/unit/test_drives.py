@@ -202,10 +202,14 @@ def test_a_silent_joint_resting_on_the_stop_gravity_turns_it_into_moves_on_its_o
     assert own.tolist() == [True, False, False, False]
 
 
+#: (t s, |command in force - velocity| rad/s, departed since s or NaN, not observing why)
+Step = tuple[float, float, float, str | None]
+
+
 def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float,
                          command_at: Callable[[float], np.ndarray], seed: int,
                          paused: tuple[float, float] = (math.inf, math.inf),
-                         ) -> tuple[list[str], float, Monitor, list[tuple[float, float, float]]]:
+                         ) -> tuple[list[str], float, Monitor, list[Step]]:
     """3 s of the physics plant from `q` behind `driver`, commanded through a monitor.
 
     `command_at(t)`: the controller's command at t (rad/s), none sent within `paused`
@@ -213,13 +217,14 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
     on the positions, the drives' torques as efforts. Returns the monitor's events, when
     (s) the first came, the monitor, and per step (t, |command in force at the plant -
     velocity| of `joint`, rad/s, since when (s) the detector has seen `joint` depart where
-    its drive leaves that unanswered, NaN elsewhere).
+    its drive leaves that unanswered, NaN elsewhere, and why the detector did not observe
+    at the step's measurement, None where it did).
     """
     monitor = Monitor(PANDA, DetectorConfig(), MonitorConfig(), None)
     plant = PhysicsPlant(PANDA, q, DRIVERS[driver])
     rng = np.random.default_rng(seed)
     events: list[str] = []
-    off: list[tuple[float, float, float]] = []
+    off: list[Step] = []
     first = np.inf
     t = 0.0
     for _ in range(round(3.0 / DT)):
@@ -227,6 +232,7 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
             plant.inject(joint, Fault(FaultKind.FREE_SWING, PANDA.joint_names[joint]))
         change = monitor.observe(plant.q + rng.normal(0.0, NOISE, PANDA.n), t,
                                  effort=plant.torque)
+        reason = monitor.detector.not_observing
         if change.events and not events:
             first = t
         events += change.events
@@ -236,7 +242,8 @@ def _through_the_monitor(q: np.ndarray, driver: str, joint: int, fails_at: float
         plant.step(t)
         detector = monitor.detector
         off.append((t, abs(plant.path.in_force(t)[joint] - plant.qd[joint]),
-                    detector.departed_since[joint] if detector.unanswered[joint] else np.nan))
+                    detector.departed_since[joint] if detector.unanswered[joint] else np.nan,
+                    reason))
     monitor.close()
     return events, first, monitor, off
 
@@ -270,6 +277,32 @@ def test_a_free_swing_while_the_command_stream_is_paused_is_named_within_200_ms(
     assert events[0].startswith("joint panda_joint6 free-swinging")
     assert first - fails_at <= 0.2
     assert first < pause[1]  # named while the commands were away
+    assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [joint]
+
+
+def test_a_free_swing_before_the_plant_is_seen_following_again_is_named_then() -> None:
+    """Panda joint 6 loses its torque 180 ms after a 0.5 s pause of the commands ended.
+
+    The detector has settled after the restart and waits to see the plant follow
+    (`plant not yet seen following commands`, 0.2 s); the silent drive's fall is named in
+    that wait (`blind_falls`), within 100 ms, not once the plant is seen following.
+    """
+    q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.2, 0.8])
+    joint, pause, fails_at = 5, (1.5, 2.0), 2.18
+
+    def command_at(t: float) -> np.ndarray:
+        w = 0.2 * math.sin(2 * math.pi * t / 0.8)
+        return np.array([w, 0.0, -w, 0.1 * w, -w, w, 0.0])
+
+    events, first, monitor, steps = _through_the_monitor(q, "fast", joint, fails_at,
+                                                         command_at, 4, pause)
+    waiting = [t - DT for t, *_, reason in steps
+               if reason == "plant not yet seen following commands"]
+    assert waiting and min(waiting) < fails_at, "no wait to see the plant follow"
+    assert events, "the swing was not named"
+    assert events[0].startswith("joint panda_joint6 free-swinging")
+    assert first - fails_at <= 0.1
+    assert any(abs(t - first) < DT / 2 for t in waiting)  # named in the wait
     assert [j for j, s in enumerate(monitor.board.states) if s != Health.HEALTHY] == [joint]
 
 
@@ -369,8 +402,8 @@ def _coasting(driver: str, fails_at: float,
         return command
 
     events, first, monitor, off = _through_the_monitor(Q, driver, 0, fails_at, command_at, 5)
-    shown = min((t for t, away, _ in off if t >= fails_at and away >= 0.1), default=np.inf)
-    found, departed = next(((t - DT, since) for t, _, since in off if since == since),
+    shown = min((t for t, away, _, _ in off if t >= fails_at and away >= 0.1), default=np.inf)
+    found, departed = next(((t - DT, since) for t, _, since, _ in off if since == since),
                            (np.inf, np.inf))  # judged at the step's start, DT before t
     return events, first - shown, monitor, (departed, found, first)
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ft_core.detection import rules
+from ft_core.detection import blind_falls, rules
 from ft_core.detection.config import DetectorConfig
 from ft_core.detection.drives import (
     ANSWER_SPANS,
@@ -175,8 +175,8 @@ class LockDetector:
         """A measured configuration; the joints it newly declares locked or free-swinging.
 
         `blind` (a reason) forbids decisions and identification at this update; while
-        the detector's own reasons hold (`rules.not_observing`), only a silent drive's
-        fall is judged (`rules.falls_past_every_command`).
+        the detector's own reasons hold (`rules.not_observing`, or the plant not yet
+        seen following), only a silent drive's fall is judged (`blind_falls`).
         `falling` returns (n,) the sign of the acceleration gravity gives each joint at
         `position` were its torque lost, 0 where it is too weak to move it
         (`ft_core.swing.falling_directions`), or None where the arm's gravity is unknown;
@@ -208,50 +208,25 @@ class LockDetector:
         self.not_observing = reason
         if reason is not None:
             self.plant_fault = None  # no evidence either way
-            if blind is None:
-                return self._falls_while_blind(time, falling, drives)
-            self._clear_evidence()
-            return Update()
+            kept = self._clear_evidence()
+            return Update() if blind else self._falls_while_blind(time, kept, falling, drives)
         return self._update(time, dt, falling, veto, drives)
 
-    def _falls_while_blind(self, now: float, falling: Callable[[], np.ndarray | None] | None,
+    def _falls_while_blind(self, now: float, kept: list[float | None],
+                           falling: Callable[[], np.ndarray | None] | None,
                            drives: Drives | None) -> Update:
-        """The one decision while the commands predict nothing: a silent drive's fall.
-
-        A joint whose drive is silent, falling faster than every command kept and than
-        rest (`rules.falls_past_every_command`), swings whatever the plant does with the
-        commands; declared after `persistence`, as any free swing.
-        """
-        joints, cfg, plant = self.joints, self.config, self._plant
-        kept = [e.swing_since for e in joints]
-        self._clear_evidence()
-        samples = self._samples
-        times = samples.window()[0]
-        if (drives is None or not drives.silent.any() or falling is None
-                or times.size < cfg.min_samples or times[-1] - times[0] < cfg.window / 2):
+        """`blind_falls.declare_falls`, where a drive is silent and the arm's gravity known."""
+        if drives is None or falling is None or not drives.silent.any():
             return Update()
         gravity = falling()
         if gravity is None:
             return Update()
-        measured, _, error = _window_fit(*samples.window(), samples.predicted_sum,
-                                         samples.timed_sum, samples.base,
-                                         plant.plausible_models, plant.best)
         history = self.history
-        commands = history.values[history.start:history.end]
-        direction = np.asarray(gravity, dtype=float)
-        free = np.array([e.locked_at is None and e.swinging_at is None for e in joints])
-        own = rules.falls_past_every_command(drives.silent, measured, error, commands,
-                                             direction, free, cfg.min_command, cfg.confidence)
-        fastest = np.maximum((direction * commands).max(axis=0, initial=0.0), 0.0)
-        for j in np.flatnonzero(own).tolist():
-            joints[j].swing_since = kept[j]
-            joints[j].measured = float(measured[j])
-            joints[j].commanded = float(direction[j] * fastest[j])
+        swinging, released = blind_falls.declare_falls(
+            now, self.joints, kept, self._samples, history.values[history.start:history.end],
+            drives.silent, np.asarray(gravity, dtype=float), self._plant, self.config,
+            self._declared_at)
         self.torqueless, self.beyond_contact = drives.silent.copy(), drives.silent.copy()
-        settle = plant.settling_time(plant.best)
-        swinging, released, _ = declare_swings(
-            joints, own.tolist(), now, Disturbance(joints, now, self._declared_at + settle),
-            cfg.persistence, settle, lambda j, since: 0.0)
         if swinging:
             self._declared_at = now
         return Update((), tuple(swinging), tuple(released))
@@ -309,11 +284,14 @@ class LockDetector:
                             replace(evidence, locked_at=time, position=position))
 
     # -------------------------------------------------------------- decisions
-    def _clear_evidence(self) -> None:
+    def _clear_evidence(self) -> list[float | None]:
+        """Forget the evidence under way; returns when each joint's swing evidence began."""
+        kept = [e.swing_since for e in self.joints]
         for evidence in self.joints:
             evidence.evidence_since = evidence.swing_since = None
         self.unanswered = np.zeros(self.n, dtype=bool)
         self.departed_since = np.full(self.n, math.nan)
+        return kept
 
     def _update(self, now: float, dt: float,
                 falling: Callable[[], np.ndarray | None] | None,
@@ -464,8 +442,7 @@ class LockDetector:
                 self._seen_following += dt
         if self._seen_following < cfg.follow_time:
             self.not_observing = "plant not yet seen following commands"
-            self._clear_evidence()
-            return Update()
+            return self._falls_while_blind(now, self._clear_evidence(), falling, drives)
         settle = plant.settling_time(best)
         # Disturbed too once the tool came off an obstacle: its servos turn round.
         disturbance = Disturbance(joints, now, math.inf if drives is not None and drives.left

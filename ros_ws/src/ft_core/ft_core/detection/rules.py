@@ -171,22 +171,30 @@ def silent_and_on_its_own(silent: np.ndarray, quiet: np.ndarray, measured: np.nd
     return own
 
 
+def fastest_fall(commands: np.ndarray, falling: np.ndarray) -> np.ndarray:
+    """The fastest the commands move each joint the way gravity turns it (n,) (rad/s, >= 0).
+
+    Over `commands` (k x n rad/s, any k, none included) and rest, along `falling` (the
+    signs of gravity's acceleration, `ft_core.swing.falling_directions`).
+    """
+    return np.maximum((falling * commands).max(axis=0, initial=0.0), 0.0)
+
+
 def falls_past_every_command(silent: np.ndarray, measured: np.ndarray, error: np.ndarray,
-                             commands: np.ndarray, falling: np.ndarray, free: np.ndarray,
+                             fastest: np.ndarray, falling: np.ndarray, free: np.ndarray,
                              min_command: float, confidence: float) -> np.ndarray:
     """Silent joints falling faster than any command moves them, predictions or none.
 
     Used while the commands predict nothing (their stream paused, settling after it
     restarted, the plant not yet seen following): the plant holds a command it was sent
     lately, answers one before it, or stops. A healthy joint that moves the way gravity
-    turns it faster than every such command (`commands`, k x n rad/s) and than rest is
+    turns it faster than every such command and than rest (`fastest`, `fastest_fall`) is
     held back by its servo with more than its gravity torque; a `silent` drive
     (`drives.Drives.silent`) gives none, so its joint falls (Maciejewski et al. sec. 2.3).
-    Counts where the velocity `measured` lies beyond them the way gravity turns it
+    Counts where the velocity `measured` lies beyond `fastest` the way gravity turns it
     (`falling`, the signs) by max(`confidence` `error`, `min_command`), for the `free`
     joints. Returns (n,) bool.
     """
-    fastest = np.maximum((falling * commands).max(axis=0, initial=0.0), 0.0)
     noise = np.maximum(confidence * error, min_command)
     return silent & free & (falling != 0) & (falling * measured - fastest > noise)
 
@@ -397,6 +405,11 @@ def slow_stall(moved: np.ndarray, predicted: np.ndarray, reached: np.ndarray,
     return lost.all(axis=0) & (size.sum(axis=0) >= least) & ~pushing
 
 
+def too_few_samples(times: np.ndarray, window: float, min_samples: int) -> bool:
+    """Fewer than `min_samples` measurements (`times`, s), or over less than half `window`."""
+    return bool(times.size < min_samples or times[-1] - times[0] < window / 2)
+
+
 def not_observing(now: float, last_command: float, resumed_at: float, settling: float,
                   times: np.ndarray, window: float, min_samples: int) -> str | None:
     """Why nothing can be decided at `now` (s), or None: no decision without evidence.
@@ -422,7 +435,7 @@ def not_observing(now: float, last_command: float, resumed_at: float, settling: 
         return f"command stream paused for {gap:.3f} s"
     if now < resumed_at + settling:
         return "settling after the command stream (re)started"
-    if times.size < min_samples or times[-1] - times[0] < window / 2:
+    if too_few_samples(times, window, min_samples):
         return "too few joint states in the window"
     if _largest_step(times) > window / 2:
         return "joint states arrive with gaps"
